@@ -1,0 +1,22 @@
+"""Numba-compiled per-sample kernels.
+
+Pure arithmetic on float64 scalars and preallocated arrays: no Python objects, no I/O, no
+allocation in the per-sample path.  Every kernel has an explicit signature, so importing
+this package compiles (or loads from the on-disk cache) all of them before any loop runs.
+Imports numpy and numba only.
+"""
+from kernels.compensator import FAST, SLOW, compensate, direction, regime_switch, velocity_estimate
+from kernels.controller import CTRL_PARAMS, CTRL_STATE, controller_start, controller_tick
+from kernels.dahl import dahl_closed, dahl_flow, dahl_slope, dahl_update
+from kernels.delay import shift_in
+from kernels.holding import holding_pi, holding_pi_bumpless
+from kernels.loop import LOG_COLUMNS, STATS_SIZE, closed_loop, error_stats, log_row
+from kernels.plant import PLANT_PARAMS, PLANT_STATE, plant_measure, plant_step
+
+__all__ = [
+    "CTRL_PARAMS", "CTRL_STATE", "FAST", "LOG_COLUMNS", "PLANT_PARAMS", "PLANT_STATE",
+    "SLOW", "STATS_SIZE", "closed_loop", "compensate", "controller_start",
+    "controller_tick", "dahl_closed", "dahl_flow", "dahl_slope", "dahl_update", "direction",
+    "error_stats", "holding_pi", "holding_pi_bumpless", "log_row", "plant_measure",
+    "plant_step", "regime_switch", "shift_in", "velocity_estimate",
+]

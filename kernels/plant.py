@@ -1,0 +1,253 @@
+"""The simulated VCM drive: one sample of the plant of PHYSICS.md (paper eq. 1).
+
+Forces are normalised to amperes (force constant 1 at the stroke centre)::
+
+    J*x'' = kf(x)*u + d - B(s)*x' - C(x', s)*s - H - K*x - h0 - cog(x)
+
+* ``u`` the applied current (A): the command, clipped to ``+-u_max`` and delayed by
+  ``delay_whole*dt + delay_frac`` seconds; ``d`` a disturbance force (A).
+* ``H`` the pivot's Dahl hysteresis (eq. 6, its sliding level ``Ha`` is the pivot friction),
+  integrated *exactly in position* inside each sub-step (:func:`kernels.dahl.dahl_flow`
+  from the sub-step's start), so the element stays exact at any speed where its
+  differential form in time would be stiff.
+* ``C`` an optional Coulomb/Stribeck friction with static friction ``Fs`` (breakaway) and
+  ``Fc`` (sliding), direction-asymmetric by ``fc_asym``; ``B(s) = B*(1 + s*b_asym)``.
+* ``kf(x) = 1 + kf1*(x/stroke) + kf2*(x/stroke)**2`` force-constant variation; ``cog(x)``
+  a periodic (cogging) force; hard stops at ``+-stroke``.
+* Flexible modes ``q_i'' + 2*zeta_i*w_i*q_i' + w_i**2*q_i = u/J`` add ``g_i*q_i`` to the
+  measured position; they are linear and advanced with their exact zero-order-hold
+  discretisation (matrices from :mod:`servo.drive`), once per constant-input interval.
+
+Sticking: at rest (``v == 0``) the arm stays put while the net force is within the
+breakaway level (exactly zero motion, no creep); when the velocity reverses inside a
+sub-step and the net force is within breakaway, it sticks (``v = 0``).  With only the Dahl
+element (the default drive) there is no discontinuity at ``v = 0`` at all: below ``Ha``
+the pivot is a stiff spring and the arm comes to rest on it.
+
+Within one sample the input is piecewise constant: ``u[k-m-1]`` for the first
+``delay_frac`` seconds, then ``u[k-m]`` (``m = delay_whole``); each piece is integrated
+with ``n_sub`` RK4 sub-steps.
+"""
+import math
+
+import numpy as np
+from numba import float64, from_dtype, njit, void
+from numba.types import UniTuple
+
+from kernels.dahl import dahl_flow
+from kernels.delay import shift_in
+
+PLANT_PARAMS = np.dtype(
+    [
+        ("J", "f8"),  # normalised inertia, A*s^2/m
+        ("B", "f8"),  # viscous friction, A*s/m
+        ("b_asym", "f8"),  # viscous asymmetry, B(s) = B*(1 + s*b_asym)
+        ("Fc", "f8"),  # Coulomb (sliding) friction, A
+        ("Fs", "f8"),  # static (breakaway) friction, A, >= Fc
+        ("fc_asym", "f8"),  # Coulomb asymmetry, Fc(s) = Fc*(1 + s*fc_asym)
+        ("vs", "f8"),  # Stribeck velocity, m/s
+        ("sigma", "f8"),  # Dahl pre-sliding stiffness, A/m
+        ("Ha", "f8"),  # Dahl asymptote (pivot sliding friction), A
+        ("alpha", "f8"),  # Dahl shape exponent
+        ("K", "f8"),  # bias stiffness, A/m
+        ("h0", "f8"),  # bias offset, A
+        ("cog_amp", "f8"),  # cogging force amplitude, A
+        ("cog_period", "f8"),  # cogging period in position, m
+        ("cog_phase", "f8"),  # cogging phase, rad
+        ("kf1", "f8"),  # force-constant variation, linear (fraction at +stroke)
+        ("kf2", "f8"),  # force-constant variation, quadratic (fraction at +-stroke)
+        ("stroke", "f8"),  # hard stops at +-stroke, m
+        ("u_max", "f8"),  # amplifier current limit, A
+        ("dt", "f8"),  # sample period, s
+        ("delay_frac", "f8"),  # fractional part of the input delay, s, in [0, dt)
+        ("delay_whole", "f8"),  # whole samples of input delay
+        ("n_sub", "f8"),  # RK4 sub-steps per constant-input interval
+        ("noise_x", "f8"),  # position sensor noise, m (std)
+        ("noise_v", "f8"),  # velocity sensor noise, m/s (std)
+        ("quantum", "f8"),  # position quantisation step, m (0: none)
+        ("has_velocity", "f8"),  # 1: the drive measures velocity (LDV), 0: not
+    ]
+)
+PLANT_STATE = np.dtype(
+    [
+        ("x", "f8"),  # rigid-body position, m
+        ("v", "f8"),  # rigid-body velocity, m/s
+        ("H", "f8"),  # Dahl hysteresis force, A
+    ]
+)
+plant_params_t = from_dtype(PLANT_PARAMS)[::1]
+plant_state_t = from_dtype(PLANT_STATE)[::1]
+
+
+@njit(float64(float64, plant_params_t), cache=True)
+def force_constant(x, pp):
+    """Force constant relative to the stroke centre, ``kf(x)`` (dimensionless)."""
+    p = pp[0]
+    r = x / p.stroke
+    return 1.0 + p.kf1 * r + p.kf2 * r * r
+
+
+@njit(float64(float64, float64, float64, plant_params_t), cache=True)
+def drive_force(x, u, d, pp):
+    """Every force on the arm except friction and hysteresis (A)."""
+    p = pp[0]
+    f = force_constant(x, pp) * u + d - p.K * x - p.h0
+    if p.cog_amp != 0.0:
+        f -= p.cog_amp * math.sin(2.0 * math.pi * x / p.cog_period + p.cog_phase)
+    return f
+
+
+@njit(float64(float64, float64, plant_params_t), cache=True)
+def sliding_friction(v, s, pp):
+    """Viscous plus Coulomb/Stribeck friction (A) while moving in direction ``s``."""
+    p = pp[0]
+    f = p.B * (1.0 + s * p.b_asym) * v
+    if p.Fs > 0.0:
+        fc = p.Fc * (1.0 + s * p.fc_asym)
+        fs = p.Fs * (1.0 + s * p.fc_asym)
+        f += s * (fc + (fs - fc) * math.exp(-((v / p.vs) ** 2)))
+    return f
+
+
+@njit(float64(float64, plant_params_t), cache=True)
+def breakaway(s, pp):
+    """Static friction (A) to overcome to start moving in direction ``s``."""
+    p = pp[0]
+    return p.Fs * (1.0 + s * p.fc_asym)
+
+
+@njit(
+    float64(float64, float64, float64, float64, float64, float64, float64, plant_params_t),
+    cache=True,
+)
+def acceleration(x, v, s, x0, H0, u, d, pp):
+    """``x''`` (m/s^2) within a sub-step that started at ``(x0, H0)`` moving in ``s``."""
+    p = pp[0]
+    H = dahl_flow(H0, x - x0, s, p.sigma, p.Ha, p.alpha)
+    return (drive_force(x, u, d, pp) - sliding_friction(v, s, pp) - H) / p.J
+
+
+@njit(void(plant_state_t, plant_params_t, float64, float64, float64), cache=True)
+def rigid_substep(ps, pp, u, d, h):
+    """Advance rigid body and Dahl state by ``h`` seconds under constant ``u``, ``d``."""
+    st = ps[0]
+    p = pp[0]
+    x0 = st.x
+    v0 = st.v
+    H0 = st.H
+    if v0 > 0.0:
+        s = 1.0
+    elif v0 < 0.0:
+        s = -1.0
+    else:
+        f = drive_force(x0, u, d, pp) - H0
+        if f == 0.0:
+            return
+        s = 1.0 if f > 0.0 else -1.0
+        if abs(f) <= breakaway(s, pp):
+            return  # stuck: static friction holds, not a nanometre of creep
+    k1x = v0
+    k1v = acceleration(x0, v0, s, x0, H0, u, d, pp)
+    k2x = v0 + 0.5 * h * k1v
+    k2v = acceleration(x0 + 0.5 * h * k1x, k2x, s, x0, H0, u, d, pp)
+    k3x = v0 + 0.5 * h * k2v
+    k3v = acceleration(x0 + 0.5 * h * k2x, k3x, s, x0, H0, u, d, pp)
+    k4x = v0 + h * k3v
+    k4v = acceleration(x0 + h * k3x, k4x, s, x0, H0, u, d, pp)
+    x1 = x0 + h / 6.0 * (k1x + 2.0 * k2x + 2.0 * k3x + k4x)
+    v1 = v0 + h / 6.0 * (k1v + 2.0 * k2v + 2.0 * k3v + k4v)
+    if x1 > p.stroke:
+        x1 = p.stroke
+        v1 = min(v1, 0.0)
+    elif x1 < -p.stroke:
+        x1 = -p.stroke
+        v1 = max(v1, 0.0)
+    H1 = dahl_flow(H0, x1 - x0, s, p.sigma, p.Ha, p.alpha)
+    if s * v1 < 0.0 and p.Fs > 0.0:
+        # the velocity reversed inside the sub-step: static friction may catch the arm
+        f = drive_force(x1, u, d, pp) - H1
+        if abs(f) <= breakaway(1.0 if f > 0.0 else -1.0, pp):
+            v1 = 0.0
+    st.x = x1
+    st.v = v1
+    st.H = H1
+
+
+@njit(void(float64[:, ::1], float64[:, :, ::1], float64, float64), cache=True)
+def modes_advance(q, mab, part, u):
+    """Advance the flexible modes ``q[i] = (q_i, q_i')`` over one constant-input interval
+    with their exact discretisation ``mab[i, part] = (a11, a12, a21, a22, b1, b2)``."""
+    j = int(part)
+    for i in range(q.shape[0]):
+        q0 = q[i, 0]
+        q1 = q[i, 1]
+        q[i, 0] = mab[i, j, 0] * q0 + mab[i, j, 1] * q1 + mab[i, j, 4] * u
+        q[i, 1] = mab[i, j, 2] * q0 + mab[i, j, 3] * q1 + mab[i, j, 5] * u
+
+
+@njit(void(plant_state_t, plant_params_t, float64, float64, float64), cache=True)
+def rigid_advance(ps, pp, u, d, h):
+    """``n_sub`` RK4 sub-steps covering ``h`` seconds."""
+    n = int(pp[0].n_sub)
+    hs = h / n
+    for _ in range(n):
+        rigid_substep(ps, pp, u, d, hs)
+
+
+@njit(
+    void(
+        plant_state_t,
+        plant_params_t,
+        float64[:, ::1],
+        float64[:, :, ::1],
+        float64[::1],
+        float64,
+        float64,
+    ),
+    cache=True,
+)
+def plant_step(ps, pp, q, mab, ubuf, u_cmd, d):
+    """Advance the drive by one sample period under the current command ``u_cmd`` (A) and
+    disturbance force ``d`` (A).  ``ubuf`` (length ``delay_whole + 2``) holds the past
+    commands of the input delay; ``q``/``mab`` the flexible modes (see module doc)."""
+    p = pp[0]
+    u = min(max(u_cmd, -p.u_max), p.u_max)
+    shift_in(ubuf, u)
+    m = int(p.delay_whole)
+    u_late = ubuf[m]
+    u_early = ubuf[m + 1]
+    if p.delay_frac > 0.0:
+        rigid_advance(ps, pp, u_early, d, p.delay_frac)
+        modes_advance(q, mab, 0.0, u_early)
+    rigid_advance(ps, pp, u_late, d, p.dt - p.delay_frac)
+    modes_advance(q, mab, 1.0, u_late)
+
+
+@njit(
+    UniTuple(float64, 2)(
+        plant_state_t, plant_params_t, float64[:, ::1], float64[::1], float64, float64
+    ),
+    cache=True,
+)
+def plant_measure(ps, pp, q, gain, nx, nv):
+    """The sensor: ``(x_meas, v_meas)`` in m and m/s at the current instant.
+
+    Position = rigid + ``sum(g_i*q_i)`` + ``noise_x*nx``, quantised to ``quantum``;
+    velocity likewise with ``noise_v*nv``, or NaN when the drive measures no velocity.
+    ``nx``, ``nv`` are standard-normal draws supplied by the caller (seeded upstream).
+    """
+    st = ps[0]
+    p = pp[0]
+    y = st.x
+    yd = st.v
+    for i in range(q.shape[0]):
+        y += gain[i] * q[i, 0]
+        yd += gain[i] * q[i, 1]
+    y += p.noise_x * nx
+    if p.quantum > 0.0:
+        y = math.floor(y / p.quantum + 0.5) * p.quantum
+    if p.has_velocity != 0.0:
+        yd += p.noise_v * nv
+    else:
+        yd = math.nan
+    return y, yd
