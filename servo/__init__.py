@@ -1,0 +1,8 @@
+"""Servo runtime and modeling tool for precision voice-coil actuators.
+
+Gong, Guo, Lee, Yao, "Modeling and Cancellation of Pivot Nonlinearity in Hard Disk
+Drives", IEEE Trans. Magnetics 38(5), 2002, as a fixed-rate servo runtime with a compiled
+core (:mod:`kernels`).  Layers: ``kernels`` <- ``servo`` <- ``hil``; the CLI
+(:mod:`servo.cli`) sits on top.
+"""
+__version__ = "0.1.0"

@@ -1,0 +1,87 @@
+"""The ``servo`` command line: the top layer, the only one that may import everything.
+
+Each subcommand lives in its own module here with ``register(subparsers)``; the module
+names are listed in :data:`COMMANDS`.  Every user-facing failure is one line on stderr
+and a non-zero exit: ``servo: error: ...`` (exit 2; 3 for drive/link failures), Ctrl-C or
+SIGTERM ``servo: interrupted`` (exit 130), and a bug ``servo: internal error: ...``
+(exit 70; ``SERVO_DEBUG=1`` shows the traceback).
+"""
+from __future__ import annotations
+
+import argparse
+import importlib
+import os
+import signal
+import sys
+import tomllib
+
+from servo.errors import ConfigError, ServoError
+
+COMMANDS = ("run", "config")
+
+
+class UsageError(ServoError):
+    """Bad command-line usage."""
+
+
+class Parser(argparse.ArgumentParser):
+    """argparse that raises one-line errors instead of printing usage and exiting."""
+
+    def error(self, message: str):
+        raise UsageError(f"{self.prog}: {message} (see {self.prog} --help)")
+
+
+def parse_set(items: list[str] | None) -> dict:
+    """``--set section.key=value`` options (TOML values) as nested dicts."""
+    out: dict = {}
+    for item in items or []:
+        key, sep, value = item.partition("=")
+        section, dot, name = key.strip().partition(".")
+        if not sep or not dot or not name:
+            raise ConfigError(f"--set {item!r}: expected section.key=value")
+        try:
+            parsed = tomllib.loads(f"v = {value.strip()}")["v"]
+        except tomllib.TOMLDecodeError:
+            parsed = value.strip()  # a bare word: a string
+        out.setdefault(section, {})[name] = parsed
+    return out
+
+
+def build_parser() -> Parser:
+    parser = Parser(prog="servo", description="Servo runtime and modeling tool for voice-coil actuators.")
+    sub = parser.add_subparsers(dest="command", metavar="COMMAND", parser_class=Parser)
+    for name in COMMANDS:
+        importlib.import_module(f"servo.cli.{name}").register(sub)
+    return parser
+
+
+def _sigterm(signum, frame):
+    raise KeyboardInterrupt
+
+
+def main(argv: list[str] | None = None) -> int:
+    signal.signal(signal.SIGTERM, _sigterm)
+    try:
+        parser = build_parser()
+        args = parser.parse_args(argv)
+        if args.command is None:
+            parser.print_help()
+            return 2
+        return int(args.handler(args) or 0)
+    except ServoError as exc:
+        print(f"servo: error: {exc}", file=sys.stderr)
+        return exc.exit_code
+    except KeyboardInterrupt:
+        print("servo: interrupted; drive left at zero current, recorded data kept", file=sys.stderr)
+        return 130
+    except BrokenPipeError:
+        return 0
+    except Exception as exc:  # a bug: still one line unless asked for more
+        if os.environ.get("SERVO_DEBUG"):
+            raise
+        print(f"servo: internal error: {type(exc).__name__}: {exc} (SERVO_DEBUG=1 shows the traceback)", file=sys.stderr)
+        return 70
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,352 @@
+"""Run configuration: TOML, every field documented with its unit, a complete default.
+
+The default (no file) is the simulated HDD drive of PHYSICS.md section 5 at 50 kHz, the
+paper's compensator with the drive's nominal parameters, and the ``servo run`` scenario.
+A file needs only the fields it changes::
+
+    [drive]
+    sigma = 400.0          # A/m
+
+    [run]
+    duration_s = 1.0
+
+Unknown sections or keys, wrong types and out-of-range values raise
+:class:`~servo.errors.ConfigError` naming the key (``drive.sigma``).  ``servo config``
+prints the full default with the documentation of every field; ``docs/config.md`` is the
+same text as a table.
+"""
+from __future__ import annotations
+
+import dataclasses
+import difflib
+import math
+import tomllib
+from dataclasses import dataclass, field, fields
+from pathlib import Path
+from typing import Any
+
+from servo.errors import ConfigError
+
+
+def P(default, unit: str, doc: str, lo=None, hi=None, lo_open=False, hi_open=False, choices=None):
+    """A documented config field: default, unit, one-line doc, valid range or choices."""
+    meta = dict(unit=unit, doc=doc, lo=lo, hi=hi, lo_open=lo_open, hi_open=hi_open, choices=choices)
+    if isinstance(default, list):
+        return field(default_factory=lambda d=tuple(default): list(d), metadata=meta)
+    return field(default=default, metadata=meta)
+
+
+@dataclass
+class RunConfig:
+    """How the run is stepped and recorded."""
+
+    sample_rate_hz: float = P(50_000.0, "Hz", "servo sample rate (one tick per sample)", 100.0, 1e6)
+    duration_s: float = P(0.6, "s", "length of the run", 0.0, 3600.0, lo_open=True)
+    seed: int = P(1, "-", "seed of the simulated sensor noise (same seed, same bits)", 0, 2**63 - 1)
+    excitation_every: int = P(1, "ticks", "excitation/reference task period", 1, 10**6)
+    estimator_every: int = P(10, "ticks", "tracking-error estimator task period", 1, 10**6)
+    log_every: int = P(1, "ticks", "logging period (decimation of the run log)", 1, 10**6)
+    fast_path: bool = P(False, "-", "run the all-compiled loop instead of tick by tick")
+
+
+@dataclass
+class DriveConfig:
+    """The simulated VCM drive (PHYSICS.md section 5).  Forces are in amperes of VCM current
+    (force constant 1 N/A at the stroke centre), positions in metres at the head."""
+
+    J: float = P(1.0e-3, "A*s^2/m", "normalised inertia (equivalent mass)", 0.0, None, lo_open=True)
+    B: float = P(2.0e-3, "A*s/m", "viscous friction", 0.0)
+    sigma: float = P(320.0, "A/m", "Dahl pre-sliding stiffness (slope at a turnaround)", 0.0, None, lo_open=True)
+    Ha: float = P(1.0e-3, "A", "Dahl asymptote = pivot sliding friction level", 0.0, None, lo_open=True)
+    alpha: float = P(1.0, "-", "Dahl shape exponent", 0.0, 10.0, lo_open=True)
+    K: float = P(0.1, "A/m", "flex-cable bias stiffness", None, None)
+    h0: float = P(2.0e-3, "A", "flex-cable bias offset", None, None)
+    Fc: float = P(0.0, "A", "extra Coulomb (sliding) friction beyond the Dahl element", 0.0)
+    Fs: float = P(0.0, "A", "static (breakaway) friction of the Coulomb term, >= Fc", 0.0)
+    stribeck_velocity: float = P(1.0e-3, "m/s", "Stribeck velocity of the Coulomb term", 0.0, None, lo_open=True)
+    fc_asymmetry: float = P(0.0, "-", "Coulomb asymmetry: Fc(+) = Fc*(1+a), Fc(-) = Fc*(1-a)", -1.0, 1.0)
+    b_asymmetry: float = P(0.0, "-", "viscous asymmetry: B(+) = B*(1+a), B(-) = B*(1-a)", -1.0, 1.0)
+    cogging: float = P(0.0, "A", "amplitude of a force periodic in position", 0.0)
+    cogging_period: float = P(1.0e-4, "m", "period of that force", 0.0, None, lo_open=True)
+    cogging_phase: float = P(0.0, "rad", "phase of that force", -2 * math.pi, 2 * math.pi)
+    kf_linear: float = P(0.0, "-", "force-constant change at +stroke, linear in x", -0.9, 0.9)
+    kf_quadratic: float = P(0.0, "-", "force-constant change at +-stroke, quadratic in x", -0.9, 0.9)
+    mode_hz: list = P([3000.0, 4100.0, 5000.0, 7000.0, 12300.0, 16400.0], "Hz", "flexible mode frequencies", 0.0, None, lo_open=True)
+    mode_zeta: list = P([0.01, 0.03, 0.01, 0.01, 0.005, 0.005], "-", "flexible mode damping ratios", 0.0, 10.0, lo_open=True)
+    mode_gain: list = P([-0.01, -1.0, 0.3, -1.0, 1.0, -1.0], "-", "flexible mode gains (x_meas += g*q)", -100.0, 100.0)
+    input_delay_s: float = P(10e-6, "s", "input delay (amplifier + computation)", 0.0, 0.1)
+    current_limit: float = P(1.0, "A", "amplifier current limit", 0.0, None, lo_open=True)
+    stroke: float = P(15e-3, "m", "hard stops at +-stroke", 0.0, None, lo_open=True)
+    position_noise: float = P(1.0e-9, "m", "position sensor noise (std)", 0.0)
+    velocity_noise: float = P(1.0e-6, "m/s", "velocity sensor noise (std)", 0.0)
+    position_quantum: float = P(1.0e-9, "m", "position quantisation step (0: none)", 0.0)
+    measures_velocity: bool = P(True, "-", "the drive measures velocity (the paper's LDV)")
+    substeps: int = P(2, "-", "RK4 sub-steps per constant-input interval", 1, 1000)
+    initial_position: float = P(0.0, "m", "where the arm is held when the run starts")
+
+
+@dataclass
+class LinkConfig:
+    """The command path between controller and drive."""
+
+    command_latency_ticks: int = P(0, "ticks", "a command computed at tick k is applied at k+d", 0, 1000)
+
+
+@dataclass
+class ControllerConfig:
+    """The PI holding loop (with rate feedback) and the velocity/direction signals.  The
+    default gains place the loop at 100 Hz on the compensated plant J*x'' = u_n (damping
+    0.7); the flexible modes leave a gain margin of about 2 (the loop goes unstable near
+    2.5x these gains)."""
+
+    kp: float = P(394.8, "A/m", "proportional gain (J*w^2, w = 2*pi*100 Hz)", 0.0)
+    ki: float = P(4.961e4, "A/(m*s)", "integral gain (J*w^3/5)", 0.0)
+    kd: float = P(0.8796, "A*s/m", "rate feedback gain (2*0.7*J*w)", 0.0)
+    setpoint_weight: float = P(0.6, "-", "weight of the reference in the proportional term (2-DOF PID)", 0.0, 1.0)
+    holding_limit: float = P(1.0, "A", "holding loop output limit", 0.0, None, lo_open=True)
+    current_limit: float = P(1.0, "A", "total command limit", 0.0, None, lo_open=True)
+    velocity_source: str = P("auto", "-", "'auto': measured if the drive has it, else estimated", choices=("auto", "estimated"))
+    velocity_cutoff_hz: float = P(2000.0, "Hz", "cutoff of the velocity estimator", 0.0, None, lo_open=True)
+    direction_deadband: float = P(5e-6, "m/s", "speed needed to declare a direction change", 0.0)
+
+
+@dataclass
+class CompensatorConfig:
+    """The paper's compensator, eq. (8-9); defaults are the default drive's exact values."""
+
+    enabled: bool = P(True, "-", "add the compensation current u_c")
+    B: float = P(2.0e-3, "A*s/m", "viscous friction estimate", None, None)
+    Fc: float = P(1.0e-3, "A", "Coulomb friction estimate (large motion, eq. 3)", None, None)
+    K: float = P(0.1, "A/m", "bias stiffness estimate (eq. 2)", None, None)
+    h0: float = P(2.0e-3, "A", "bias offset estimate (eq. 2)", None, None)
+    sigma: float = P(320.0, "A/m", "Dahl slope estimate (eq. 6)", 0.0, None, lo_open=True)
+    Ha: float = P(1.0e-3, "A", "Dahl asymptote estimate (eq. 6)", 0.0, None, lo_open=True)
+    alpha: float = P(1.0, "-", "Dahl exponent estimate (eq. 6)", 0.0, 10.0, lo_open=True)
+    fast_on_speed: float = P(2e-3, "m/s", "SLOW->FAST needs at least this speed", 0.0)
+    fast_off_speed: float = P(1e-3, "m/s", "FAST->SLOW below this speed", 0.0)
+    fast_on_distance: float = P(1.25e-5, "m", "SLOW->FAST needs this distance since the turnaround", 0.0)
+
+
+@dataclass
+class ScenarioConfig:
+    """The ``servo run`` scenario: hold, reference steps, a sinusoidal force disturbance."""
+
+    step_times: list = P([0.05, 0.12, 0.19, 0.28], "s", "times of the reference steps", 0.0)
+    step_positions: list = P([0.3e-6, 0.0, 20e-6, 0.0], "m", "reference after each step, from the holding position", -0.015, 0.015)
+    disturbance_amplitude: float = P(1e-3, "A", "sinusoidal disturbance force amplitude", 0.0)
+    disturbance_hz: float = P(40.0, "Hz", "its frequency", 0.0)
+    disturbance_start: float = P(0.37, "s", "when it starts", 0.0)
+
+
+SECTIONS = {
+    "run": RunConfig,
+    "drive": DriveConfig,
+    "link": LinkConfig,
+    "controller": ControllerConfig,
+    "compensator": CompensatorConfig,
+    "scenario": ScenarioConfig,
+}
+
+
+@dataclass
+class Config:
+    """The whole configuration; ``Config()`` is the complete default."""
+
+    run: RunConfig = field(default_factory=RunConfig)
+    drive: DriveConfig = field(default_factory=DriveConfig)
+    link: LinkConfig = field(default_factory=LinkConfig)
+    controller: ControllerConfig = field(default_factory=ControllerConfig)
+    compensator: CompensatorConfig = field(default_factory=CompensatorConfig)
+    scenario: ScenarioConfig = field(default_factory=ScenarioConfig)
+
+    @property
+    def dt(self) -> float:
+        """Sample period, s."""
+        return 1.0 / self.run.sample_rate_hz
+
+    @property
+    def n_ticks(self) -> int:
+        """Ticks in the run."""
+        return max(1, int(round(self.run.duration_s * self.run.sample_rate_hz)))
+
+    def replace(self, **sections: dict) -> "Config":
+        """A copy with some fields changed: ``cfg.replace(run={"duration_s": 1.0})``."""
+        data = to_dict(self)
+        for name, values in sections.items():
+            data.setdefault(name, {}).update(values)
+        return from_dict(data)
+
+
+# ---------------------------------------------------------------------------- loading
+
+
+def _check_value(key: str, value: Any, f: dataclasses.Field) -> Any:
+    m = f.metadata
+    kind = f.type
+    if kind == "bool":
+        if not isinstance(value, bool):
+            raise ConfigError(f"config: {key} must be true or false, got {value!r}")
+        return value
+    if kind == "str":
+        if not isinstance(value, str) or value not in m["choices"]:
+            raise ConfigError(f"config: {key} must be one of {', '.join(m['choices'])}, got {value!r}")
+        return value
+    if kind == "list":
+        if not isinstance(value, list):
+            raise ConfigError(f"config: {key} must be a list of numbers, got {value!r}")
+        return [_check_number(f"{key}[{i}]", v, m, float) for i, v in enumerate(value)]
+    return _check_number(key, value, m, int if kind == "int" else float)
+
+
+def _check_number(key: str, value: Any, m: dict, kind: type) -> Any:
+    if isinstance(value, bool) or not isinstance(value, (int, float)):
+        raise ConfigError(f"config: {key} must be a number, got {value!r}")
+    if kind is int and not isinstance(value, int):
+        raise ConfigError(f"config: {key} must be an integer, got {value!r}")
+    if not math.isfinite(value):
+        raise ConfigError(f"config: {key} must be finite, got {value!r}")
+    lo, hi = m["lo"], m["hi"]
+    if lo is not None and (value < lo or (m["lo_open"] and value == lo)):
+        raise ConfigError(f"config: {key} = {value!r} is out of range ({_range_text(m)}, {m['unit']})")
+    if hi is not None and (value > hi or (m["hi_open"] and value == hi)):
+        raise ConfigError(f"config: {key} = {value!r} is out of range ({_range_text(m)}, {m['unit']})")
+    return kind(value)
+
+
+def _range_text(m: dict) -> str:
+    parts = []
+    if m["lo"] is not None:
+        parts.append(f"{'>' if m['lo_open'] else '>='} {m['lo']:g}")
+    if m["hi"] is not None:
+        parts.append(f"{'<' if m['hi_open'] else '<='} {m['hi']:g}")
+    return " and ".join(parts) if parts else "any"
+
+
+def _unknown(kind: str, name: str, known) -> ConfigError:
+    close = difflib.get_close_matches(name.split(".")[-1], list(known), n=1)
+    hint = f" (did you mean '{close[0]}'?)" if close else ""
+    return ConfigError(f"config: unknown {kind} '{name}'{hint}")
+
+
+def from_dict(data: dict) -> Config:
+    """Build and validate a :class:`Config` from nested dicts (the TOML document)."""
+    if not isinstance(data, dict):
+        raise ConfigError("config: the document must be a table of sections")
+    sections = {}
+    for name, values in data.items():
+        if name not in SECTIONS:
+            raise _unknown("section", name, SECTIONS)
+        if not isinstance(values, dict):
+            raise ConfigError(f"config: [{name}] must be a table")
+        cls = SECTIONS[name]
+        by_name = {f.name: f for f in fields(cls)}
+        kwargs = {}
+        for key, value in values.items():
+            if key not in by_name:
+                raise _unknown("key", f"{name}.{key}", by_name)
+            kwargs[key] = _check_value(f"{name}.{key}", value, by_name[key])
+        sections[name] = cls(**kwargs)
+    cfg = Config(**sections)
+    _check_consistency(cfg)
+    return cfg
+
+
+def _check_consistency(cfg: Config) -> None:
+    d, c, s = cfg.drive, cfg.compensator, cfg.scenario
+    if d.Fs < d.Fc:
+        raise ConfigError(f"config: drive.Fs = {d.Fs!r} must be >= drive.Fc = {d.Fc!r} (breakaway >= sliding)")
+    if not (len(d.mode_hz) == len(d.mode_zeta) == len(d.mode_gain)):
+        raise ConfigError("config: drive.mode_hz, drive.mode_zeta and drive.mode_gain must have the same length")
+    nyquist = cfg.run.sample_rate_hz / 2
+    for i, f in enumerate(d.mode_hz):
+        if f >= nyquist:
+            raise ConfigError(f"config: drive.mode_hz[{i}] = {f!r} is at or above Nyquist ({nyquist:g} Hz)")
+    if c.fast_off_speed > c.fast_on_speed:
+        raise ConfigError("config: compensator.fast_off_speed must be <= compensator.fast_on_speed (switch hysteresis)")
+    if len(s.step_times) != len(s.step_positions):
+        raise ConfigError("config: scenario.step_times and scenario.step_positions must have the same length")
+    if any(b < a for a, b in zip(s.step_times, s.step_times[1:])):
+        raise ConfigError("config: scenario.step_times must be increasing")
+    if abs(d.initial_position) >= d.stroke:
+        raise ConfigError("config: drive.initial_position must lie inside +-drive.stroke")
+
+
+def load_config(path: str | Path | None = None) -> Config:
+    """The default config, or the default updated by the TOML file at ``path``."""
+    if path is None:
+        return Config()
+    p = Path(path)
+    try:
+        text = p.read_text(encoding="utf-8")
+    except FileNotFoundError:
+        raise ConfigError(f"config: no such file: {p}") from None
+    except (OSError, UnicodeDecodeError) as exc:
+        raise ConfigError(f"config: cannot read {p}: {exc}") from None
+    try:
+        data = tomllib.loads(text)
+    except tomllib.TOMLDecodeError as exc:
+        raise ConfigError(f"config: {p} is not valid TOML: {exc}") from None
+    return from_dict(data)
+
+
+def to_dict(cfg: Config) -> dict:
+    """Nested dicts of every field (a complete, loadable document)."""
+    return {name: dataclasses.asdict(getattr(cfg, name)) for name in SECTIONS}
+
+
+# ------------------------------------------------------------------------ documenting
+
+
+def _toml_value(v: Any) -> str:
+    if isinstance(v, bool):
+        return "true" if v else "false"
+    if isinstance(v, str):
+        return '"' + v.replace("\\", "\\\\").replace('"', '\\"') + '"'
+    if isinstance(v, list):
+        return "[" + ", ".join(_toml_value(x) for x in v) + "]"
+    if isinstance(v, float):
+        return repr(v)
+    return str(v)
+
+
+def to_toml(cfg: Config | None = None, comments: bool = True) -> str:
+    """The config as a TOML document, each field preceded by its doc, unit and range."""
+    cfg = cfg or Config()
+    out = []
+    for name, cls in SECTIONS.items():
+        section = getattr(cfg, name)
+        if comments:
+            out.append(f"# {cls.__doc__.splitlines()[0]}")
+        out.append(f"[{name}]")
+        for f in fields(cls):
+            m = f.metadata
+            if comments:
+                rng = f"one of {', '.join(m['choices'])}" if m["choices"] else _range_text(m)
+                out.append(f"# {m['doc']} [{m['unit']}] ({rng})")
+            out.append(f"{f.name} = {_toml_value(getattr(section, f.name))}")
+        out.append("")
+    return "\n".join(out)
+
+
+def to_markdown() -> str:
+    """Reference of every field as Markdown tables (``docs/config.md``)."""
+    out = [
+        "# Configuration reference",
+        "",
+        "Generated by `servo config --markdown` from `servo/config.py`; every field, its",
+        "default, unit and valid range.  A TOML file given with `--config` needs only the",
+        "fields it changes; unknown keys and out-of-range values are errors naming the key.",
+        "",
+    ]
+    for name, cls in SECTIONS.items():
+        out += [f"## [{name}]", "", cls.__doc__.strip().replace("\n    ", " "), ""]
+        out += ["| key | default | unit | range | meaning |", "|---|---|---|---|---|"]
+        default = cls()
+        for f in fields(cls):
+            m = f.metadata
+            rng = " / ".join(m["choices"]) if m["choices"] else _range_text(m)
+            out.append(
+                f"| `{f.name}` | `{_toml_value(getattr(default, f.name))}` | {m['unit']} | {rng} | {m['doc']} |"
+            )
+        out.append("")
+    return "\n".join(out)

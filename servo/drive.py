@@ -1,0 +1,118 @@
+"""The simulated drive's arrays: plant parameters, initial state, exact mode matrices.
+
+:func:`build_plant` turns a :class:`~servo.config.DriveConfig` into the record arrays that
+:func:`kernels.plant.plant_step` and :func:`kernels.plant.plant_measure` work on.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.linalg import expm
+
+from kernels.plant import PLANT_PARAMS, PLANT_STATE
+from servo.config import DriveConfig
+from servo.errors import ConfigError
+
+
+@dataclass
+class SimPlant:
+    """Everything the plant kernels touch, preallocated.
+
+    ``params``/``state``: one-element :data:`~kernels.plant.PLANT_PARAMS` /
+    :data:`~kernels.plant.PLANT_STATE` records; ``q`` (n_modes, 2) modal position and
+    velocity; ``mab`` (n_modes, 2, 6) exact discretisation of each mode over the two
+    constant-input intervals of a sample; ``gain`` (n_modes,) modal gains; ``ubuf``
+    (delay_whole + 2,) past commands of the input delay; ``u_hold`` the current (A) that
+    holds the arm at rest at its initial position.
+    """
+
+    params: np.ndarray
+    state: np.ndarray
+    q: np.ndarray
+    mab: np.ndarray
+    gain: np.ndarray
+    ubuf: np.ndarray
+    u_hold: float
+
+
+def split_delay(delay_s: float, dt: float) -> tuple[int, float]:
+    """Input delay as ``(whole samples, remainder in s)`` with the remainder in ``[0, dt)``."""
+    n = delay_s / dt
+    whole = math.floor(round(n, 9))
+    frac = delay_s - whole * dt
+    if frac < 1e-12 * dt:
+        frac = 0.0
+    return whole, frac
+
+
+def mode_matrices(hz, zeta, J: float, h1: float, h2: float) -> np.ndarray:
+    """Exact zero-order-hold discretisation of ``q'' + 2*zeta*w*q' + w^2*q = u/J`` over
+    intervals of ``h1`` and ``h2`` seconds.  Returns (n, 2, 6): ``a11 a12 a21 a22 b1 b2``."""
+    out = np.zeros((len(hz), 2, 6))
+    for i, (f, z) in enumerate(zip(hz, zeta)):
+        w = 2.0 * math.pi * f
+        m = np.zeros((3, 3))
+        m[0, 1] = 1.0
+        m[1, 0] = -w * w
+        m[1, 1] = -2.0 * z * w
+        m[1, 2] = 1.0 / J
+        for j, h in enumerate((h1, h2)):
+            e = expm(m * h)
+            out[i, j] = (e[0, 0], e[0, 1], e[1, 0], e[1, 1], e[0, 2], e[1, 2])
+    return out
+
+
+def plant_params(d: DriveConfig, dt: float) -> np.ndarray:
+    """The :data:`~kernels.plant.PLANT_PARAMS` record of a drive config at period ``dt``."""
+    whole, frac = split_delay(d.input_delay_s, dt)
+    p = np.zeros(1, PLANT_PARAMS)
+    values = dict(
+        J=d.J, B=d.B, b_asym=d.b_asymmetry, Fc=d.Fc, Fs=d.Fs, fc_asym=d.fc_asymmetry,
+        vs=d.stribeck_velocity, sigma=d.sigma, Ha=d.Ha, alpha=d.alpha, K=d.K, h0=d.h0,
+        cog_amp=d.cogging, cog_period=d.cogging_period, cog_phase=d.cogging_phase,
+        kf1=d.kf_linear, kf2=d.kf_quadratic, stroke=d.stroke, u_max=d.current_limit,
+        dt=dt, delay_frac=frac, delay_whole=whole, n_sub=d.substeps,
+        noise_x=d.position_noise, noise_v=d.velocity_noise, quantum=d.position_quantum,
+        has_velocity=1.0 if d.measures_velocity else 0.0,
+    )  # fmt: skip
+    for k, v in values.items():
+        p[k] = v
+    return p
+
+
+def holding_current(d: DriveConfig, x: float) -> float:
+    """Current (A) that balances the bias and cogging forces at rest at ``x`` with the
+    pivot's Dahl element relaxed (``H = 0``)."""
+    r = x / d.stroke
+    kf = 1.0 + d.kf_linear * r + d.kf_quadratic * r * r
+    f = d.K * x + d.h0
+    if d.cogging != 0.0:
+        f += d.cogging * math.sin(2.0 * math.pi * x / d.cogging_period + d.cogging_phase)
+    return f / kf
+
+
+def build_plant(d: DriveConfig, dt: float) -> SimPlant:
+    """Fresh plant arrays for drive ``d`` sampled every ``dt`` s: the arm at rest at
+    ``d.initial_position``, held there by :func:`holding_current`, the flexible modes at
+    their static deflection under that current."""
+    whole, frac = split_delay(d.input_delay_s, dt)
+    u_hold = holding_current(d, d.initial_position)
+    if abs(u_hold) > d.current_limit:
+        raise ConfigError(
+            f"config: drive.initial_position needs {u_hold:.3g} A to hold, beyond drive.current_limit"
+        )
+    state = np.zeros(1, PLANT_STATE)
+    state["x"] = d.initial_position
+    q = np.zeros((len(d.mode_hz), 2))
+    q[:, 0] = u_hold / (d.J * (2.0 * np.pi * np.asarray(d.mode_hz)) ** 2)  # static deflection
+    return SimPlant(
+        params=plant_params(d, dt),
+        state=state,
+        q=q,
+        mab=mode_matrices(d.mode_hz, d.mode_zeta, d.J, frac, dt - frac),
+        gain=np.asarray(d.mode_gain, dtype=float),
+        ubuf=np.full(whole + 2, u_hold),
+        u_hold=u_hold,
+    )

@@ -1,0 +1,26 @@
+"""User-facing errors.  The CLI prints ``servo: error: <message>`` (one line) and exits
+non-zero for any of these; anything else is a bug and says so."""
+
+
+class ServoError(Exception):
+    """Base class: a problem with the user's input or environment, in one line."""
+
+    exit_code = 2
+
+
+class ConfigError(ServoError):
+    """A config file or option is wrong: unknown key, wrong type, out of range."""
+
+
+class RecordingError(ServoError):
+    """A recording is malformed: missing column, NaN, non-monotonic time, too short..."""
+
+
+class DriverError(ServoError):
+    """The drive or the link failed: port gone, peer silent, protocol or lifecycle error."""
+
+    exit_code = 3
+
+
+class LifecycleError(DriverError):
+    """A driver method was called in a state that does not allow it."""

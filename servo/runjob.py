@@ -1,0 +1,131 @@
+"""``servo run``: the closed loop against the simulated drive, summarised.
+
+Runs the scenario of ``cfg.scenario`` (hold, reference steps, a sinusoidal force
+disturbance) with the PI holding loop, with and/or without the compensator, and writes
+into one output folder:
+
+* ``log_compensated.{npz,csv}``, ``log_uncompensated.{npz,csv}``: the run logs;
+* ``summary.json``: tracking error RMS per segment, per-step overshoot and settling,
+  compute time per sample, ticks, overruns;
+* ``tracking.png``, ``steps.png``, ``current.png`` (and ``timing.png`` tick by tick);
+* ``config.toml``: the effective configuration (rerun it for the same bits).
+"""
+from __future__ import annotations
+
+import json
+import time
+from pathlib import Path
+
+import numpy as np
+
+from kernels.loop import LOG_COLUMNS
+from servo import runplots
+from servo.config import Config, to_toml
+from servo.controller import Controller
+from servo.metrics import rms, step_metrics, tick_timing
+from servo.runlog import RunLog, atomic_write
+from servo.runner import LoopResult, log_rows, run_closed_loop
+from servo.scenario import scenario_inputs, segments
+from servo.simdriver import SimDriver
+
+LABELS = {"on": ("compensated",), "off": ("uncompensated",), "compare": ("compensated", "uncompensated")}
+COL = {c: i for i, c in enumerate(LOG_COLUMNS)}
+
+
+def default_out_dir() -> Path:
+    return Path("servo-out") / time.strftime("run-%Y%m%d-%H%M%S")
+
+
+def run_simulated(cfg: Config, out_dir: Path, compensated: bool, fast: bool) -> tuple[np.ndarray, LoopResult]:
+    """One closed-loop run against a fresh simulated drive; returns (log rows, result)."""
+    label = "compensated" if compensated else "uncompensated"
+    inputs = scenario_inputs(cfg)
+    meta = {"label": label, "fast_path": fast, "sample_rate_hz": cfg.run.sample_rate_hz, "seed": cfg.run.seed}
+    with SimDriver(cfg, inputs.d) as driver, RunLog(out_dir, f"log_{label}", LOG_COLUMNS, log_rows(cfg), meta) as log:
+        result = run_closed_loop(cfg, driver, Controller(cfg, compensation=compensated), inputs, log, fast=fast)
+    return log.recorded(), result
+
+
+def summarise(cfg: Config, log: np.ndarray, result: LoopResult) -> dict:
+    t, x, e = log[:, COL["t"]], log[:, COL["x"]], log[:, COL["e"]]
+    x_hold = log[0, COL["r"]]
+    seg = {name: rms(e[(t >= a) & (t < b)]) for name, a, b in segments(cfg)}
+    steps, prev = [], 0.0
+    ends = {name: b for name, _, b in segments(cfg)}
+    for i, (ts, pos) in enumerate(zip(cfg.scenario.step_times, cfg.scenario.step_positions)):
+        if ts < cfg.run.duration_s and pos != prev:
+            steps.append({"t_s": ts, **step_metrics(t, x, ts, ends[f"step {i + 1}"], x_hold + prev, x_hold + pos)})
+        prev = pos
+    out = {
+        "error_rms_m": rms(e),
+        "error_rms_by_segment_m": seg,
+        "error_max_m": float(np.abs(e).max()),
+        "steps": steps,
+        "wall_s": result.wall_s,
+        "per_sample_us": result.wall_s / result.n_ticks * 1e6,
+    }
+    if result.tick_ns is not None:
+        out.update(tick_timing(result.tick_ns, cfg.dt))
+    return out
+
+
+def run_job(cfg: Config, out_dir: Path, compensation: str = "compare", fast: bool | None = None) -> dict:
+    """Run the ``servo run`` job into ``out_dir``; returns the summary (also written as
+    ``summary.json``)."""
+    fast = cfg.run.fast_path if fast is None else fast
+    out_dir = Path(out_dir)
+    out_dir.mkdir(parents=True, exist_ok=True)
+    atomic_write(out_dir / "config.toml", lambda p: Path(p).write_text(to_toml(cfg)))
+    logs, results, runs = {}, {}, {}
+    for label in LABELS[compensation]:
+        logs[label], results[label] = run_simulated(cfg, out_dir, label == "compensated", fast)
+        runs[label] = summarise(cfg, logs[label], results[label])
+    runplots.plot_run(cfg, logs, results, out_dir)
+    summary = {
+        "ticks": cfg.n_ticks,
+        "sample_rate_hz": cfg.run.sample_rate_hz,
+        "duration_s": cfg.run.duration_s,
+        "seed": cfg.run.seed,
+        "path": "fast (all compiled)" if fast else "tick by tick through the driver interface",
+        "period_us": cfg.dt * 1e6,
+        "runs": runs,
+        "files": sorted({p.name for p in out_dir.iterdir() if not p.name.startswith(".")} | {"summary.json"}),
+    }
+    atomic_write(out_dir / "summary.json", lambda p: Path(p).write_text(json.dumps(summary, indent=2)))
+    return summary
+
+
+def format_summary(summary: dict, out_dir: Path) -> str:
+    """The human summary ``servo run`` prints."""
+    lines = [
+        f"servo run: {summary['ticks']} ticks at {summary['sample_rate_hz'] / 1e3:g} kHz "
+        f"({summary['duration_s']:g} s simulated), {summary['path']}",
+    ]
+    runs = summary["runs"]
+    labels = list(runs)
+    head = f"  {'tracking error RMS (nm)':<28}" + "".join(f"{lab:>16}" for lab in labels)
+    lines.append(head)
+    first = runs[labels[0]]
+    for seg in first["error_rms_by_segment_m"]:
+        lines.append(f"  {seg:<28}" + "".join(f"{runs[lab]['error_rms_by_segment_m'][seg] * 1e9:>16.1f}" for lab in labels))
+    lines.append(f"  {'whole run':<28}" + "".join(f"{runs[lab]['error_rms_m'] * 1e9:>16.1f}" for lab in labels))
+    for i, st in enumerate(first["steps"]):
+        name = f"step {st['size_m'] * 1e6:+.2g} um ovsht%/settle"
+        cells = "".join(_step_cells(runs[lab]["steps"][i]) for lab in labels)
+        lines.append(f"  {name:<28}" + cells)
+    for lab in labels:
+        r = runs[lab]
+        if "tick_us_median" in r:
+            lines.append(
+                f"  compute ({lab}): {r['tick_us_median']:.2f} us/tick median, {r['tick_us_p99']:.2f} us p99, "
+                f"{r['tick_us_max']:.0f} us max; overruns of the {summary['period_us']:g} us period: {r['overruns']}"
+            )
+        else:
+            lines.append(f"  compute ({lab}): {r['per_sample_us']:.3f} us/sample (controller + simulated drive, average)")
+    lines.append(f"  wrote {out_dir}/: " + ", ".join(summary["files"]))
+    return "\n".join(lines)
+
+
+def _step_cells(st: dict) -> str:
+    settle = "never" if st["settling_ms"] is None else f"{st['settling_ms']:.1f}ms"
+    return f"{st['overshoot_pct']:>7.1f}%/{settle:>7}"

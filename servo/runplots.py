@@ -1,0 +1,110 @@
+"""Plots of ``servo run``: tracking, normalised steps, currents, tick timing."""
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from kernels.loop import LOG_COLUMNS
+from servo.config import Config
+from servo.plotting import plt, save_figure
+from servo.scenario import segments
+
+COL = {c: i for i, c in enumerate(LOG_COLUMNS)}
+COLORS = {"compensated": "tab:blue", "uncompensated": "tab:orange"}
+
+
+def plot_run(cfg: Config, logs: dict, results: dict, out_dir: Path) -> list[Path]:
+    """Write the PNGs of a run into ``out_dir``; returns their paths."""
+    paths = [_tracking(cfg, logs, out_dir / "tracking.png"), _steps(cfg, logs, out_dir / "steps.png"),
+             _currents(logs, out_dir / "current.png")]  # fmt: skip
+    ticks = {k: r.tick_ns for k, r in results.items() if r.tick_ns is not None}
+    if ticks:
+        paths.append(_timing(cfg, ticks, out_dir / "timing.png"))
+    return paths
+
+
+def _tracking(cfg, logs, path):
+    fig, ax = plt.subplots(2, 1, figsize=(10, 7), sharex=True)
+    for label, a in logs.items():
+        t, x0 = a[:, COL["t"]], a[0, COL["r"]]
+        ax[0].plot(t, (a[:, COL["x"]] - x0) * 1e6, color=COLORS[label], lw=0.8, label=f"position, {label}")
+        ax[1].plot(t, a[:, COL["e"]] * 1e6, color=COLORS[label], lw=0.8, label=label)
+    ax[0].plot(t, (a[:, COL["r"]] - x0) * 1e6, "k--", lw=0.8, label="reference")
+    for t0 in list(cfg.scenario.step_times) + [cfg.scenario.disturbance_start]:
+        for x in ax:
+            x.axvline(t0, color="0.8", lw=0.6, zorder=0)
+    ax[0].set_ylabel("position from hold (um)")
+    ax[1].set_ylabel("tracking error r - x (um)")
+    ax[1].set_xlabel("time (s)")
+    ax[0].set_title(f"Closed loop on the simulated drive: hold, steps, {cfg.scenario.disturbance_amplitude * 1e3:g} mA "
+                    f"{cfg.scenario.disturbance_hz:g} Hz disturbance from {cfg.scenario.disturbance_start:g} s")  # fmt: skip
+    for x in ax:
+        x.grid(alpha=0.3)
+        x.legend(fontsize=8, loc="upper left")
+    return save_figure(fig, path)
+
+
+def _steps(cfg, logs, path):
+    """Each step normalised by its size: a linear plant gives the same curve at every size."""
+    fig, axes = plt.subplots(1, len(logs), figsize=(5.5 * len(logs), 4.2), sharey=True, squeeze=False)
+    times, pos = cfg.scenario.step_times, cfg.scenario.step_positions
+    ends = {name: b for name, _, b in segments(cfg)}
+    for ax, (label, a) in zip(axes[0], logs.items()):
+        t, x, x0 = a[:, COL["t"]], a[:, COL["x"]], a[0, COL["r"]]
+        prev = 0.0
+        for i, (ts, p) in enumerate(zip(times, pos)):
+            if p != prev and ts < cfg.run.duration_s:
+                te = ends[f"step {i + 1}"]
+                m = (t >= ts) & (t < te)
+                ax.plot((t[m] - ts) * 1e3, (x[m] - x0 - prev) / (p - prev), lw=1,
+                        label=f"{(p - prev) * 1e6:+.3g} um at {ts:g} s")  # fmt: skip
+            prev = p
+        ax.axhline(1.0, color="k", lw=0.6)
+        ax.axhspan(0.95, 1.05, color="0.9", zorder=0)
+        ax.set_title(label)
+        ax.set_xlabel("time after the step (ms)")
+        ax.grid(alpha=0.3)
+        ax.legend(fontsize=8, loc="lower right")
+    axes[0][0].set_ylabel("position change / step size")
+    fig.suptitle("Normalised step responses (the band is +-5 %)")
+    return save_figure(fig, path)
+
+
+def _currents(logs, path):
+    fig, ax = plt.subplots(3, 1, figsize=(10, 8), sharex=True)
+    for label, a in logs.items():
+        t = a[:, COL["t"]]
+        ax[0].plot(t, a[:, COL["u"]] * 1e3, color=COLORS[label], lw=0.8, label=f"u, {label}")
+    if "compensated" in logs:
+        a = logs["compensated"]
+        t = a[:, COL["t"]]
+        ax[0].plot(t, a[:, COL["u_c"]] * 1e3, color="tab:green", lw=0.8, label="u_c (compensation)")
+        ax[1].plot(t, a[:, COL["h_hat"]] * 1e3, color="tab:purple", lw=0.8, label="Dahl estimate H_hat")
+        ax[2].step(t, a[:, COL["regime"]], color="tab:red", lw=0.8, where="post", label="regime (0 Dahl, 1 eq. 3)")
+    ax[0].set_ylabel("current (mA)")
+    ax[1].set_ylabel("H_hat (mA)")
+    ax[2].set_ylabel("regime")
+    ax[2].set_xlabel("time (s)")
+    for x in ax:
+        x.grid(alpha=0.3)
+        if x.get_legend_handles_labels()[0]:
+            x.legend(fontsize=8, loc="upper left")
+    return save_figure(fig, path)
+
+
+def _timing(cfg, ticks, path):
+    fig, ax = plt.subplots(figsize=(8, 4))
+    period = cfg.dt * 1e6
+    for label, ns in ticks.items():
+        us = ns / 1e3
+        bins = np.logspace(np.log10(max(us.min(), 0.1)), np.log10(max(us.max(), period) * 1.1), 80)
+        ax.hist(us, bins=bins, histtype="step", color=COLORS[label], label=label)
+    ax.axvline(period, color="r", lw=1, label=f"period {period:g} us")
+    ax.set_xscale("log")
+    ax.set_yscale("log")
+    ax.set_xlabel("compute time per tick (us): read + controller + write + tasks")
+    ax.set_ylabel("ticks")
+    ax.legend(fontsize=8)
+    ax.grid(alpha=0.3)
+    return save_figure(fig, path)
