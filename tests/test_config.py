@@ -1,0 +1,81 @@
+"""Config: complete default, documented fields, errors that name the key."""
+import tomllib
+from dataclasses import fields
+from pathlib import Path
+
+import pytest
+
+from servo.config import SECTIONS, Config, from_dict, load_config, to_dict, to_markdown, to_toml
+from servo.errors import ConfigError
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def test_default_is_the_paper_drive_at_50_khz():
+    cfg = Config()
+    d = cfg.drive
+    assert cfg.run.sample_rate_hz == 50_000 and cfg.dt == 2e-5
+    assert (d.J, d.B, d.sigma, d.Ha, d.alpha, d.K, d.h0) == (1e-3, 2e-3, 320.0, 1e-3, 1.0, 0.1, 2e-3)
+    assert d.mode_hz == [3000.0, 4100.0, 5000.0, 7000.0, 12300.0, 16400.0]
+    assert d.input_delay_s == 10e-6 and d.current_limit == 1.0 and d.stroke == 15e-3
+
+
+def test_every_field_has_a_unit_and_a_doc():
+    for cls in SECTIONS.values():
+        for f in fields(cls):
+            assert f.metadata["unit"] and f.metadata["doc"], f.name
+
+
+def test_documented_toml_round_trips():
+    text = to_toml(Config())
+    assert "# Dahl pre-sliding stiffness" in text and "[A/m]" in text
+    assert from_dict(tomllib.loads(text)) == Config()
+
+
+def test_docs_config_md_is_current():
+    assert (ROOT / "docs" / "config.md").read_text() == to_markdown() + "\n"
+
+
+@pytest.mark.parametrize(
+    "doc,message",
+    [
+        ({"drive": {"sigmaa": 1.0}}, "unknown key 'drive.sigmaa' (did you mean 'sigma'?)"),
+        ({"driev": {}}, "unknown section 'driev' (did you mean 'drive'?)"),
+        ({"drive": {"sigma": "high"}}, "drive.sigma must be a number"),
+        ({"drive": {"sigma": -1.0}}, "drive.sigma = -1.0 is out of range (> 0, A/m)"),
+        ({"drive": {"alpha": 11.0}}, "drive.alpha = 11.0 is out of range"),
+        ({"run": {"seed": 1.5}}, "run.seed must be an integer"),
+        ({"run": {"fast_path": 1}}, "run.fast_path must be true or false"),
+        ({"controller": {"velocity_source": "psychic"}}, "controller.velocity_source must be one of auto, estimated"),
+        ({"drive": {"mode_hz": [1.0, "x"]}}, "drive.mode_hz[1] must be a number"),
+        ({"drive": {"mode_hz": [3000.0]}}, "must have the same length"),
+        ({"drive": {"Fc": 2e-3, "Fs": 1e-3}}, "drive.Fs = 0.001 must be >= drive.Fc"),
+        ({"drive": {"mode_hz": [30000.0] * 6}}, "above Nyquist"),
+        ({"run": {"duration_s": 0.0}}, "run.duration_s = 0.0 is out of range"),
+        ({"compensator": {"fast_off_speed": 1.0}}, "switch hysteresis"),
+    ],
+)
+def test_bad_values_name_the_key(doc, message):
+    with pytest.raises(ConfigError) as exc:
+        from_dict(doc)
+    assert message in str(exc.value)
+    assert "\n" not in str(exc.value)
+
+
+def test_file_errors(tmp_path):
+    with pytest.raises(ConfigError, match="no such file"):
+        load_config(tmp_path / "missing.toml")
+    bad = tmp_path / "bad.toml"
+    bad.write_text("[drive\nsigma = 1")
+    with pytest.raises(ConfigError, match="not valid TOML"):
+        load_config(bad)
+    good = tmp_path / "good.toml"
+    good.write_text("[drive]\nsigma = 400.0\n[run]\nduration_s = 1\n")
+    cfg = load_config(good)
+    assert cfg.drive.sigma == 400.0 and cfg.run.duration_s == 1.0 and cfg.drive.Ha == 1e-3
+
+
+def test_replace_validates():
+    with pytest.raises(ConfigError):
+        Config().replace(drive={"J": 0.0})
+    assert to_dict(Config().replace(run={"seed": 9}))["run"]["seed"] == 9
