@@ -1,0 +1,204 @@
+"""Recordings: load and validate ``t, u, x[, v]`` from CSV, NPZ or MATLAB .mat.
+
+A recording is what a servo engineer brings from the lab (or a run log of this tool):
+time ``t`` (s), input ``u`` (A of VCM current, or any force unit after scaling), position
+``x`` (m), and velocity ``v`` (m/s) when it was measured.
+
+* CSV: a header row naming the columns (``t,u,x`` at least, ``v`` optional; extra
+  columns are ignored, so a ``servo run`` log is a recording).
+* NPZ: one array per column (a ``servo run`` log NPZ is one).
+* MATLAB .mat (v5, via ``scipy.io.loadmat``): variables mapped to columns with
+  ``columns={"u": "vir", "x": "qm"}`` and scaled with ``scale={"u": "gtau"}`` (a number,
+  or the name of a scalar variable in the file).  The same mapping works for CSV/NPZ.
+
+Every problem is a :class:`~servo.errors.RecordingError` with one line that says what is
+wrong and where: unreadable file, missing column, unequal lengths, NaN/inf (first
+index), time not strictly increasing (first index), irregular sampling (gaps), too few
+samples.  Whether the data *excite* what a tool wants to identify is the tool's check.
+"""
+from __future__ import annotations
+
+import csv
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from servo.errors import RecordingError
+
+REQUIRED = ("t", "u", "x")
+OPTIONAL = ("v",)
+MIN_SAMPLES = 20
+#: sampling is "uniform" when every step is within this fraction of the median step
+UNIFORM_TOLERANCE = 0.01
+
+
+@dataclass
+class Recording:
+    """A validated recording; arrays are float64, shape (n,)."""
+
+    t: np.ndarray
+    u: np.ndarray
+    x: np.ndarray
+    v: np.ndarray | None = None
+    source: str = ""
+    meta: dict = field(default_factory=dict)
+
+    @property
+    def n(self) -> int:
+        return self.t.shape[0]
+
+    @property
+    def dt(self) -> float:
+        """Sample period (s): the median time step."""
+        return float(np.median(np.diff(self.t)))
+
+    @property
+    def sample_rate_hz(self) -> float:
+        return 1.0 / self.dt
+
+    def slice(self, start: int, stop: int) -> "Recording":
+        """Samples ``start:stop`` as a new recording (e.g. a training or test block)."""
+        v = None if self.v is None else self.v[start:stop]
+        return Recording(self.t[start:stop], self.u[start:stop], self.x[start:stop], v, self.source, dict(self.meta))
+
+
+def parse_mapping(text: str | None, what: str) -> dict[str, str]:
+    """``"u=vir,x=qm"`` -> ``{"u": "vir", "x": "qm"}`` (for ``--columns``/``--scale``)."""
+    out: dict[str, str] = {}
+    for item in (text or "").split(","):
+        if not item.strip():
+            continue
+        key, sep, value = item.partition("=")
+        if not sep or not key.strip() or not value.strip():
+            raise RecordingError(f"{what}: expected NAME=VALUE pairs separated by commas, got {item!r}")
+        out[key.strip()] = value.strip()
+    return out
+
+
+def _read_table(path: Path) -> dict[str, np.ndarray]:
+    suffix = path.suffix.lower()
+    try:
+        if suffix == ".csv":
+            return _read_csv(path)
+        if suffix == ".npz":
+            with np.load(path, allow_pickle=False) as z:
+                return {k: np.asarray(z[k]) for k in z.files}
+        if suffix == ".mat":
+            from scipy.io import loadmat
+
+            return {k: np.asarray(v) for k, v in loadmat(str(path)).items() if not k.startswith("__")}
+    except RecordingError:
+        raise
+    except FileNotFoundError:
+        raise RecordingError(f"recording: no such file: {path}") from None
+    except Exception as exc:  # corrupt or foreign file: one line, whatever the reader raised
+        raise RecordingError(f"recording: cannot read {path} as {suffix[1:].upper()}: {exc}".splitlines()[0]) from None
+    raise RecordingError(f"recording: {path}: unknown format {suffix!r} (use .csv, .npz or .mat)")
+
+
+def _read_csv(path: Path) -> dict[str, np.ndarray]:
+    with open(path, newline="", encoding="utf-8") as fh:
+        reader = csv.reader(fh)
+        try:
+            header = [h.strip() for h in next(reader)]
+        except StopIteration:
+            raise RecordingError(f"recording: {path} is empty") from None
+        if not header or any(not h for h in header):
+            raise RecordingError(f"recording: {path}: the first row must name every column")
+        rows = []
+        for lineno, row in enumerate(reader, start=2):
+            if not row:
+                continue
+            if len(row) != len(header):
+                raise RecordingError(f"recording: {path} line {lineno}: {len(row)} fields, the header has {len(header)}")
+            try:
+                rows.append([float(c) for c in row])
+            except ValueError:
+                raise RecordingError(f"recording: {path} line {lineno}: not a number in {row!r}") from None
+    data = np.array(rows, dtype=float).reshape(-1, len(header))
+    return {name: data[:, i] for i, name in enumerate(header)}
+
+
+def _scale_factor(value: str, table: dict, path: Path) -> float:
+    try:
+        return float(value)
+    except ValueError:
+        pass
+    if value not in table:
+        raise RecordingError(f"recording: {path}: scale {value!r} is neither a number nor a variable in the file")
+    arr = np.asarray(table[value], dtype=float).ravel()
+    if arr.size != 1:
+        raise RecordingError(f"recording: {path}: scale variable {value!r} is not a scalar")
+    return float(arr[0])
+
+
+def load_recording(path: str | Path, columns: dict[str, str] | None = None, scale: dict[str, str] | None = None,
+                   min_samples: int = MIN_SAMPLES) -> Recording:  # fmt: skip
+    """Load and validate a recording.  ``columns`` maps ``t/u/x/v`` to names in the file
+    (default: the same names); ``scale`` multiplies a column by a number or a scalar
+    variable of the file (``{"u": "gtau"}``)."""
+    path = Path(path)
+    table = _read_table(path)
+    columns = dict(columns or {})
+    for key in columns:
+        if key not in REQUIRED + OPTIONAL:
+            raise RecordingError(f"recording: unknown column role {key!r} (roles: t, u, x, v)")
+    arrays: dict[str, np.ndarray] = {}
+    for role in REQUIRED + OPTIONAL:
+        name = columns.get(role, role)
+        if name not in table:
+            if role in OPTIONAL and role not in columns:
+                continue
+            have = ", ".join(sorted(table)) or "none"
+            raise RecordingError(
+                f"recording: {path.name} has no column {name!r} for {role} (it has: {have}); map one with --columns {role}=NAME"
+            )
+        a = np.asarray(table[name])
+        if a.dtype.kind not in "fiu" or a.size == 0:
+            raise RecordingError(f"recording: {path.name}: column {name!r} is not numeric")
+        if a.ndim > 1 and sorted(a.shape)[:-1] != [1] * (a.ndim - 1):
+            raise RecordingError(f"recording: {path.name}: column {name!r} has shape {a.shape}, expected a vector")
+        arrays[role] = a.astype(float).ravel()
+    for role, value in (scale or {}).items():
+        if role not in arrays:
+            raise RecordingError(f"recording: cannot scale {role!r}: no such column")
+        arrays[role] = arrays[role] * _scale_factor(value, table, path)
+
+    n = arrays["t"].shape[0]
+    for role, a in arrays.items():
+        if a.shape[0] != n:
+            raise RecordingError(f"recording: {path.name}: column {role} has {a.shape[0]} samples, t has {n}")
+    if n < min_samples:
+        raise RecordingError(f"recording: {path.name}: {n} samples, at least {min_samples} needed")
+    for role, a in arrays.items():
+        bad = np.flatnonzero(~np.isfinite(a))
+        if bad.size:
+            raise RecordingError(f"recording: {path.name}: {role} is NaN or infinite at sample {bad[0]} ({bad.size} samples)")
+    dt = np.diff(arrays["t"])
+    back = np.flatnonzero(dt <= 0)
+    if back.size:
+        i = back[0]
+        raise RecordingError(f"recording: {path.name}: time is not increasing at sample {i + 1} (t = {arrays['t'][i]:.9g} then {arrays['t'][i + 1]:.9g})")
+    step = float(np.median(dt))
+    off = np.flatnonzero(np.abs(dt - step) > UNIFORM_TOLERANCE * step)
+    if off.size:
+        i = off[0]
+        raise RecordingError(
+            f"recording: {path.name}: irregular sampling at sample {i + 1}: step {dt[i]:.6g} s, the median is {step:.6g} s "
+            f"({off.size} irregular steps; gaps must be filled or the recording split)"
+        )
+    meta = {"columns": {r: columns.get(r, r) for r in arrays}, "scale": dict(scale or {})}
+    return Recording(arrays["t"], arrays["u"], arrays["x"], arrays.get("v"), str(path), meta)
+
+
+def save_recording_csv(path: str | Path, rec: Recording) -> None:
+    """Write ``rec`` as a CSV recording (header ``t,u,x[,v]``, ``%.17g``), atomically."""
+    from servo.runlog import write_csv
+
+    cols = ["t", "u", "x"] + (["v"] if rec.v is not None else [])
+    data = np.column_stack([getattr(rec, c) for c in cols])
+    write_csv(Path(path), cols, data)
+
+
+__all__ = ["Recording", "load_recording", "parse_mapping", "save_recording_csv"]
