@@ -67,3 +67,17 @@ def test_identify_bad_input(tmp_path, capsys, args, needle):
     assert err.count("\n") == 1 and err.startswith("servo: error:"), err
     assert needle in err, err
     assert not out.exists()
+
+
+def test_hysteresis_command_on_its_own_recording(tmp_path, capsys):
+    """servo hysteresis --simulate writes the recording; the same command fits it back."""
+    out = tmp_path / "sim"
+    assert main(["hysteresis", "--simulate", "--duration", "1", "--out", str(out)]) == 0
+    assert {"hysteresis_loop.png", "hysteresis_large.png", "summary.json"} <= {p.name for p in out.iterdir()}
+    again = tmp_path / "rec"
+    assert main(["hysteresis", str(out / "recording_small.csv"), "--out", str(again)]) == 0
+    s = json.loads((again / "summary.json").read_text())
+    assert abs(s["dahl"]["params"]["sigma"] - 320.0) / 320.0 < 0.02
+    capsys.readouterr()
+    assert main(["hysteresis", str(out / "recording_small.csv"), "--columns", "v=nope", "--out", str(tmp_path / "x")]) == 2
+    assert "has no column 'nope'" in capsys.readouterr().err
