@@ -4,7 +4,7 @@ blind: the test knows what was put in, the command does not.
 A *null* drive has exactly the physics the paper's baseline ``[J, B, Fc, K, h0]`` can
 represent: a rigid body, viscous friction, a Coulomb friction with exact sticking
 (``Fc = Fs``), the bias ``K*x + h0``; the pivot's Dahl element is switched off (a Dahl
-level of 1e-12 A), there are no flexible modes, no input delay, no quantisation, and the
+level of 1e-12 A with a Dahl length of 1 m: a negligible spring that never saturates), there are no flexible modes, no input delay, no quantisation, and the
 sensor has its 1 nm noise.  Each effect adds one piece of physics to it at a given size.
 
 The scenario makes the effects hard to see: the PI holding loop (100 Hz) tracks a
@@ -30,7 +30,7 @@ from servo.recording import Recording
 
 RATE_HZ = 50_000.0
 NULL_DRIVE = dict(
-    J=1.0e-3, B=2.0e-3, Fc=1.0e-3, Fs=1.0e-3, K=0.1, h0=2.0e-3, Ha=1e-12, sigma=1.0,
+    J=1.0e-3, B=2.0e-3, Fc=1.0e-3, Fs=1.0e-3, K=0.1, h0=2.0e-3, Ha=1e-12, sigma=1e-12,
     mode_hz=[], mode_zeta=[], mode_gain=[], input_delay_s=0.0, position_quantum=0.0,
     position_noise=1e-9, velocity_noise=1e-6, current_limit=1.0,
 )  # fmt: skip

@@ -21,7 +21,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from servo.diagnose.signals import Signals, align
+from servo.diagnose.signals import Signals
 
 
 @dataclass(frozen=True)
@@ -128,7 +128,7 @@ class Design:
         """Rows of the aligned effective force (m,)."""
         u = self.u_eff(model, extra)
         key = ("y",) + self.input_key(model) + ((extra.physics, extra.theta) if extra else ())
-        return self.cached_rows(key, lambda: self.sig.rows(align(u)))
+        return self.cached_rows(key, lambda: self.sig.force_rows(u))
 
     def term_rows(self, term: Term, model: Model) -> np.ndarray:
         """Rows of the columns of ``term`` (m, k) under ``model``'s input."""

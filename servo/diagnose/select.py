@@ -38,6 +38,8 @@ from servo.diagnose.terms import VOCABULARY
 ALPHA = 0.05
 N_BLOCKS = 10
 EIG_FLOOR = 1e-11
+#: variants of a screened candidate evaluated together
+SCREEN_CHUNK = 32
 
 
 # ------------------------------------------------------------------------ linear algebra
@@ -107,6 +109,31 @@ class Grams:
     def cv(self) -> np.ndarray:
         """Held-out SSE of every block (K,)."""
         return np.array([self.heldout(b, self.fold(b)[0]) for b in range(self.s.size)])
+
+
+def screen_stats(C: np.ndarray, r: np.ndarray, blocks: Blocks) -> tuple[np.ndarray, np.ndarray]:
+    """Per block ``C_b r_b`` (K, J, k) and ``C_b C_b'`` (K, J, k, k) of the columns ``C``
+    (J, k, m) of ``J`` variants, over the usable rows (``r`` is zero elsewhere)."""
+    K, J, k = blocks.K, C.shape[0], C.shape[1]
+    a, H = np.zeros((K, J, k)), np.zeros((K, J, k, k))
+    for b, sl in enumerate(blocks.slices):
+        Cb = C[:, :, sl]
+        w = blocks.weights[sl]
+        a[b] = Cb @ r[sl]
+        for i in range(k):
+            Ci = Cb[:, i] * w
+            for j in range(i, k):
+                H[b, :, i, j] = H[b, :, j, i] = np.einsum("jm,jm->j", Ci, Cb[:, j])
+    return a, H
+
+
+def explained(A: np.ndarray, H: np.ndarray) -> np.ndarray:
+    """``A'H^-1 A`` over the leading axes: the residual energy (K, J) that columns with
+    Gram ``H`` (K, J, k, k) and correlation ``A`` (K, J, k) explain."""
+    k = A.shape[-1]
+    tr = np.trace(H, axis1=-2, axis2=-1)[..., None, None]
+    Hr = H + np.eye(k) * (1e-12 * tr + 1e-300)
+    return np.einsum("...k,...k->...", A, np.linalg.solve(Hr, A[..., None])[..., 0])
 
 
 def fit_rows(y: np.ndarray, Phi: np.ndarray, w: np.ndarray) -> np.ndarray:
@@ -255,13 +282,11 @@ class Selector:
         r = np.where(w, y0 - Phi @ fit_rows(y0, Phi, w), 0.0)
         K = self.blocks.K
         expl = np.zeros((K, len(grid)))
-        for j, th in enumerate(grid):
-            C = phys.screen(self.d, th, model) * self.blocks.weights[:, None]
-            a = np.array([C[sl].T @ r[sl] for sl in self.blocks.slices])  # (K, k)
-            H = np.array([C[sl].T @ C[sl] for sl in self.blocks.slices])  # (K, k, k)
-            At, Ht = a.sum(0) - a, H.sum(0) - H
-            for b in range(K):
-                expl[b, j] = At[b] @ solve(Ht[b], At[b])
+        for j0 in range(0, len(grid), SCREEN_CHUNK):
+            C = phys.screen_batch(self.d, grid[j0 : j0 + SCREEN_CHUNK], model)  # (J, k, m)
+            a, H = screen_stats(C, r, self.blocks)
+            At, Ht = a.sum(0)[None] - a, H.sum(0)[None] - H  # fold b: all blocks but b
+            expl[:, j0 : j0 + C.shape[0]] = explained(At, Ht)
         picks = expl.argmax(axis=1)
         out, cache = [], {}
         for b in range(K):
@@ -274,9 +299,16 @@ class Selector:
         return out
 
     # ---- refinement on all training rows ----------------------------------------------
-    def train_sse(self, model: Model, term: Term) -> float:
-        y, Phi, _ = self.d.matrix(model.plus(term))
+    def train_sse(self, model: Model, term: Term, approximate: bool = False) -> float:
+        """Training SSE of ``model`` plus ``term``; ``approximate``: with the term's
+        fast screening columns (for the local search of a screened term)."""
         w = self.blocks.weights > 0
+        if approximate:
+            y, Phi, _ = self.d.matrix(model)
+            C = VOCABULARY[term.physics].screen(self.d, term.params, model)
+            Phi = np.column_stack([Phi, C])
+        else:
+            y, Phi, _ = self.d.matrix(model.plus(term))
         c = fit_rows(y, Phi, w)
         r = (y - Phi @ c)[w]
         return float(r @ r)
@@ -285,12 +317,14 @@ class Selector:
         """The candidate's nonlinear parameters on all training rows: the best of the
         folds' choices, then a bounded local search (variable projection: the linear
         coefficients are re-solved at every trial).  Returns the term and the standard
-        deviation of each nonlinear parameter from the curvature of the profile."""
+        deviation of each nonlinear parameter from the curvature of the profile.  A
+        screened term (resonance, cogging) is searched with its fast columns."""
         phys = VOCABULARY[physics]
         if not phys.thetas:
             return Term.make(physics), {}
+        approx = phys.screening
         uniq = {tuple(sorted(th.items())): th for th in thetas}.values()
-        best = min(uniq, key=lambda th: self.train_sse(model, Term.make(physics, th)))
+        best = min(uniq, key=lambda th: self.train_sse(model, Term.make(physics, th), approx))
         bounds = phys.bounds(self.d, model)
         names = list(phys.thetas)
         logs = [bounds[n][2] for n in names]
@@ -304,7 +338,7 @@ class Selector:
                 lo, hi, _ = bounds[n]
                 if not lo <= th[n] <= hi:
                     return np.inf
-            return self.train_sse(model, Term.make(physics, th))
+            return self.train_sse(model, Term.make(physics, th), approx)
 
         z0 = np.array([np.log(best[n]) if lg else best[n] for n, lg in zip(names, logs)])
         if len(names) == 1:
@@ -315,6 +349,20 @@ class Selector:
         else:
             res = optimize.minimize(f, z0, method="Nelder-Mead", options={"maxfev": 60, "xatol": 1e-3, "fatol": 1e-9})
             z = res.x if res.fun <= f(z0) else z0
+        if approx:  # polish with the exact columns, from the approximate optimum
+            def fx(zz):
+                th = to_theta(np.atleast_1d(zz))
+                if any(not bounds[n][0] <= th[n] <= bounds[n][1] for n in names):
+                    return np.inf
+                return self.train_sse(model, Term.make(physics, th))
+
+            steps = np.array([0.02 if lg else 1e-3 * max(abs(v), 1e-12) for v, lg in zip(z, logs)])
+            simplex = np.vstack([z] + [z + np.diag(steps)[i] for i in range(z.size)])
+            res = optimize.minimize(fx, z, method="Nelder-Mead",
+                                    options={"initial_simplex": simplex, "maxfev": 15 * z.size, "xatol": 1e-4})  # fmt: skip
+            if res.fun <= fx(z):
+                z = np.atleast_1d(res.x)
+            f = fx
         theta = to_theta(z)
         std = self._theta_std(f, z, names, logs, theta)
         return Term.make(physics, theta), std
@@ -362,4 +410,4 @@ class Selector:
 
 
 __all__ = ["ALPHA", "Blocks", "Grams", "N_BLOCKS", "Score", "Selector", "fit_rows", "integrated_time",
-           "make_blocks", "paired_test", "solve"]  # fmt: skip
+           "make_blocks", "paired_test", "screen_stats", "solve"]  # fmt: skip

@@ -59,6 +59,10 @@ class Physics:
     def screen(self, d, theta: dict, model) -> np.ndarray:
         return d.term_rows(_term(self.name, theta), model)
 
+    def screen_batch(self, d, thetas: list, model) -> np.ndarray:
+        """Approximate rows of several variants at once, (J, k, m)."""
+        return np.stack([np.atleast_2d(self.screen(d, th, model).T) for th in thetas], axis=0)
+
     def grid(self, d, model) -> list:
         return [{}]
 
@@ -222,6 +226,11 @@ class Resonance(Physics):
     uses_input = True
     screening = True
     ZETAS = (0.01, 0.04, 0.12)
+    MAX_MODES = 4
+
+    def eligible(self, model):
+        n = sum(t.physics == self.name for t in model.terms)
+        return None if n < self.MAX_MODES else f"{n} modes already in the model"
 
     @staticmethod
     def biquad(f: float, zeta: float, fs: float):
@@ -234,14 +243,9 @@ class Resonance(Physics):
         return b, a
 
     def full(self, d, theta, u_eff):
-        from servo.diagnose.signals import align
-
         s = d.sig
         b, a = self.biquad(theta["frequency_hz"], theta["zeta"], 1.0 / s.dt)
-        z = signal.lfilter(b, a, align(u_eff))
-        fs = 1.0 / s.dt
-        bb, ab = signal.butter(s.settings.butter_order, s.settings.cutoff(fs) / (fs / 2))
-        return -signal.filtfilt(bb, ab, z, padlen=3 * s.settings.butter_order)
+        return -signal.lfilter(b, a, s.force(u_eff))
 
     def screen(self, d, theta, model):
         y = d.target_raw(model)
@@ -318,9 +322,7 @@ class PositionGain(Physics):
     uses_input = True
 
     def full(self, d, theta, u_eff):
-        from servo.diagnose.signals import align
-
-        ua = align(u_eff)
+        ua = d.sig.force(u_eff)
         x = d.sig.xf
         return np.column_stack([-x * ua, -x * x * ua])
 
@@ -339,6 +341,21 @@ class Cogging(Physics):
     def screen(self, d, theta, model):
         w = 2 * math.pi * d.sig.x_rows / theta["period"]
         return np.column_stack([np.sin(w), np.cos(w)])
+
+    def screen_batch(self, d, thetas, model):
+        """sin/cos of ``2*pi*x/period`` for a chunk of the (uniform in 1/period) grid,
+        (J, 2, m), by complex rotation instead of one sine per variant."""
+        k = np.array([1.0 / th["period"] for th in thetas])
+        x = d.sig.x_rows
+        if k.size > 2 and np.allclose(np.diff(k), k[1] - k[0], rtol=1e-9, atol=0):
+            z = np.empty((k.size, x.size), complex)
+            z[0] = np.exp(2j * math.pi * x * k[0])
+            step = np.exp(2j * math.pi * x * (k[1] - k[0]))
+            for j in range(1, k.size):
+                np.multiply(z[j - 1], step, out=z[j])
+        else:
+            z = np.exp(2j * math.pi * k[:, None] * x[None, :])
+        return np.stack([z.imag, z.real], axis=1)
 
     def _k_range(self, d):
         s = d.sig
