@@ -143,7 +143,8 @@ def concealed_recording(effect: str | None, size: float = 0.0, seed: int = 0, sc
         cfg = cfg.replace(drive={"current_limit": limit})
     log = simulate(cfg, e, r=r)
     truth = {"physics": effect, "size": size, "seed": seed,
-             "drive": {k: getattr(cfg.drive, k) for k in sorted(NULL_DRIVE) + sorted(EFFECTS[effect].drive(size) if effect else [])},
+             "drive": {k: getattr(cfg.drive, k) for k in sorted(NULL_DRIVE) + ["stroke"]
+                       + sorted(EFFECTS[effect].drive(size) if effect else [])},
              "baseline": EFFECTS[effect].baseline if effect else DEFAULT_BASELINE}  # fmt: skip
     rec = Recording(log["t"], log["u"], log["x"], None, source=f"concealed:{effect or 'null'}:{size:g}:seed{seed}",
                     meta={"truth": truth})  # fmt: skip

@@ -62,6 +62,7 @@ def finding_dict(f: Finding, fu: str) -> dict:
     return {
         "physics": f.physics, "params": f.params, "std": f.std, "units": _units(f.physics, f.params, fu),
         "where": f.where, "evidence": _evidence(f), "error_before": f.before, "error_after": f.after,
+        "note": VOCABULARY[f.physics].note(f.params),
     }  # fmt: skip
 
 
@@ -174,8 +175,9 @@ def write_drive_toml(report: dict, out: Path) -> bool:
     d = report["final_model"]["drive"]
     if d is None:
         return False
-    text = "# servo diagnose: the final model as the simulated drive's [drive] section\n" + to_toml(
-        from_dict({"drive": d}), comments=False)
+    full = to_toml(from_dict({"drive": d}), comments=False)
+    section = full[full.index("[drive]") :].split("\n\n")[0]
+    text = "# servo diagnose: the final model as the simulated drive's [drive] section\n" + section + "\n"
     atomic_write(out / "final_model.toml", lambda f: Path(f).write_text(text))
     return True
 
@@ -198,6 +200,14 @@ def _err(e: dict) -> str:
     return f"{e['force_rel_pct']:.3g} %" + (f" / NRMSE {o:.3g}" if o is not None else "")
 
 
+def _change(f: dict) -> str:
+    b, a = f["error_before"], f["error_after"]
+    if a.get("rows_differ"):
+        return (f"output NRMSE {b['output_nrmse']:.3g} -> {a['output_nrmse']:.3g} (force error {b['force_rel_pct']:.3g} % "
+                f"-> {a['force_rel_pct']:.3g} %, on the narrower rows)")  # fmt: skip
+    return f"{_err(b)} -> {_err(a)}"
+
+
 def format_summary(report: dict, out: Path) -> str:
     """The human summary: recording, baseline, one line per finding, final model."""
     rc, rows, b, fm = report["recording"], report["rows"], report["baseline"], report["final_model"]
@@ -215,14 +225,15 @@ def format_summary(report: dict, out: Path) -> str:
         lines.append(f"  findings (family-wise false-alarm level {100 * s['alpha']:.0f} %), held-out error "
                      "(force / simulated output) before -> after:")  # fmt: skip
         for i, f in enumerate(report["findings"], 1):
-            lines.append(f"    {i}. {f['physics']}: {_fmt_params(f['params'], f['units'], f['std'])}; "
-                         f"where: {f['where'].get('text', '')}; {_err(f['error_before'])} -> {_err(f['error_after'])}")  # fmt: skip
+            note = f" [{f['note']}]" if f.get("note") else ""
+            lines.append(f"    {i}. {f['physics']}: {_fmt_params(f['params'], f['units'], f['std'])}{note}; "
+                         f"where: {f['where'].get('text', '')}; {_change(f)}")  # fmt: skip
     else:
         lines.append(f"  no finding: nothing the baseline leaves out shows in these data "
                      f"(family-wise false-alarm level {100 * s['alpha']:.0f} %)")  # fmt: skip
     for u in report["unconfirmed"]:
-        lines.append(f"  not confirmed on the held-out part: {u['physics']} ({u['test_error_before']:.3g} -> "
-                     f"{u['test_error_after']:.3g})")  # fmt: skip
+        lines.append(f"  not confirmed on the held-out part (dropped): {u['physics']} ({_err(u['test_error_before'])} -> "
+                     f"{_err(u['test_error_after'])})")  # fmt: skip
     fe = fm["error"]
     lines.append(f"  final model: held-out force error {be['test_force_rel_pct']:.3g} % -> {fe['test_force_rel_pct']:.3g} %"
                  + (f", output NRMSE {be['test_output_nrmse']:.3g} -> {fe['test_output_nrmse']:.3g}"

@@ -200,10 +200,9 @@ def _quantization(rec: Recording, opt: Options, base: Model, design: Design, H: 
     if not lat.found(opt.alpha):
         return None, design, lat, ""
     starts_tr = starts_in(design, design.train_rows, H)
-    starts_te = starts_in(design, ~design.train_rows, H)
     try:
         fit0 = fit_model(design, base)
-        p0_tr, p0_te = predict(design, fit0, starts_tr, H), predict(design, fit0, starts_te, H)
+        p0_tr = predict(design, fit0, starts_tr, H)
     except Unsimulable:
         return None, design, lat, "quantised sensor: the baseline cannot be simulated to judge a derivative path"
     blk = np.array_split(np.arange(starts_tr.size), opt.blocks)
@@ -225,7 +224,8 @@ def _quantization(rec: Recording, opt: Options, base: Model, design: Design, H: 
     d2, f2, e2 = best
     t, p = improvement_test(np.array([e0[b].sum() for b in blk]), np.array([e2[b].sum() for b in blk]))
     level = opt.alpha / len(paths)
-    nr0, nr2 = p0_te.nrmse(), predict(d2, f2, starts_te, H).nrmse()
+    starts_te = starts_in(d2, ~d2.train_rows, H)  # the starts the rest of the proof uses
+    nr0, nr2 = predict(design, fit0, starts_te, H).nrmse(), predict(d2, f2, starts_te, H).nrmse()
     s2 = d2.sig.settings
     q = Finding(Term.make("quantization", {"step": lat.step}), None, level, {}, lat, (t, p))
     q.params = {"step": lat.step, "offset": lat.offset, "noise_share": min(lat.step**2 / 12 / max(sig.noise_x**2, 1e-300), 1.0),

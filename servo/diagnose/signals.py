@@ -224,9 +224,11 @@ def make_signals(rec: Recording, settings: RobustSettings | None = None) -> Sign
     af = second_difference(xf, dt)
     keep = np.arange(s.trim_start, n - s.trim_end)[(kept - 1) % s.decimate :: s.decimate]
 
-    # position noise: what the Butterworth removes, scaled up for the part it keeps
+    # position noise: what the Butterworth removes (a robust std: kinks and steps of the
+    # motion leave a few large values), scaled up for the part of the band it keeps
     frac_kept = min(fc / (fs / 2), 0.5)
-    noise_x = float(np.std((x - xf)[s.trim_start : n - s.trim_end]) / np.sqrt(1.0 - frac_kept))
+    hp = (x - xf)[s.trim_start : n - s.trim_end]
+    noise_x = float(1.4826 * np.median(np.abs(hp - np.median(hp))) / np.sqrt(1.0 - frac_kept))
     noise_v = noise_x * velocity_noise_gain(s, fs)
     v_thr = DIRECTION_Z * noise_v
     uncertain = np.abs(vf) <= v_thr

@@ -86,6 +86,15 @@ class Physics:
     def from_physical(self, p: dict) -> tuple[dict, tuple]:
         return {k: p[k] for k in self.thetas}, tuple(p[k] for k in self.coefs)
 
+    def note(self, params: dict) -> str:
+        """A remark when a fitted parameter has a sign the physics does not expect."""
+        for k, v in params.items():
+            if k in self.POSITIVE and v < 0:
+                return f"{k} < 0: {self.POSITIVE[k]}"
+        return ""
+
+    POSITIVE: dict = {}
+
     def unit(self, name: str, force_unit: str) -> str:
         return self.units.get(name, "-").replace("F", force_unit)
 
@@ -121,6 +130,7 @@ class Inertia(Physics):
 class Viscous(Physics):
     name, coefs, units = "viscous_friction", ("B",), {"B": "F*s/m"}
     doc = "viscous friction B*x'"
+    POSITIVE = {"B": "the force grows against the motion: negative damping, not friction"}
 
     def full(self, d, theta, u_eff):
         return d.sig.vf
@@ -129,6 +139,7 @@ class Viscous(Physics):
 class Coulomb(Physics):
     name, coefs, units = "coulomb_friction", ("Fc",), {"Fc": "F"}
     doc = "Coulomb friction Fc*sgn(x')"
+    POSITIVE = {"Fc": "a force pushing along the motion: not friction"}
 
     def full(self, d, theta, u_eff):
         return np.sign(d.sig.vf)
@@ -147,10 +158,7 @@ class Offset(Physics):
     doc = "constant force h0"
 
     def full(self, d, theta, u_eff):
-        return np.ones(d.sig.n)
-
-    def rows(self, d, theta, u_eff):
-        return np.ones((d.sig.m, 1))
+        return np.ones(d.sig.n)  # through the rows' filter too: its DC gain is 0.989, not 1
 
 
 # ------------------------------------------------------------------ friction refinements
@@ -170,6 +178,8 @@ class Stribeck(Physics):
     units = {"dFs": "F", "stribeck_velocity": "m/s"}
     doc = "Stribeck friction (Fs - Fc)*exp(-(x'/vs)^2)*sgn(x'): higher friction at low speed"
     requires = ("coulomb_friction",)
+    POSITIVE = {"dFs": "the friction is lower at low speed than sliding (a smooth, pre-sliding-like rise, "
+                       "the opposite of a Stribeck peak)"}
 
     def full(self, d, theta, u_eff):
         v = d.sig.vf
@@ -192,6 +202,7 @@ class Hysteresis(Physics):
     doc = ("Dahl hysteresis (paper eq. 6-7): a hidden force with turnaround memory, slope sigma at a "
            "reversal, asymptote +-Ha, Dahl length Ha/sigma")  # fmt: skip
     requires = ("coulomb_friction",)
+    POSITIVE = {"Ha": "an element that releases force after a reversal: not a Dahl friction"}
 
     def full(self, d, theta, u_eff):
         s = d.sig
