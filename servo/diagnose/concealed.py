@@ -12,7 +12,7 @@ long-stroke reference (three sines, +-1.3 mm, 3-37 Hz, random phases) and a band
 random current (20-1000 Hz, 2 mA RMS) is added to its output, for 1 s at 50 kHz.  The
 strokes are a thousand times the Dahl length, so a hysteresis shows only in the few
 milliseconds after each reversal; a mode sits in a band where the input has little
-power; a saturation clips only the peaks.  For the terms of the baseline itself
+power; a saturation clips a fraction of a percent of the samples.  For the terms of the baseline itself
 (Coulomb, viscous, stiffness, offset) the diagnosis runs with a baseline that lacks the
 term, and the others (in particular the offset and the stiffness, which share a column
 with much of it) absorb what they can.
@@ -72,25 +72,25 @@ _SETTERS = {
 }
 
 EFFECTS = {
-    "coulomb_friction": Effect("coulomb_friction", "A", "Fc = Fs (Coulomb level)", (2e-6, 5e-6, 1e-5, 2e-5, 5e-5), 2e-4,
+    "coulomb_friction": Effect("coulomb_friction", "A", "Fc = Fs (Coulomb level)", (1e-6, 2e-6, 5e-6, 1e-5, 2e-5), 2e-4,
                                baseline="J,B,K,h0", fixed={"Fc": 0.0, "Fs": 0.0}),
-    "viscous_friction": Effect("viscous_friction", "A*s/m", "B", (1e-4, 2e-4, 5e-4, 1e-3, 2e-3), 5e-3,
+    "viscous_friction": Effect("viscous_friction", "A*s/m", "B", (1e-5, 2e-5, 5e-5, 1e-4, 2e-4), 5e-3,
                                baseline="J,Fc,K,h0", fixed={"B": 0.0}),
     "stiffness": Effect("stiffness", "A/m", "K", (2e-3, 5e-3, 1e-2, 2e-2, 5e-2), 0.2, baseline="J,B,Fc,h0",
                         fixed={"K": 0.0}),
-    "offset": Effect("offset", "A", "h0", (1e-6, 2e-6, 5e-6, 1e-5, 2e-5), 1e-4, baseline="J,B,Fc,K", fixed={"h0": 0.0}),
+    "offset": Effect("offset", "A", "h0", (5e-6, 1e-5, 2e-5, 5e-5, 1e-4), 3e-4, baseline="J,B,Fc,K", fixed={"h0": 0.0}),
     "asymmetric_friction": Effect("asymmetric_friction", "-", "fc_asymmetry = b_asymmetry", (0.01, 0.02, 0.05, 0.1, 0.2), 0.5),
-    "stribeck_friction": Effect("stribeck_friction", "A", "Fs - Fc (Stribeck velocity 2 mm/s)", (1e-5, 2e-5, 5e-5, 1e-4, 2e-4),
+    "stribeck_friction": Effect("stribeck_friction", "A", "Fs - Fc (Stribeck velocity 2 mm/s)", (2e-5, 5e-5, 1e-4, 2e-4, 5e-4),
                                 5e-4, fixed={"stribeck_velocity": 2e-3}),
-    "hysteresis": Effect("hysteresis", "A", "Dahl Ha (Dahl length 3 um)", (2e-5, 5e-5, 1e-4, 2e-4, 5e-4), 1e-3),
-    "resonance": Effect("resonance", "-", "modal gain of a 700 Hz, zeta 0.02 mode", (1e-3, 2e-3, 5e-3, 1e-2, 2e-2), 0.05),
-    "time_delay": Effect("time_delay", "s", "input delay", (0.5e-6, 1e-6, 2e-6, 5e-6, 1e-5), 2e-5),
-    "input_saturation": Effect("input_saturation", "-", "fraction of the command's peak clipped",
-                               (0.02, 0.05, 0.1, 0.2, 0.3), 0.4),
+    "hysteresis": Effect("hysteresis", "A", "Dahl Ha (Dahl length 3 um)", (1e-5, 2e-5, 5e-5, 1e-4, 2e-4), 1e-3),
+    "resonance": Effect("resonance", "-", "modal gain of a 700 Hz, zeta 0.02 mode", (2e-4, 5e-4, 1e-3, 2e-3, 5e-3), 0.05),
+    "time_delay": Effect("time_delay", "s", "input delay", (1e-6, 2e-6, 3e-6, 5e-6, 1e-5), 2e-5),
+    "input_saturation": Effect("input_saturation", "-", "fraction of the samples clipped",
+                               (0.005, 0.01, 0.02, 0.05, 0.1), 0.1),
     "position_dependent_gain": Effect("position_dependent_gain", "-", "kf_linear (force-constant change at +15 mm)",
-                                      (0.01, 0.02, 0.05, 0.1, 0.2), 0.5),
-    "cogging": Effect("cogging", "A", "cogging amplitude (period 50 um)", (2e-6, 5e-6, 1e-5, 2e-5, 5e-5), 1e-4),
-    "quantization": Effect("quantization", "m", "position quantum", (1e-9, 2e-9, 5e-9, 1e-8, 2e-8), 5e-8),
+                                      (0.02, 0.05, 0.1, 0.2, 0.5), 0.5),
+    "cogging": Effect("cogging", "A", "cogging amplitude (period 50 um)", (1e-6, 2e-6, 5e-6, 1e-5, 2e-5), 1e-4),
+    "quantization": Effect("quantization", "m", "position quantum", (5e-9, 1e-8, 2e-8, 5e-8, 1e-7), 5e-8),
 }  # fmt: skip
 
 
@@ -137,9 +137,9 @@ def concealed_recording(effect: str | None, size: float = 0.0, seed: int = 0, sc
     position) and the truth (what a diagnosis should find, with the drive's fields)."""
     cfg = drive_config(effect, size, seed)
     r, e = scenario_inputs(scenario, seed, cfg.dt)
-    if effect == "input_saturation":
+    if effect == "input_saturation":  # the limit that clips a fraction `size` of the samples
         log = simulate(cfg, e, r=r)
-        limit = (1.0 - size) * float(np.max(np.abs(log["u"])))
+        limit = float(np.quantile(np.abs(log["u"]), 1.0 - size))
         cfg = cfg.replace(drive={"current_limit": limit})
     log = simulate(cfg, e, r=r)
     truth = {"physics": effect, "size": size, "seed": seed,

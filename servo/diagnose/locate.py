@@ -7,10 +7,15 @@ independent: every count is divided by the residual's integrated autocorrelation
 ``tau`` (``n_eff = n/tau``).  Each test states its false-alarm level: the probability
 that it flags anything on a residual that is stationary Gaussian noise.
 
-* **Time windows** (:func:`window_test`): the rows cut into ``W`` windows; the mean
-  square of window ``w`` against the noise level (the median window, corrected for the
-  median of a chi-square) is ``chi2(n_eff_w)`` under the null; windows with
-  ``p < alpha/W`` are flagged (family-wise ``alpha`` over the windows).
+* **Time windows** (:func:`window_test`): the rows cut into ``W`` windows; the log of
+  each window's mean square against the mean and standard deviation of the other
+  windows' logs: for normal logs ``(L_w - mean)/(sd*sqrt(1 + 1/(W-1)))`` is Student's t
+  with ``W - 2`` degrees of freedom (a prediction interval), and windows beyond its
+  ``alpha/W`` quantile are flagged (family-wise ``alpha``).  A test against an absolute
+  noise level (a chi-square with ``n_eff`` degrees of freedom) flagged 68 % of null
+  recordings: even with nothing missing, a closed loop's residual power varies by
+  +-20 % from window to window, several times what ``n_eff`` predicts, so the windows
+  are compared with each other instead.
 * **State** (:func:`state_test`): the residual binned by position, velocity, direction
   of motion and distance since the latest velocity reversal (for the last, the residual
   times the direction, so that a friction-like force does not cancel between
@@ -41,24 +46,31 @@ N_BINS = 10
 
 
 def window_test(t: np.ndarray, r: np.ndarray, valid: np.ndarray, tau: float, alpha: float, W: int = N_WINDOWS) -> dict:
-    """Windows of rows whose residual power exceeds the noise level (see module doc)."""
+    """Windows whose residual power stands out from the other windows (module doc)."""
     edges = np.linspace(0, r.size, W + 1).astype(int)
-    ms, nu, spans = [], [], []
+    ms, spans = [], []
     for a, b in zip(edges[:-1], edges[1:]):
-        v = valid[a:b]
-        rr = r[a:b][v]
-        ms.append(float(np.mean(rr**2)) if rr.size else np.nan)
-        nu.append(max(rr.size / tau, 1.0))
+        rr = r[a:b][valid[a:b]]
+        ms.append(float(np.mean(rr**2)) if rr.size >= 5 else np.nan)
         spans.append((float(t[a]), float(t[b - 1])))
-    ms, nu = np.array(ms), np.array(nu)
-    ok = np.isfinite(ms)
-    med_nu = float(np.median(nu[ok]))
-    sigma2 = float(np.median(ms[ok]) / (1 - 2 / (9 * med_nu)) ** 3)
-    p = np.where(ok, stats.chi2.sf(nu * ms / sigma2, nu), 1.0)
+    ms = np.array(ms)
+    ok = np.isfinite(ms) & (ms > 0)
+    L = np.log(np.where(ok, ms, 1.0))
+    n_ok = int(ok.sum())
+    z = np.full(W, -np.inf)
+    for i in np.flatnonzero(ok):  # each window against the others: a prediction interval
+        o = ok.copy()
+        o[i] = False
+        sd = float(np.std(L[o], ddof=1)) or 1e-12
+        z[i] = (L[i] - L[o].mean()) / (sd * np.sqrt(1 + 1 / max(n_ok - 1, 1)))
     level = alpha / W
-    wins = [{"t0": s[0], "t1": s[1], "rms": float(np.sqrt(m)) if np.isfinite(m) else None, "p": float(q),
-             "flagged": bool(q < level)} for s, m, q in zip(spans, ms, p)]  # fmt: skip
-    return {"false_alarm": alpha, "level_per_window": level, "noise_rms": float(np.sqrt(sigma2)), "windows": wins,
+    dof = max(n_ok - 2, 1)
+    zc = float(stats.t.isf(level, dof))
+    p = np.where(ok, stats.t.sf(z, dof), 1.0)
+    center = float(np.median(L[ok]))
+    wins = [{"t0": s[0], "t1": s[1], "rms": float(np.sqrt(m)) if np.isfinite(m) else None, "z": float(zz) if ok[i] else None,
+             "p": float(q), "flagged": bool(zz > zc)} for i, (s, m, zz, q) in enumerate(zip(spans, ms, z, p))]  # fmt: skip
+    return {"false_alarm": alpha, "level_per_window": level, "noise_rms": float(np.sqrt(np.exp(center))), "windows": wins,
             "flagged": [[w["t0"], w["t1"]] for w in wins if w["flagged"]]}  # fmt: skip
 
 

@@ -150,6 +150,7 @@ def build_report(D: Diagnosis, files: list | None = None) -> dict:
         "unconfirmed": [{**finding_dict(f, fu), "reason": "did not lower the held-out error of the test part",
                          "test_error_before": a, "test_error_after": b} for f, a, b in D.unconfirmed],
         "not_testable": D.not_testable,
+        "implausible": D.implausible,
         "candidates": rounds,
         "locate": {
             "tau_rows": loc["tau"],
@@ -234,6 +235,8 @@ def format_summary(report: dict, out: Path) -> str:
     for u in report["unconfirmed"]:
         lines.append(f"  not confirmed on the held-out part (dropped): {u['physics']} ({_err(u['test_error_before'])} -> "
                      f"{_err(u['test_error_after'])})")  # fmt: skip
+    for name, why in report["implausible"].items():
+        lines.append(f"  not named: {name}: {why}")
     fe = fm["error"]
     lines.append(f"  final model: held-out force error {be['test_force_rel_pct']:.3g} % -> {fe['test_force_rel_pct']:.3g} %"
                  + (f", output NRMSE {be['test_output_nrmse']:.3g} -> {fe['test_output_nrmse']:.3g}"

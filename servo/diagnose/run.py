@@ -29,6 +29,7 @@ from servo.diagnose.model import Design, Model, Term
 from servo.diagnose.quantization import Lattice, candidate_paths, improvement_test, lattice_test
 from servo.diagnose.select import ALPHA, N_BLOCKS, Grams, Score, Selector, make_blocks
 from servo.diagnose.signals import Signals, distance_since_reversal, make_signals
+from servo.diagnose.terms import VOCABULARY
 from servo.errors import ServoError
 from servo.diagnose.simulate import Prediction, Unsimulable, horizon_samples, predict, starts_in
 from servo.identify.regressors import IdentificationError, RobustSettings
@@ -96,6 +97,7 @@ class Diagnosis:
     unconfirmed: list
     rounds: list
     not_testable: dict
+    implausible: dict  # passed the test, but the refined parameters do not describe the physics
     residual_before: np.ndarray  # held-out residual of the baseline (m,)
     residual_after: np.ndarray  # held-out residual of the final model (m,)
     test_rows: np.ndarray
@@ -142,7 +144,7 @@ def state_variables(sig: Signals) -> dict:
 
 
 def _select(sel: Selector, model: Model, opt: Options):
-    findings, rounds, not_testable = [], [], {}
+    findings, rounds, not_testable, implausible = [], [], {}, {}
     while len(findings) < opt.max_findings:
         sel.set_noise(model)
         cands, why = sel.eligible(model)
@@ -153,14 +155,21 @@ def _select(sel: Selector, model: Model, opt: Options):
                 not_testable[s.physics] = s.note
         level = opt.alpha / max(len(testable), 1)
         rounds.append({"level": level, "scores": testable})
-        ok = [s for s in testable if s.passes(level)]
-        if not ok:
+        ok = sorted((s for s in testable if s.passes(level)), key=lambda s: s.delta_ic)
+        added = False
+        for best in ok:
+            term, tstd = sel.refine(model, best.physics, best.thetas)
+            why = VOCABULARY[best.physics].implausible(term.params)
+            if why:
+                implausible[best.physics] = why
+                continue
+            findings.append(Finding(term, best, level, tstd))
+            model = model.plus(term)
+            added = True
             break
-        best = min(ok, key=lambda s: s.delta_ic)
-        term, tstd = sel.refine(model, best.physics, best.thetas)
-        findings.append(Finding(term, best, level, tstd))
-        model = model.plus(term)
-    return findings, rounds, not_testable
+        if not added:
+            break
+    return findings, rounds, not_testable, implausible
 
 
 def _sequence(design: Design, base: Model, findings: list) -> list:
@@ -289,7 +298,7 @@ def diagnose(rec: Recording, opt: Options | None = None) -> Diagnosis:
     test_rows = ~design.train_rows & sig.valid
     blocks = make_blocks(design.train_valid, opt.blocks)
     sel = Selector(design, blocks, opt.alpha)
-    findings, rounds, not_testable = _select(sel, base, opt)
+    findings, rounds, not_testable, implausible = _select(sel, base, opt)
 
     starts_test = starts_in(design, ~design.train_rows, H)
     fits, errs, nr, preds, unconfirmed, note = _prove(design, base, findings, test_rows, starts_test, H)
@@ -334,7 +343,7 @@ def diagnose(rec: Recording, opt: Options | None = None) -> Diagnosis:
     }  # fmt: skip
     return Diagnosis(
         rec=rec, opt=opt, sig=sig, design=design, baseline=base, baseline_fit=fits[0], final_fit=final,
-        findings=findings, unconfirmed=unconfirmed, rounds=rounds, not_testable=not_testable,
+        findings=findings, unconfirmed=unconfirmed, rounds=rounds, not_testable=not_testable, implausible=implausible,
         residual_before=r_before, residual_after=r_after, test_rows=test_rows, locate=loc, state=variables,
         pred_before=preds[0], pred_after=preds[-1], errors=errors, lattice=lattice,
         simulate_note="; ".join(x for x in (note, qnote) if x),

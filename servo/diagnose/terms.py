@@ -95,6 +95,10 @@ class Physics:
 
     POSITIVE: dict = {}
 
+    def implausible(self, theta: dict) -> str:
+        """Why refined nonlinear parameters do not describe this physics ("" if they do)."""
+        return ""
+
     def unit(self, name: str, force_unit: str) -> str:
         return self.units.get(name, "-").replace("F", force_unit)
 
@@ -236,7 +240,8 @@ class Resonance(Physics):
            "q'' + 2*zeta*w*q' + w^2*q = u/J: in the force balance, -gain*s^2/(s^2 + 2*zeta*w*s + w^2) u")  # fmt: skip
     uses_input = True
     screening = True
-    ZETAS = (0.01, 0.04, 0.12)
+    ZETAS = (0.005, 0.02, 0.06)
+    ZETA_MAX = 0.1  # a lightly damped mode
     MAX_MODES = 4
 
     def eligible(self, model):
@@ -278,7 +283,13 @@ class Resonance(Physics):
 
     def bounds(self, d, model):
         lo, hi = self._range(d)
-        return {"frequency_hz": (lo, hi, True), "zeta": (0.002, 0.2, True)}
+        return {"frequency_hz": (lo, hi, True), "zeta": (0.001, self.ZETA_MAX, True)}
+
+    def implausible(self, theta: dict) -> str:
+        if theta["zeta"] >= 0.95 * self.ZETA_MAX:
+            return (f"the best mode sits at the damping bound (zeta {theta['zeta']:.3g}): what the data show is not a "
+                    "lightly damped mode (a delay or a filter acts like a heavily damped one)")  # fmt: skip
+        return ""
 
 
 class TimeDelay(Physics):
@@ -295,8 +306,10 @@ class TimeDelay(Physics):
         return -q * d.sig.dt, 2 * q * d.sig.dt
 
     def grid(self, d, model):
+        """Quarter samples up to two samples either way, whole samples beyond."""
         q = d.sig.settings.decimate
-        return [{"delay_s": j * d.sig.dt} for j in range(-q, 2 * q + 1) if j != 0]
+        steps = sorted({j / 4 for j in range(-8, 9)} | set(range(-q, 2 * q + 1)) - {0})
+        return [{"delay_s": j * d.sig.dt} for j in steps]
 
     def bounds(self, d, model):
         return {"delay_s": (*self._range(d), False)}
