@@ -86,7 +86,7 @@ EFFECTS = {
     "resonance": Effect("resonance", "-", "modal gain of a 700 Hz, zeta 0.02 mode", (2e-4, 5e-4, 1e-3, 2e-3, 5e-3), 0.05),
     "time_delay": Effect("time_delay", "s", "input delay", (1e-6, 2e-6, 3e-6, 5e-6, 1e-5), 2e-5),
     "input_saturation": Effect("input_saturation", "-", "fraction of the samples clipped",
-                               (0.005, 0.01, 0.02, 0.05, 0.1), 0.1),
+                               (0.002, 0.005, 0.01, 0.02, 0.05), 0.05),
     "position_dependent_gain": Effect("position_dependent_gain", "-", "kf_linear (force-constant change at +15 mm)",
                                       (0.02, 0.05, 0.1, 0.2, 0.5), 0.5),
     "cogging": Effect("cogging", "A", "cogging amplitude (period 50 um)", (1e-6, 2e-6, 5e-6, 1e-5, 2e-5), 1e-4),
