@@ -159,7 +159,8 @@ def _select(sel: Selector, model: Model, opt: Options):
         added = False
         for best in ok:
             term, tstd = sel.refine(model, best.physics, best.thetas)
-            why = VOCABULARY[best.physics].implausible(term.params)
+            trial = fit_model(sel.d, model.plus(term))
+            why = VOCABULARY[best.physics].implausible(trial.term_params(len(trial.model.terms) - 1))
             if why:
                 implausible[best.physics] = why
                 continue

@@ -95,8 +95,9 @@ class Physics:
 
     POSITIVE: dict = {}
 
-    def implausible(self, theta: dict) -> str:
-        """Why refined nonlinear parameters do not describe this physics ("" if they do)."""
+    def implausible(self, params: dict) -> str:
+        """Why fitted parameters (:meth:`physical`) do not describe this physics ("" if
+        they do): then the term is not named, whatever the test said."""
         return ""
 
     def unit(self, name: str, force_unit: str) -> str:
@@ -182,8 +183,12 @@ class Stribeck(Physics):
     units = {"dFs": "F", "stribeck_velocity": "m/s"}
     doc = "Stribeck friction (Fs - Fc)*exp(-(x'/vs)^2)*sgn(x'): higher friction at low speed"
     requires = ("coulomb_friction",)
-    POSITIVE = {"dFs": "the friction is lower at low speed than sliding (a smooth, pre-sliding-like rise, "
-                       "the opposite of a Stribeck peak)"}
+
+    def implausible(self, params: dict) -> str:
+        if params["dFs"] < 0:
+            return (f"the best fit has dFs = {params['dFs']:.3g} < 0: friction lower at low speed than sliding, a "
+                    "smooth (pre-sliding-like) rise, the opposite of a Stribeck peak")  # fmt: skip
+        return ""
 
     def full(self, d, theta, u_eff):
         v = d.sig.vf
@@ -206,7 +211,11 @@ class Hysteresis(Physics):
     doc = ("Dahl hysteresis (paper eq. 6-7): a hidden force with turnaround memory, slope sigma at a "
            "reversal, asymptote +-Ha, Dahl length Ha/sigma")  # fmt: skip
     requires = ("coulomb_friction",)
-    POSITIVE = {"Ha": "an element that releases force after a reversal: not a Dahl friction"}
+
+    def implausible(self, params: dict) -> str:
+        if params["Ha"] < 0:
+            return f"the best fit has Ha = {params['Ha']:.3g} < 0: a force released after a reversal, not a Dahl friction"
+        return ""
 
     def full(self, d, theta, u_eff):
         s = d.sig
@@ -285,9 +294,9 @@ class Resonance(Physics):
         lo, hi = self._range(d)
         return {"frequency_hz": (lo, hi, True), "zeta": (0.001, self.ZETA_MAX, True)}
 
-    def implausible(self, theta: dict) -> str:
-        if theta["zeta"] >= 0.95 * self.ZETA_MAX:
-            return (f"the best mode sits at the damping bound (zeta {theta['zeta']:.3g}): what the data show is not a "
+    def implausible(self, params: dict) -> str:
+        if params["zeta"] >= 0.95 * self.ZETA_MAX:
+            return (f"the best mode sits at the damping bound (zeta {params['zeta']:.3g}): what the data show is not a "
                     "lightly damped mode (a delay or a filter acts like a heavily damped one)")  # fmt: skip
         return ""
 
