@@ -52,3 +52,25 @@ def test_sine_point_matches_a_known_linear_plant():
     expected = -1.0 / (cfg.drive.J * w**2) * np.exp(-1j * w * loop_delay(cfg))
     assert abs(H / expected - 1) < 0.01
     assert coh > 0.999
+
+
+def test_bode_command_writes_csv_frd_and_plots(tmp_path, capsys):
+    import pickle
+
+    import control
+
+    from servo.cli import main
+
+    out = tmp_path / "b"
+    assert main(["bode", "--levels", "1,4", "--n-freq", "3", "--periods", "2", "--f-min", "100", "--f-max", "300",
+                 "--no-second-drive", "--out", str(out)]) == 0  # fmt: skip
+    printed = capsys.readouterr()
+    assert "equivalent resonance" in printed.out and "sweep 4/4" in printed.err
+    frds = pickle.loads((out / "frd.pkl").read_bytes())
+    assert len(frds) == 4 and all(isinstance(f, control.FrequencyResponseData) for f in frds.values())
+    rows = np.loadtxt(out / "bode.csv", delimiter=",", skiprows=1)
+    assert rows.shape == (12, 11)
+    assert {"bode_compensated.png", "bode_uncompensated.png", "summary.json"} <= {p.name for p in out.iterdir()}
+    assert main(["bode", "--levels", "1,x", "--out", str(tmp_path / "bad")]) == 2
+    assert "expected comma-separated numbers" in capsys.readouterr().err
+    assert not (tmp_path / "bad").exists()

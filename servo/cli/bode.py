@@ -20,7 +20,7 @@ def register(sub) -> None:
         "figures; writes bode.csv, frd.pkl (control.FrequencyResponseData), PNGs and summary.json.",
     )
     p.add_argument("--levels", default="0.2,1,4,16", metavar="MA,...", help="excitation amplitudes in mA (default 0.2,1,4,16)")
-    p.add_argument("--f-min", type=float, default=20.0, help="lowest frequency, Hz (default 20)")
+    p.add_argument("--f-min", type=float, default=10.0, help="lowest frequency, Hz (default 10)")
     p.add_argument("--f-max", type=float, default=1000.0, help="highest frequency, Hz (default 1000)")
     p.add_argument("--n-freq", type=int, default=30, help="log-spaced frequencies (default 30)")
     p.add_argument("--periods", type=int, default=8, help="measured periods per frequency (default 8)")

@@ -37,7 +37,7 @@ class SweepSettings:
     ``settle_s``: the settling time is the longer of the two."""
 
     levels: tuple = (0.2e-3, 1e-3, 4e-3, 16e-3)
-    f_min: float = 20.0
+    f_min: float = 10.0
     f_max: float = 1000.0
     n_freq: int = 30
     periods: int = 8

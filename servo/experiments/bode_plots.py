@@ -17,7 +17,7 @@ def plot_bode(sweeps: list[Sweep], path: Path, title: str, band: float | None = 
     for s, c in zip(sweeps, colors):
         ax[0].semilogx(s.f, s.mag_db, color=c, marker=".", ms=4, lw=1.2, label=f"{s.level * 1e3:g} mA")
         ax[1].semilogx(s.f, s.phase_deg, color=c, marker=".", ms=4, lw=1.2)
-    if band:
+    if band and band < sweeps[0].f[-1]:
         for x in ax:
             x.axvspan(sweeps[0].f[0], band, color="0.93", zorder=0)
     ax[0].set_ylabel("|X/U| (dB re 1 m/A)")

@@ -64,18 +64,21 @@ def run_bode(cfg: Config, out: Path, s: SweepSettings, with_second: bool = True,
     }
     for (name, comp), sweeps in res.items():
         fn = f"bode_{'' if name == 'drive' else 'drive2_'}{'compensated' if comp else 'uncompensated'}.png"
-        plot_bode(sweeps, out / fn, titles[(name, comp)] + f"; shaded: band below {band:g} Hz", band)
+        shade = band < s.f_max
+        plot_bode(sweeps, out / fn, titles[(name, comp)] + (f"; shaded: band below {band:g} Hz" if shade else ""), band)
         files.append(fn)
     summary = {
         "settings": {**s.__dict__, "levels": list(s.levels)},
         "band_hz": band,
         "resonance_uncompensated": [resonance(sw, delay_s=loop_delay(cfg)) for sw in res[("drive", False)]],
+        "resonance_compensated": [resonance(sw, delay_s=loop_delay(cfg)) for sw in res[("drive", True)]],
         "linearity_uncompensated": linearity(res[("drive", False)], band),
         "linearity_compensated": linearity(res[("drive", True)], band),
     }
     if with_second:
         summary["drive2"] = {
             "resonance_uncompensated": [resonance(sw, delay_s=loop_delay(cfg)) for sw in res[("drive2", False)]],
+            "resonance_compensated": [resonance(sw, delay_s=loop_delay(cfg)) for sw in res[("drive2", True)]],
             "linearity_uncompensated": linearity(res[("drive2", False)], band),
             "linearity_compensated": linearity(res[("drive2", True)], band),
         }
@@ -100,6 +103,8 @@ def format_summary(summary: dict, out: Path) -> str:
     for r in summary["resonance_uncompensated"]:
         lines.append(f"    {r['level_A'] * 1e3:>7.3g} mA: f_n {r['f_n_hz']:6.1f} Hz, zeta {r['zeta']:.3f} "
                      f"(magnitude peak at {r['peak_hz']:.0f} Hz)")  # fmt: skip
+    kc = [r["k_A_per_m"] for r in summary["resonance_compensated"]]
+    lines.append(f"  with compensation: equivalent stiffness per level {', '.join(f'{k:.1f}' for k in kc)} A/m")
     lines.append(f"  band below the first flexible mode: up to {b:g} Hz")
     lines.append(_lin_line("without compensation", summary["linearity_uncompensated"]))
     lines.append(_lin_line("with compensation (Fig. 8)", summary["linearity_compensated"]))
@@ -110,6 +115,11 @@ def format_summary(summary: dict, out: Path) -> str:
         lines.append("  " + _lin_line("without compensation", d2["linearity_uncompensated"]))
         lines.append("  " + _lin_line("with compensation", d2["linearity_compensated"]))
         ur, cr = d2["linearity_uncompensated"]["spread_db_rms"], d2["linearity_compensated"]["spread_db_rms"]
+        ku = [r["k_A_per_m"] for r in d2["resonance_uncompensated"]]
+        kc = [r["k_A_per_m"] for r in d2["resonance_compensated"]]
+        lines.append(f"    equivalent stiffness k per level (A/m): without {', '.join(f'{k:.0f}' for k in ku)}; "
+                     f"with {', '.join(f'{k:.0f}' for k in kc)}: range {max(kc) - min(kc):.0f} of {max(ku) - min(ku):.0f} A/m "
+                     f"left ({100 * (max(kc) - min(kc)) / (max(ku) - min(ku)):.0f} %)")  # fmt: skip
         lines.append(f"    nonlinearity left: level spread {c:.2f} dB max / {cr:.2f} dB RMS, against {u:.2f} / {ur:.2f} dB "
                      f"without compensation ({100 * cr / ur:.0f} % of the RMS spread left)")
     lines.append(f"  wrote {out}/: " + ", ".join(summary["files"]))
