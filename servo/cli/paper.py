@@ -36,8 +36,9 @@ def handle(args: argparse.Namespace) -> int:
     h = summary["hysteresis"]["error_pct"]
     print(f"servo paper: section IV regenerated in {time.perf_counter() - t0:.0f} s")
     print(f"  Fig. 3-4: Dahl fit sigma {h['sigma']:+.2f} %, Ha {h['Ha']:+.2f} %, alpha {h['alpha']:+.2f} %; large-loop K {h['K']:+.2f} %")
-    fr = summary["identification"]["fits"]["robust"]["error_pct"]["drive"]
-    print("  Fig. 5 (robust path vs drive): " + ", ".join(f"{k} {v:+.1f} %" for k, v in fr.items()))
+    fr = summary["identification"]["fits"]["robust"]["error_pct"]["model (3) of the drive"]
+    print("  Fig. 5 (robust path vs what model (3) can represent of the drive): "
+          + ", ".join(f"{k} {v:+.1f} %" for k, v in fr.items()))
     print("  Fig. 7: f_n per level " + ", ".join(f"{r['f_n_hz']:.0f} Hz" for r in summary["bode"]["resonance_uncompensated"]))
     print(f"  Fig. 8: spread {c['spread_db_max']:.2f} dB, slopes "
           + ", ".join(f"{v:.1f}" for v in c["slope_db_per_decade"].values())

@@ -83,7 +83,10 @@ def report(cfg: Config, s: dict, sw: SquareWave) -> str:
          "acceleration, least squares (5); the estimated acceleration matches the true one very well.", "",
          f"*Measured:* {sw.amplitude * 1e3:g} mA, {sw.hz:g} Hz square wave under a {sw.holding_hz:g} Hz holding loop "
          "(millimetre motion: on this drive sub-micron motion never leaves the Dahl pre-sliding regime, where "
-         "model (3) does not apply; see docs/identification.md).", ""]
+         "model (3) does not apply; see docs/identification.md). The force is aligned with the drive's known delay. "
+         "'model (3) of the drive' is the same regression applied to the drive's own pivot force: what model (3) can "
+         "represent of a Dahl pivot on this motion. The estimate's distance to it is the estimator's error; its distance "
+         "to the drive's values is model (3)'s.", ""]
     L += ["| path | term | estimate | drive | error | model (3) of the drive | error |", "|---|---|---|---|---|---|---|"]
     for path, fit in idf["fits"].items():
         for t in fit["terms"]:
@@ -122,7 +125,8 @@ def report(cfg: Config, s: dict, sw: SquareWave) -> str:
           "Equivalent linear plant per level (k: stiffness, zeta: damping; second-order fit below 300 Hz):", "",
           "| level | k without (A/m) | zeta without | k with (A/m) | zeta with |", "|---|---|---|---|---|"]
     for ru, rc in zip(d2["resonance_uncompensated"], d2["resonance_compensated"]):
-        L.append(f"| {ru['level_A'] * 1e3:g} mA | {ru['k_A_per_m']:.0f} | {ru['zeta']:.3f} | {rc['k_A_per_m']:.0f} | {rc['zeta']:.3f} |")
+        zc = "- (k < 0)" if not rc["zeta"] == rc["zeta"] else f"{rc['zeta']:.3f}"
+        L.append(f"| {ru['level_A'] * 1e3:g} mA | {ru['k_A_per_m']:.0f} | {ru['zeta']:.3f} | {rc['k_A_per_m']:.0f} | {zc} |")
     ku = [r["k_A_per_m"] for r in d2["resonance_uncompensated"]]
     kc = [r["k_A_per_m"] for r in d2["resonance_compensated"]]
     L += ["", f"Nonlinearity left: the stiffness varies over {max(kc) - min(kc):.0f} A/m across levels with the untuned "
