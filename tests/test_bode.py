@@ -74,3 +74,16 @@ def test_bode_command_writes_csv_frd_and_plots(tmp_path, capsys):
     assert main(["bode", "--levels", "1,x", "--out", str(tmp_path / "bad")]) == 2
     assert "expected comma-separated numbers" in capsys.readouterr().err
     assert not (tmp_path / "bad").exists()
+
+
+def test_an_unstable_holding_loop_is_refused():
+    """Halving the 7 kHz mode's damping destabilises the default holding loop: refused."""
+    from servo.errors import ConfigError
+    from servo.experiments.bode import check_holding_loop
+
+    cfg = Config()
+    zeta = list(cfg.drive.mode_zeta)
+    zeta[3] *= 0.5
+    with pytest.raises(ConfigError, match=r"holding loop is unstable.*oscillating at (69|70)\d\d Hz"):
+        check_holding_loop(cfg.replace(drive={"mode_zeta": zeta}))
+    check_holding_loop(cfg)  # the default drive is fine

@@ -3,6 +3,7 @@ drive's square-wave experiment (paper Fig. 5)."""
 from __future__ import annotations
 
 import argparse
+import json
 import time
 from pathlib import Path
 
@@ -62,6 +63,7 @@ def handle(args: argparse.Namespace) -> int:
     from servo.identify.regressors import RobustSettings, parse_terms
     from servo.identify.report import format_summary, run_identify
     from servo.recording import load_recording, parse_mapping, save_recording_csv
+    from servo.runlog import atomic_write
 
     terms = parse_terms(args.terms, args.off)
     start, end = _trim(args.trim)
@@ -92,8 +94,6 @@ def handle(args: argparse.Namespace) -> int:
         rec.source = f"simulated drive, {sw.amplitude * 1e3:g} mA {sw.hz:g} Hz square wave, {sw.holding_hz:g} Hz holding loop"
         reference = {"drive": nominal(cfg),
                      "model (3) of the drive": {p: representable(cfg, log, p, settings) for p in ("robust", "paper")}}
-        out.mkdir(parents=True, exist_ok=True)
-        save_recording_csv(out / "recording.csv", rec)
     else:
         if not args.recording:
             raise ConfigError("give a RECORDING (CSV, NPZ or .mat) or --simulate")
@@ -102,5 +102,9 @@ def handle(args: argparse.Namespace) -> int:
         args.path or ("both" if rec.v is not None else "robust")
     ]
     summary = run_identify(rec, out, paths, terms, settings, args.force_unit, reference, lag)
+    if args.simulate:  # written once the fits succeeded: no half-filled folder on an error
+        save_recording_csv(out / "recording.csv", rec)
+        summary["files"] = sorted(summary["files"] + ["recording.csv"])
+        atomic_write(out / "summary.json", lambda f: Path(f).write_text(json.dumps(summary, indent=2)))
     print(format_summary(summary, out))
     return 0

@@ -27,6 +27,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from servo.config import Config
+from servo.errors import ConfigError
 from servo.experiments.sim import simulate
 
 
@@ -78,6 +79,27 @@ class Sweep:
         return control.FrequencyResponseData(self.H, 2 * np.pi * self.f)
 
 
+def check_holding_loop(cfg: Config, seconds: float = 2.0, name: str = "the drive") -> None:
+    """Refuse a drive on which the PI holding loop is unstable (a flexible mode, too much
+    gain): run ``seconds`` unexcited, with and without compensation, and raise a one-line
+    :class:`~servo.errors.ConfigError` if the position's RMS in the last tenth exceeds 10x
+    that of the first tenth and 10 nm.  A sweep on such a drive would measure the
+    oscillation, not the plant."""
+    n = int(round(seconds / cfg.dt))
+    for comp in (False, True):
+        x = simulate(cfg, np.zeros(n), compensation=comp)["x"]
+        k = n // 10
+        first, last = np.std(x[:k]), np.std(x[-k:])
+        if last > 10 * first and last > 1e-8:
+            seg = x[-k:] - x[-k:].mean()
+            f = np.fft.rfftfreq(k, cfg.dt)[1:][np.argmax(np.abs(np.fft.rfft(seg))[1:])]
+            raise ConfigError(
+                f"the PI holding loop is unstable on {name} (compensation {'on' if comp else 'off'}): the position RMS "
+                f"grows from {first * 1e9:.3g} nm to {last * 1e9:.3g} nm in {seconds:g} s, oscillating at {f:.0f} Hz; "
+                "lower controller.kp/ki/kd or change the drive's modes"
+            )
+
+
 def frequencies(s: SweepSettings) -> np.ndarray:
     return np.geomspace(s.f_min, s.f_max, s.n_freq)
 
@@ -119,4 +141,4 @@ def sweep(cfg: Config, level: float, s: SweepSettings, compensation: bool, progr
                  label=f"{level * 1e3:g} mA, compensation {'on' if compensation else 'off'}")  # fmt: skip
 
 
-__all__ = ["Sweep", "SweepSettings", "frequencies", "sine_point", "sweep"]
+__all__ = ["Sweep", "SweepSettings", "check_holding_loop", "frequencies", "sine_point", "sweep"]

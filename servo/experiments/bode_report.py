@@ -17,7 +17,7 @@ from pathlib import Path
 import numpy as np
 
 from servo.config import Config
-from servo.experiments.bode import SweepSettings, sweep
+from servo.experiments.bode import SweepSettings, check_holding_loop, sweep
 from servo.experiments.bode_analysis import band_max, linearity, loop_delay, resonance, second_drive
 from servo.experiments.bode_plots import plot_bode
 from servo.runlog import atomic_write, write_csv
@@ -42,6 +42,8 @@ def run_bode(cfg: Config, out: Path, s: SweepSettings, with_second: bool = True,
     drives = {"drive": cfg}
     if with_second:
         drives["drive2"] = second_drive(cfg)
+    for name, c in drives.items():
+        check_holding_loop(c, name="the second drive" if name == "drive2" else "the drive")
     res = run_sweeps(cfg, s, drives, progress)
     out.mkdir(parents=True, exist_ok=True)
     rows, frds = [], {}
@@ -82,6 +84,10 @@ def run_bode(cfg: Config, out: Path, s: SweepSettings, with_second: bool = True,
             "linearity_uncompensated": linearity(res[("drive2", False)], band),
             "linearity_compensated": linearity(res[("drive2", True)], band),
         }
+    summary["low_coherence_points"] = {
+        f"{name}, compensation {'on' if comp else 'off'}": int(sum(np.count_nonzero(sw.coherence < 0.9) for sw in sweeps))
+        for (name, comp), sweeps in res.items()
+    }
     summary["files"] = sorted(files + ["summary.json"])
     atomic_write(out / "summary.json", lambda f: Path(f).write_text(json.dumps(summary, indent=2)))
     return summary
@@ -122,6 +128,8 @@ def format_summary(summary: dict, out: Path) -> str:
                      f"left ({100 * (max(kc) - min(kc)) / (max(ku) - min(ku)):.0f} %)")  # fmt: skip
         lines.append(f"    nonlinearity left: level spread {c:.2f} dB max / {cr:.2f} dB RMS, against {u:.2f} / {ur:.2f} dB "
                      f"without compensation ({100 * cr / ur:.0f} % of the RMS spread left)")
+    low = {k: v for k, v in summary.get("low_coherence_points", {}).items() if v}
+    lines.append("  points with coherence < 0.9: " + (", ".join(f"{k}: {v}" for k, v in low.items()) if low else "none"))
     lines.append(f"  wrote {out}/: " + ", ".join(summary["files"]))
     return "\n".join(lines)
 
