@@ -93,6 +93,18 @@ def test_robust_path_noisy_within_tolerance():
         assert abs(fit[k] - TRUE[k]) < 4 * fit.std[fit.terms.index(k)] + 1e-3 * abs(TRUE[k]), k
 
 
+def test_force_lag_realigns_a_delayed_force():
+    """A force that acts 3 samples late: ignored, B is biased; declared, recovered."""
+    dt = 1e-3
+    t, x, v, a = smooth_motion(20000, dt)
+    u_true = model_force(TRUE, a, v, x)  # the force acting at t
+    u_rec = np.interp(t + 3 * dt, t, u_true)  # recorded 3 samples early: it acts 3 samples late
+    biased = least_squares(robust_regression(t, x, u_rec, dt))
+    fit = least_squares(robust_regression(t, x, u_rec, dt, force_lag_s=3 * dt))
+    assert rel_errors(biased, TRUE)["B"] > 0.05
+    assert max(rel_errors(fit, TRUE).values()) < 5e-3
+
+
 def test_switching_terms_off_and_unknown_terms():
     assert parse_terms(off="K") == ("J", "B", "Fc", "h0")
     assert parse_terms("h0,J") == ("J", "h0")

@@ -26,15 +26,17 @@ def test_identify_emps_from_the_command_line(tmp_path):
 
 
 def test_identify_simulated_square_wave(tmp_path):
-    """The square-wave experiment on the default drive: the robust path gets J and h0
-    within 1 %, Fc within 15 % of the pivot's sliding level (model 3 cannot represent the
-    pre-sliding part of the Dahl pivot: see docs/identification.md)."""
+    """The square-wave experiment on the default drive (robust path, force aligned with
+    the drive's known delay): J, B, Fc, h0 within 3 % of what model (3) can represent of
+    the drive (its Dahl pivot projected on the regressor); J and h0 within 1 % of the
+    drive's own values.  K is weakly excited and biased by the flexible modes (docs)."""
     out = tmp_path / "sq"
     r = servo("identify", "--simulate", "--duration", "0.5", "--path", "robust", "--out", str(out))
     assert r.returncode == 0, r.stderr
     s = json.loads((out / "summary.json").read_text())
-    err = s["fits"]["robust"]["error_pct"]["drive"]
-    assert abs(err["J"]) < 1 and abs(err["h0"]) < 1 and abs(err["Fc"]) < 15, err
+    err = s["fits"]["robust"]["error_pct"]
+    assert all(abs(err["model (3) of the drive"][k]) < 3 for k in ("J", "B", "Fc", "h0")), err
+    assert abs(err["drive"]["J"]) < 1 and abs(err["drive"]["h0"]) < 1, err
     assert (out / "recording.csv").exists()
 
 

@@ -3,6 +3,7 @@ drive's square-wave experiment (paper Fig. 5)."""
 from __future__ import annotations
 
 import argparse
+import json
 import time
 from pathlib import Path
 
@@ -35,6 +36,10 @@ def register(sub) -> None:
                    help="robust path: samples dropped at each end after differentiation (default 49,49)")
     p.add_argument("--emps-reference", action="store_true",
                    help="robust path with the EMPS reference script's settings (drops the first 49 samples only)")
+    p.add_argument("--force-lag", type=float, metavar="S", default=None,
+                   help="seconds by which the recorded force acts late (input delay; with --path robust add half a "
+                   "sample for a zero-order-held command). Default 0; with --simulate, the drive's input delay "
+                   "(+ half a sample on the robust path)")  # fmt: skip
     p.add_argument("--force-unit", default="A", help="unit of the force column, for the report (default A; N for EMPS)")
     p.add_argument("--simulate", action="store_true", help="run the square-wave experiment on the simulated drive instead")
     p.add_argument("--amplitude", type=float, default=0.02, help="--simulate: square-wave amplitude, A (default 0.02)")
@@ -58,6 +63,7 @@ def handle(args: argparse.Namespace) -> int:
     from servo.identify.regressors import RobustSettings, parse_terms
     from servo.identify.report import format_summary, run_identify
     from servo.recording import load_recording, parse_mapping, save_recording_csv
+    from servo.runlog import atomic_write
 
     terms = parse_terms(args.terms, args.off)
     start, end = _trim(args.trim)
@@ -68,6 +74,9 @@ def handle(args: argparse.Namespace) -> int:
                                   trim_start=start, trim_end=end)  # fmt: skip
     out = Path(args.out) if args.out else Path("servo-out") / time.strftime("identify-%Y%m%d-%H%M%S")
     reference = None
+    lag = 0.0 if args.force_lag is None else args.force_lag
+    if lag < 0:
+        raise ConfigError("--force-lag must be >= 0")
     if args.simulate:
         if args.recording:
             raise ConfigError("give a recording or --simulate, not both")
@@ -78,11 +87,13 @@ def handle(args: argparse.Namespace) -> int:
         if not (sw.amplitude > 0 and sw.hz > 0 and sw.duration_s > 0 and sw.holding_hz > 0):
             raise ConfigError("--amplitude, --hz, --duration and --holding-hz must be positive")
         rec, log = run_square_wave(cfg, sw)
+        if args.force_lag is None:
+            from servo.experiments.square_wave import force_lag
+
+            lag = force_lag(cfg)
         rec.source = f"simulated drive, {sw.amplitude * 1e3:g} mA {sw.hz:g} Hz square wave, {sw.holding_hz:g} Hz holding loop"
         reference = {"drive": nominal(cfg),
                      "model (3) of the drive": {p: representable(cfg, log, p, settings) for p in ("robust", "paper")}}
-        out.mkdir(parents=True, exist_ok=True)
-        save_recording_csv(out / "recording.csv", rec)
     else:
         if not args.recording:
             raise ConfigError("give a RECORDING (CSV, NPZ or .mat) or --simulate")
@@ -90,6 +101,10 @@ def handle(args: argparse.Namespace) -> int:
     paths = {"robust": ("robust",), "paper": ("paper",), "both": ("robust", "paper")}[
         args.path or ("both" if rec.v is not None else "robust")
     ]
-    summary = run_identify(rec, out, paths, terms, settings, args.force_unit, reference)
+    summary = run_identify(rec, out, paths, terms, settings, args.force_unit, reference, lag)
+    if args.simulate:  # written once the fits succeeded: no half-filled folder on an error
+        save_recording_csv(out / "recording.csv", rec)
+        summary["files"] = sorted(summary["files"] + ["recording.csv"])
+        atomic_write(out / "summary.json", lambda f: Path(f).write_text(json.dumps(summary, indent=2)))
     print(format_summary(summary, out))
     return 0

@@ -81,6 +81,15 @@ def representable(cfg: Config, log: dict, path: str, settings: RobustSettings | 
     return {k: float(p) for k, p in zip(TERMS, own + proj)}
 
 
+def force_lag(cfg: Config) -> dict[str, float]:
+    """How late the recorded command acts on the simulated arm, per derivative path (s):
+    the drive's input delay and the link latency; the robust path adds the half sample of
+    the zero-order hold (the paper path's rows already pair each interval with its held
+    command)."""
+    delay = cfg.drive.input_delay_s + cfg.link.command_latency_ticks * cfg.dt
+    return {"paper": delay, "robust": delay + 0.5 * cfg.dt}
+
+
 def nominal(cfg: Config) -> dict[str, float]:
     """The drive's own values: ``Fc`` is its sliding friction, the Dahl asymptote plus any
     Coulomb term."""
@@ -88,4 +97,4 @@ def nominal(cfg: Config) -> dict[str, float]:
     return {"J": d.J, "B": d.B, "Fc": d.Ha + d.Fc, "K": d.K, "h0": d.h0}
 
 
-__all__ = ["SquareWave", "nominal", "representable", "run_square_wave", "square_wave"]
+__all__ = ["SquareWave", "force_lag", "nominal", "representable", "run_square_wave", "square_wave"]

@@ -26,6 +26,13 @@ Two derivative paths build the rows ``(phi_k, y_k)``:
   defaults of :class:`RobustSettings` are the EMPS reference script's settings expressed
   relative to the sample rate; with them the published EMPS estimates are reproduced.
 
+Both take ``force_lag_s``: how much later than its sample instant the recorded force acts
+on the mass (an amplifier or computation delay; for the robust path also the half sample of
+a zero-order-held command, which the paper path's rows already account for).  The force
+column is then ``u(t - force_lag_s)`` by linear interpolation.  Default 0: the recording's
+force is taken as acting at its sample instant (the EMPS reference's assumption).  A
+misaligned force biases ``B`` (the edges of a square wave happen at peak speed).
+
 Both return a :class:`Regression`: plain arrays plus the settings that made them, ready
 for :func:`servo.identify.least_squares.least_squares`.
 """
@@ -153,13 +160,25 @@ def _check_inputs(t, x, u, dt):
     return t, x, u
 
 
-def paper_regression(t, x, u, v, dt: float, terms=TERMS) -> Regression:
+def lag_force(t: np.ndarray, u: np.ndarray, lag_s: float) -> np.ndarray:
+    """The force acting at each sample instant when the recorded one acts ``lag_s``
+    seconds late: ``u(t - lag_s)``, linearly interpolated (held at ``u[0]`` before it)."""
+    if lag_s == 0.0:
+        return u
+    if not (np.isfinite(lag_s) and lag_s >= 0.0):
+        raise IdentificationError(f"force lag must be >= 0 s, got {lag_s!r}")
+    return np.interp(t - lag_s, t, u)
+
+
+def paper_regression(t, x, u, v, dt: float, terms=TERMS, force_lag_s: float = 0.0) -> Regression:
     """The paper's path: measured velocity ``v`` (m/s), backward-difference acceleration.
 
     ``t``, ``x``, ``u``, ``v``: (n,) samples every ``dt`` s; ``u`` the force (A) applied
-    from each sample to the next (zero-order hold).  Returns n-1 rows (see module doc).
+    from each sample to the next (zero-order hold), ``force_lag_s`` later (see module
+    doc).  Returns n-1 rows.
     """
     t, x, u = _check_inputs(t, x, u, dt)
+    u = lag_force(t, u, force_lag_s)
     if v is None:
         raise IdentificationError("the paper's path needs a measured velocity column v (or use --path robust)")
     v = np.asarray(v, dtype=float).ravel()
@@ -170,7 +189,8 @@ def paper_regression(t, x, u, v, dt: float, terms=TERMS) -> Regression:
     x_k = 0.5 * (x[1:] + x[:-1])
     return Regression(
         terms=tuple(terms), Phi=regressor(a_k, v_k, x_k, terms), y=u[:-1].copy(), t=t[1:] - 0.5 * dt,
-        x=x_k, v=v_k, a=a_k, dt=dt, path="paper", settings={"velocity": "measured", "acceleration": "backward difference"},
+        x=x_k, v=v_k, a=a_k, dt=dt, path="paper",
+        settings={"velocity": "measured", "acceleration": "backward difference", "force_lag_s": force_lag_s},
     )  # fmt: skip
 
 
@@ -192,15 +212,18 @@ def _keep(n: int, q: int) -> slice:
     return slice((n - 1) % q, n, q)
 
 
-def robust_regression(t, x, u, dt: float, terms=TERMS, settings: RobustSettings | None = None) -> Regression:
+def robust_regression(t, x, u, dt: float, terms=TERMS, settings: RobustSettings | None = None,
+                      force_lag_s: float = 0.0) -> Regression:  # fmt: skip
     """The inverse-dynamics path: Butterworth on ``x``, central differences, parallel
     low-pass and decimation of the regressor columns and the force ``u``.
 
-    ``t``, ``x`` (m), ``u`` (force): (n,) samples every ``dt`` s.  Returns about
-    ``(n - trim_start - trim_end)/decimate`` rows spaced ``decimate*dt``.
+    ``t``, ``x`` (m), ``u`` (force, acting ``force_lag_s`` after its sample): (n,)
+    samples every ``dt`` s.  Returns about ``(n - trim_start - trim_end)/decimate`` rows
+    spaced ``decimate*dt``.
     """
     s = settings or RobustSettings()
     t, x, u = _check_inputs(t, x, u, dt)
+    u = lag_force(t, u, force_lag_s)
     fs = 1.0 / dt
     fc = s.cutoff(fs)
     if s.butter_order < 1:
@@ -230,11 +253,11 @@ def robust_regression(t, x, u, dt: float, terms=TERMS, settings: RobustSettings 
     y = dec(u[sl])
     return Regression(
         terms=tuple(terms), Phi=Phi, y=y, t=t[sl][keep], x=x_f[sl][keep], v=v_f[sl][keep], a=a_f[sl][keep],
-        dt=dt * s.decimate, path="robust", settings={**asdict(s), "cutoff_hz": fc},
+        dt=dt * s.decimate, path="robust", settings={**asdict(s), "cutoff_hz": fc, "force_lag_s": force_lag_s},
     )  # fmt: skip
 
 
 __all__ = [
-    "COLUMN", "TERMS", "UNITS", "IdentificationError", "Regression", "RobustSettings", "matlab_decimate",
+    "COLUMN", "TERMS", "UNITS", "IdentificationError", "Regression", "RobustSettings", "lag_force", "matlab_decimate",
     "paper_regression", "parse_terms", "regressor", "robust_regression", "units",
 ]

@@ -45,14 +45,16 @@ def write_identification(ident: Identification, out: Path, force_unit: str = "A"
 
 
 def run_identify(rec: Recording, out: Path, paths, terms, settings: RobustSettings, force_unit: str = "A",
-                 reference: dict | None = None) -> dict:  # fmt: skip
+                 reference: dict | None = None, force_lag_s: float | dict = 0.0) -> dict:  # fmt: skip
     """Identify ``rec`` with each of ``paths`` and write everything into ``out``.
 
     ``reference``: named sets of known parameter values to compare with (for a simulated
     experiment: the drive's nominal values and what model (3) can represent); a set may
-    be given per path (``{"robust": {...}, "paper": {...}}``)."""
+    be given per path (``{"robust": {...}, "paper": {...}}``).  ``force_lag_s``: seconds,
+    or a dict per path."""
     out = Path(out)
-    results = {p: identify(rec, p, terms, settings) for p in paths}  # all fits before any file
+    lag = force_lag_s if isinstance(force_lag_s, dict) else {p: force_lag_s for p in paths}
+    results = {p: identify(rec, p, terms, settings, lag[p]) for p in paths}  # all fits before any file
     out.mkdir(parents=True, exist_ok=True)
     files = []
     for ident in results.values():
@@ -87,6 +89,8 @@ def format_summary(summary: dict, out: Path) -> str:
         how = ("measured velocity, backward-difference acceleration" if path == "paper" else
                f"Butterworth {s['butter_order']} at {s['cutoff_hz']:.4g} Hz, central differences, "
                f"parallel decimation by {s['decimate']}")  # fmt: skip
+        if s.get("force_lag_s"):
+            how += f"; force lag {s['force_lag_s'] * 1e6:.3g} us"
         lines.append(f"  {path} path ({how}): {fit['n_rows']} rows")
         head = f"    {'term':<4} {'estimate':>13} {'std':>10} {'std %':>7}  unit"
         for name in ref:
