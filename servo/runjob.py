@@ -7,13 +7,15 @@ into one output folder:
 * ``log_compensated.{npz,csv}``, ``log_uncompensated.{npz,csv}``: the run logs;
 * ``summary.json``: tracking error RMS per segment, per-step overshoot and settling,
   compute time per sample, ticks, overruns;
-* ``tracking.png``, ``steps.png``, ``current.png`` (and ``timing.png`` tick by tick);
+* ``tracking.png``, ``steps.png``, ``current.png`` (and ``timing.png`` tick by tick;
+  ``lateness.png`` when paced in real time, see :mod:`servo.realtime`);
 * ``config.toml``: the effective configuration (rerun it for the same bits).
 """
 from __future__ import annotations
 
 import json
 import time
+from contextlib import nullcontext
 from pathlib import Path
 
 import numpy as np
@@ -22,7 +24,10 @@ from kernels.loop import LOG_COLUMNS
 from servo import runplots
 from servo.config import Config, to_toml
 from servo.controller import Controller
+from servo.errors import ConfigError
 from servo.metrics import rms, step_metrics, tick_timing
+from servo.pacing import OverrunFault, realtime_section
+from servo.realtime import REALTIME_LOG_BLOCK, RealtimeOptions, grant_line, lateness_line, make_pacer, plot_lateness, report
 from servo.runlog import RunLog, atomic_write
 from servo.runner import LoopResult, log_rows, run_closed_loop
 from servo.scenario import scenario_inputs, segments
@@ -36,13 +41,24 @@ def default_out_dir() -> Path:
     return Path("servo-out") / time.strftime("run-%Y%m%d-%H%M%S")
 
 
-def run_simulated(cfg: Config, out_dir: Path, compensated: bool, fast: bool) -> tuple[np.ndarray, LoopResult]:
-    """One closed-loop run against a fresh simulated drive; returns (log rows, result)."""
+def run_simulated(cfg: Config, out_dir: Path, compensated: bool, fast: bool,
+                  realtime: RealtimeOptions | None = None) -> tuple[np.ndarray, LoopResult]:  # fmt: skip
+    """One closed-loop run against a fresh simulated drive; returns (log rows, result).
+    ``realtime``: pace the ticks on the wall clock (tick path only); the result then
+    carries the pacing report and the lateness of every tick."""
     label = "compensated" if compensated else "uncompensated"
     inputs = scenario_inputs(cfg)
-    meta = {"label": label, "fast_path": fast, "sample_rate_hz": cfg.run.sample_rate_hz, "seed": cfg.run.seed}
-    with SimDriver(cfg, inputs.d) as driver, RunLog(out_dir, f"log_{label}", LOG_COLUMNS, log_rows(cfg), meta) as log:
-        result = run_closed_loop(cfg, driver, Controller(cfg, compensation=compensated), inputs, log, fast=fast)
+    meta = {"label": label, "fast_path": fast, "sample_rate_hz": cfg.run.sample_rate_hz, "seed": cfg.run.seed,
+            "realtime": realtime is not None}  # fmt: skip
+    pacer = make_pacer(cfg, realtime) if realtime else None
+    section = realtime_section(realtime.cpu, realtime.fifo_priority, realtime.lock_memory) if realtime else nullcontext()
+    block = REALTIME_LOG_BLOCK if realtime else 8192
+    with SimDriver(cfg, inputs.d) as driver, RunLog(out_dir, f"log_{label}", LOG_COLUMNS, log_rows(cfg), meta, block) as log:
+        with section as grant:  # only around configure and the loop: the log is finalised outside
+            result = run_closed_loop(cfg, driver, Controller(cfg, compensation=compensated), inputs, log, fast=fast, pacer=pacer)
+    if realtime:
+        result.realtime = report(pacer, realtime, grant)
+        result.lateness_ns = pacer.lateness_ns
     return log.recorded(), result
 
 
@@ -66,27 +82,46 @@ def summarise(cfg: Config, log: np.ndarray, result: LoopResult) -> dict:
     }
     if result.tick_ns is not None:
         out.update(tick_timing(result.tick_ns, cfg.dt))
+    if result.realtime is not None:
+        out["realtime"] = result.realtime
     return out
 
 
-def run_job(cfg: Config, out_dir: Path, compensation: str = "compare", fast: bool | None = None) -> dict:
+def run_job(cfg: Config, out_dir: Path, compensation: str = "compare", fast: bool | None = None,
+            realtime: RealtimeOptions | None = None) -> dict:  # fmt: skip
     """Run the ``servo run`` job into ``out_dir``; returns the summary (also written as
-    ``summary.json``)."""
+    ``summary.json``).  ``realtime``: pace every tick on the wall clock (implies the tick
+    path; asking for the fast path as well is an error).  On a real-time overrun fault
+    the drive is at zero current and the log of the interrupted run is kept."""
+    if realtime is not None:
+        if fast:
+            raise ConfigError("--realtime paces the tick path; the all-compiled fast path (--fast) runs blocks "
+                              "of ticks per call and cannot be paced")  # fmt: skip
+        realtime.check()
+        fast = False
     fast = cfg.run.fast_path if fast is None else fast
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
     atomic_write(out_dir / "config.toml", lambda p: Path(p).write_text(to_toml(cfg)))
     logs, results, runs = {}, {}, {}
     for label in LABELS[compensation]:
-        logs[label], results[label] = run_simulated(cfg, out_dir, label == "compensated", fast)
+        try:
+            logs[label], results[label] = run_simulated(cfg, out_dir, label == "compensated", fast, realtime)
+        except OverrunFault as exc:
+            raise OverrunFault(f"{exc}; drive set to zero current, log of the {label} run kept in "
+                               f"{out_dir / f'log_{label}.npz'}") from None  # fmt: skip
         runs[label] = summarise(cfg, logs[label], results[label])
     runplots.plot_run(cfg, logs, results, out_dir)
+    if realtime is not None:
+        plot_lateness(cfg, {k: r.lateness_ns for k, r in results.items()}, out_dir / "lateness.png")
+    path = "fast (all compiled)" if fast else "tick by tick through the driver interface"
     summary = {
         "ticks": cfg.n_ticks,
         "sample_rate_hz": cfg.run.sample_rate_hz,
         "duration_s": cfg.run.duration_s,
         "seed": cfg.run.seed,
-        "path": "fast (all compiled)" if fast else "tick by tick through the driver interface",
+        "path": path + (", paced in real time" if realtime else ""),
+        "realtime": realtime is not None,
         "period_us": cfg.dt * 1e6,
         "runs": runs,
         "files": sorted({p.name for p in out_dir.iterdir() if not p.name.startswith(".")} | {"summary.json"}),
@@ -118,10 +153,16 @@ def format_summary(summary: dict, out_dir: Path) -> str:
         if "tick_us_median" in r:
             lines.append(
                 f"  compute ({lab}): {r['tick_us_median']:.2f} us/tick median, {r['tick_us_p99']:.2f} us p99, "
-                f"{r['tick_us_max']:.0f} us max; overruns of the {summary['period_us']:g} us period: {r['overruns']}"
+                f"{r['tick_us_max']:.0f} us max, first tick {r['tick_us_first']:.0f} us; "
+                f"overruns of the {summary['period_us']:g} us period: {r['overruns']}"
             )
         else:
             lines.append(f"  compute ({lab}): {r['per_sample_us']:.3f} us/sample (controller + simulated drive, average)")
+    if summary.get("realtime"):
+        g = runs[labels[0]]["realtime"]["granted"]
+        lines.append(f"  realtime: {grant_line(g)}")
+        lines += [f"  realtime: {note}" for note in g["notes"]]
+        lines += [lateness_line(lab, runs[lab]["realtime"], summary["period_us"]) for lab in labels]
     lines.append(f"  wrote {out_dir}/: " + ", ".join(summary["files"]))
     return "\n".join(lines)
 
