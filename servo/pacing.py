@@ -10,8 +10,8 @@ The scheduler counts ticks; a :class:`Pacer` ties tick ``k`` to the wall clock:
   :class:`OverrunFault` after ``max_consecutive`` overruns in a row, so the caller's
   lifecycle puts the drive in its safe state.
 
-:func:`gc_paused` keeps the garbage collector out of a loop (collect, ``gc.freeze``,
-``gc.disable``; restored after).  :func:`realtime_section` does that and asks the OS,
+:func:`gc_paused` keeps the garbage collector out of a loop (``gc.disable``; restored
+after).  :func:`realtime_section` collects, freezes and disables it, and asks the OS,
 where it permits, for CPU affinity, ``SCHED_FIFO`` and locked memory; it reports what it
 got and what it did not, one line each.  Pacing never changes a number: it only decides
 *when* tick ``k`` runs (``tests/test_pacing.py`` checks a paced log equals the unpaced one).
@@ -127,19 +127,22 @@ def _munlockall() -> None:
 
 
 @contextmanager
-def gc_paused():
-    """Collect, then freeze and disable the garbage collector for the block: no collection
-    pause inside the loop (a full collection takes tens of ms once numba, scipy and
-    matplotlib are loaded).  Objects allocated in the block are still freed by reference
-    counting; only cycles wait.  Restores the previous state; nests."""
+def gc_paused(collect: bool = False):
+    """Keep the garbage collector out of the block: ``gc.disable()``, restored after;
+    nests.  Objects allocated in the block are still freed by reference counting; only
+    cycles wait.  ``collect``: first collect and ``gc.freeze()`` what survives (tens of ms
+    once numba, scipy and matplotlib are loaded: worth it before a long real-time run,
+    not before every short simulation of a sweep)."""
     was_enabled = gc.isenabled()
-    gc.collect()
-    gc.freeze()
+    if collect:
+        gc.collect()
+        gc.freeze()
     gc.disable()
     try:
         yield
     finally:
-        gc.unfreeze()
+        if collect:
+            gc.unfreeze()
         if was_enabled:
             gc.enable()
 
@@ -148,15 +151,16 @@ def gc_paused():
 def realtime_section(cpu: int | None = None, fifo_priority: int | None = None, lock_memory: bool = False):
     """Prepare the process for a paced loop and restore it afterwards.
 
-    Always: :func:`gc_paused` (no collection pauses in the loop).  Optional, where the OS
-    permits: pin to ``cpu``; ``SCHED_FIFO`` at ``fifo_priority``; ``mlockall``.  Yields a
-    :class:`RealtimeGrant`; what was refused is in its ``notes``, one line each.
+    Always: collect, freeze and disable the garbage collector (:func:`gc_paused`).
+    Optional, where the OS permits: pin to ``cpu``; ``SCHED_FIFO`` at ``fifo_priority``;
+    ``mlockall``.  Yields a :class:`RealtimeGrant`; what was refused is in its ``notes``,
+    one line each.
     """
     grant = RealtimeGrant()
     old_affinity = os.sched_getaffinity(0) if hasattr(os, "sched_getaffinity") else None
     old_policy = os.sched_getscheduler(0) if hasattr(os, "sched_getscheduler") else None
     old_param = os.sched_getparam(0) if hasattr(os, "sched_getparam") else None
-    with gc_paused():
+    with gc_paused(collect=True):
         grant.gc_frozen = True
         try:
             if cpu is not None:

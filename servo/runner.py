@@ -11,9 +11,9 @@ for the simulated drive they produce the same log, bit for bit:
 
 Nothing compiles or warms up inside the loop: the driver warms its kernels at
 ``configure``, the controller and the log/estimator kernels are called once on scratch
-copies before the first tick, and the garbage collector is paused (:func:`servo.pacing.
-gc_paused`) from before ``configure`` to the end of the loop, so that neither a collection
-nor the cold caches it leaves behind land on a tick.  A pacer, if given, is started right
+copies before the first tick, and the garbage collector is disabled
+(:func:`servo.pacing.gc_paused`) from before ``configure`` to the end of the loop, so that
+no collection (tens of ms with numba, scipy and matplotlib loaded) lands on a tick.  A pacer, if given, is started right
 before the first tick.
 """
 from __future__ import annotations
