@@ -6,7 +6,7 @@ into one output folder:
 
 * ``log_compensated.{npz,csv}``, ``log_uncompensated.{npz,csv}``: the run logs;
 * ``summary.json``: tracking error RMS per segment, per-step overshoot and settling,
-  compute time per sample, ticks, overruns;
+  compute time per sample, ticks, overruns, the cold start (process start to first tick);
 * ``tracking.png``, ``steps.png``, ``current.png`` (and ``timing.png`` tick by tick;
   ``lateness.png`` when paced in real time, see :mod:`servo.realtime`);
 * ``config.toml``: the effective configuration (rerun it for the same bits).
@@ -32,6 +32,7 @@ from servo.runlog import RunLog, atomic_write
 from servo.runner import LoopResult, log_rows, run_closed_loop
 from servo.scenario import scenario_inputs, segments
 from servo.simdriver import SimDriver
+from servo.startup import process_age_s
 
 LABELS = {"on": ("compensated",), "off": ("uncompensated",), "compare": ("compensated", "uncompensated")}
 COL = {c: i for i, c in enumerate(LOG_COLUMNS)}
@@ -110,6 +111,9 @@ def run_job(cfg: Config, out_dir: Path, compensation: str = "compare", fast: boo
         except OverrunFault as exc:
             raise OverrunFault(f"{exc}; drive set to zero current, log of the {label} run kept in "
                                f"{out_dir / f'log_{label}.npz'}") from None  # fmt: skip
+        if not runs:
+            age = process_age_s()
+            startup = None if age is None else age - (time.perf_counter() - results[label].started)
         runs[label] = summarise(cfg, logs[label], results[label])
     runplots.plot_run(cfg, logs, results, out_dir)
     if realtime is not None:
@@ -123,6 +127,7 @@ def run_job(cfg: Config, out_dir: Path, compensation: str = "compare", fast: boo
         "path": path + (", paced in real time" if realtime else ""),
         "realtime": realtime is not None,
         "period_us": cfg.dt * 1e6,
+        "startup_s": startup,
         "runs": runs,
         "files": sorted({p.name for p in out_dir.iterdir() if not p.name.startswith(".")} | {"summary.json"}),
     }
@@ -158,6 +163,9 @@ def format_summary(summary: dict, out_dir: Path) -> str:
             )
         else:
             lines.append(f"  compute ({lab}): {r['per_sample_us']:.3f} us/sample (controller + simulated drive, average)")
+    if summary.get("startup_s") is not None:
+        lines.append(f"  startup: {summary['startup_s']:.2f} s from process start to the first tick "
+                     "(interpreter, imports, cached kernels, configure)")  # fmt: skip
     if summary.get("realtime"):
         g = runs[labels[0]]["realtime"]["granted"]
         lines.append(f"  realtime: {grant_line(g)}")

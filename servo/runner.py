@@ -40,8 +40,9 @@ class LoopResult:
 
     ``stats``: error estimator accumulators (sum e^2, count, max |e|); ``tick_ns``:
     per-tick compute time in ns (tick path only, else None); ``wall_s``: loop wall time.
-    A paced run adds ``realtime`` (its report, :func:`servo.realtime.report`) and
-    ``lateness_ns`` (each tick's start behind its deadline).
+    ``started``: :func:`time.perf_counter` when the loop started.  A paced run adds
+    ``realtime`` (its report, :func:`servo.realtime.report`) and ``lateness_ns`` (each
+    tick's start behind its deadline).
     """
 
     n_ticks: int
@@ -49,6 +50,7 @@ class LoopResult:
     stats: np.ndarray
     tick_ns: np.ndarray | None
     wall_s: float
+    started: float = 0.0
     realtime: dict | None = None
     lateness_ns: np.ndarray | None = None
 
@@ -99,7 +101,7 @@ def run_closed_loop(
         finally:
             driver.deactivate()
             log.flush()
-        return LoopResult(cfg.n_ticks, fast, stats, tick_ns, time.perf_counter() - t0)
+        return LoopResult(cfg.n_ticks, fast, stats, tick_ns, time.perf_counter() - t0, started=t0)
 
 
 def _warm_up(controller, log: RunLog) -> None:
