@@ -1,10 +1,24 @@
-"""Real-time pacing: absolute deadlines, lateness, overrun policy, GC kept out."""
+"""Real-time pacing: absolute deadlines, lateness, overrun policy, GC kept out; a paced
+closed-loop run computes exactly what the unpaced one does; ``servo run --realtime``."""
 import gc
+import json
+import os
+import subprocess
+import sys
 import time
 
+import numpy as np
 import pytest
 
+from kernels.loop import LOG_COLUMNS
+from servo.config import Config
+from servo.controller import Controller
+from servo.driver import DriverState
 from servo.pacing import OverrunFault, Pacer, realtime_section
+from servo.runlog import RunLog
+from servo.runner import log_rows, run_closed_loop
+from servo.scenario import scenario_inputs
+from servo.simdriver import SimDriver
 
 
 def test_absolute_deadlines_do_not_drift():
@@ -43,22 +57,15 @@ def test_realtime_section_freezes_gc_and_restores():
     assert gc.isenabled()
 
 
+def test_what_the_os_refuses_is_one_note_and_nothing_changes():
+    before = os.sched_getaffinity(0)
+    with realtime_section(cpu=10**6) as grant:  # no such core
+        assert grant.affinity is None and os.sched_getaffinity(0) == before
+    assert len(grant.notes) == 1 and grant.notes[0].startswith("CPU affinity to core 1000000: not available")
+    assert "\n" not in grant.notes[0]
+
+
 # ---- pacing a closed-loop run ------------------------------------------------------------
-
-import json  # noqa: E402
-import subprocess  # noqa: E402
-import sys  # noqa: E402
-
-import numpy as np  # noqa: E402
-
-from kernels.loop import LOG_COLUMNS  # noqa: E402
-from servo.config import Config  # noqa: E402
-from servo.controller import Controller  # noqa: E402
-from servo.driver import DriverState  # noqa: E402
-from servo.runlog import RunLog  # noqa: E402
-from servo.runner import log_rows, run_closed_loop  # noqa: E402
-from servo.scenario import scenario_inputs  # noqa: E402
-from servo.simdriver import SimDriver  # noqa: E402
 
 
 def closed_loop_log(cfg, tmp_path, name, pacer=None):
@@ -134,6 +141,14 @@ def test_servo_run_realtime_reports_lateness_and_matches_the_unpaced_run(tmp_pat
     la, lb = np.load(a / "log_compensated.npz"), np.load(b / "log_compensated.npz")
     for col in LOG_COLUMNS:
         assert np.array_equal(la[col], lb[col]), col
+
+
+def test_realtime_runs_the_tick_path_even_when_the_config_asks_for_the_fast_path(tmp_path):
+    r = servo("run", "--realtime", "--set", "run.fast_path=true", "--duration", "0.01", "--compensation", "off",
+              "--out", str(tmp_path / "o"))  # fmt: skip
+    assert r.returncode == 0, r.stderr
+    assert "tick by tick through the driver interface, paced in real time" in r.stdout
+    assert "lateness (uncompensated)" in r.stdout
 
 
 def test_servo_run_realtime_fault_is_one_line_and_keeps_the_log(tmp_path):
