@@ -18,9 +18,12 @@ one :meth:`Board.tick` per period, the input drained without blocking every tick
 from __future__ import annotations
 
 import errno
+import fcntl
 import os
 import select
 import socket
+import sys
+import termios
 import threading
 import time
 import tty
@@ -64,7 +67,20 @@ class PtyTransport:
             except BlockingIOError:
                 pass
 
-    def close(self) -> None:
+    def unread(self) -> int:
+        """Bytes sent that the host has not read yet (the slave's input queue)."""
+        buf = fcntl.ioctl(self._slave, termios.FIONREAD, b"\0\0\0\0")
+        return int.from_bytes(buf, sys.byteorder)
+
+    def close(self, linger_s: float = 1.0) -> None:
+        """Close, after waiting up to ``linger_s`` for the host to read what was sent
+        (closing the master discards it)."""
+        end = time.monotonic() + linger_s
+        try:
+            while self.unread() and time.monotonic() < end:
+                time.sleep(0.005)
+        except OSError:
+            pass
         for fd in (self.master, self._slave):
             try:
                 os.close(fd)
@@ -119,7 +135,7 @@ class TcpTransport:
         except OSError:
             buf.clear()  # the next recv sees the closed connection
 
-    def close(self) -> None:
+    def close(self, linger_s: float = 0.0) -> None:
         if self._conn is not None:
             self._conn.close()
         self._listener.close()
@@ -227,6 +243,6 @@ def start_in_thread(board: Board, kind: str = "pty"):
     finally:
         stop.set()
         th.join(5.0)
-        transport.close()
+        transport.close(linger_s=0.0)
     if errors:
         raise errors[0]

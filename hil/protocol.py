@@ -70,9 +70,9 @@ STATS_FIELDS = (
     "crc_errors",  # received chunks with a CRC mismatch
     "framing_errors",  # received chunks that are not valid COBS, or oversize
     "malformed",  # valid frames with a bad version, type or length
-    "seq_skipped",  # frames that arrived ahead of their turn (one before was dropped or reordered)
+    "seq_dropped",  # sequence gaps: frames that never came
     "seq_repeated",  # frames that repeated the previous sequence number (duplicated)
-    "seq_stale",  # frames older than the previous one (reordered)
+    "seq_reordered",  # frames out of order (older than expected, or ahead of one already queued)
     "missed_deadlines",  # ticks whose command was not there in time (real-time)
     "late_commands",  # commands that arrived after their tick
     "watchdog_trips",  # watchdog expiries
@@ -331,6 +331,20 @@ def encode(seq: int, msg) -> bytes:
     if isinstance(msg, Stats):
         return stats(seq, msg.counters)
     raise TypeError(f"not a message: {msg!r}")
+
+
+def classify_seq(received: int, expected: int, queued=()) -> tuple[str, str]:
+    """A sequence error: ``(counter, explanation)``.  ``queued``: sequence numbers of the
+    frames received after this one and not yet processed (the missing frame among them
+    means reordering, not a drop)."""
+    d = seq_delta(received, expected)
+    if d == -1:
+        return "seq_repeated", "a repeated frame (duplicated)"
+    if d < -1:
+        return "seq_reordered", "an older frame (reordered)"
+    if expected in queued:
+        return "seq_reordered", "the expected frame came after a later one (reordered)"
+    return "seq_dropped", f"{d} frame(s) missing (dropped)"
 
 
 def seq_delta(received: int, expected: int) -> int:

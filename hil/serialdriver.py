@@ -37,9 +37,12 @@ from servo.driver import Driver, DriverInfo, DriverState
 from servo.errors import DriverError
 
 HOST_COUNTERS = ("rx_frames", "tx_frames", "rx_bytes", "tx_bytes", "crc_errors", "framing_errors", "malformed",
-                 "seq_skipped", "seq_repeated", "seq_stale", "timeouts", "board_faults", "ignored")  # fmt: skip
+                 "seq_dropped", "seq_repeated", "seq_reordered", "timeouts", "board_faults", "ignored")  # fmt: skip
 STOP_WAIT_S = 0.1
 """Longest wait for the board's STATS after STOP, s."""
+HANDSHAKE_S = 2.0
+"""Shortest wait for INFO and READY, s (the board builds its drive at CONFIG); longer if
+``link.timeout_s`` is."""
 
 
 class SerialDriver(Driver):
@@ -53,6 +56,7 @@ class SerialDriver(Driver):
         self.d = link.command_latency_ticks
         self.b = link.batch
         self.timeout_s = link.timeout_s
+        self._handshake_s = max(link.timeout_s, HANDSHAKE_S)
         self.stats = dict.fromkeys(HOST_COUNTERS, 0)
         self.board_info: P.Info | None = None
         self.board_stats: dict | None = None
@@ -107,7 +111,7 @@ class SerialDriver(Driver):
         cfg_msg = P.ConfigMsg(self.version, self.b, self.d, max(1, int(round(link.watchdog_s * 1e6))),
                               link.late_limit_ticks, rate)  # fmt: skip
         self._send(P.config(self._tx_seq, cfg_msg))
-        kind, msg = self._next_message(time.perf_counter_ns() + int(self.timeout_s * 1e9), "READY")
+        kind, msg = self._next_message(time.perf_counter_ns() + int(self._handshake_s * 1e9), "READY")
         if kind != P.READY or msg.config != cfg_msg:
             raise DriverError(f"link: the board answered CONFIG with {P.TYPE_NAMES.get(kind, kind)}, not READY")
         self._x, self._v, self._i = msg.x, msg.v, msg.i
@@ -138,17 +142,16 @@ class SerialDriver(Driver):
         try:
             self._send(P.stop(self._tx_seq))
             deadline = time.perf_counter_ns() + int(min(self.timeout_s, STOP_WAIT_S) * 1e9)
-            while True:
-                for body in self._frames_until(deadline):
-                    try:
-                        kind, _, msg = P.parse(body)
-                    except P.Malformed:
-                        continue
-                    if kind == P.STATS:
-                        self.board_stats = msg.counters
-                        return
-                    if kind == P.FAULT and self.board_fault is None:
-                        self.board_fault = msg
+            for body in self._frames_until(deadline):
+                try:
+                    kind, _, msg = P.parse(body)
+                except P.Malformed:
+                    continue
+                if kind == P.STATS:
+                    self.board_stats = msg.counters
+                    return
+                if kind == P.FAULT and self.board_fault is None:
+                    self.board_fault = msg
         except Exception:  # noqa: BLE001 - a dead link must not stop the safe-state path
             return
 
@@ -261,9 +264,14 @@ class SerialDriver(Driver):
             left = deadline_ns - time.perf_counter_ns()
             if left <= 0:
                 self.stats["timeouts"] += 1
-                raise DriverError(f"link: no {what} frame from the board at {self.url} for {self.timeout_s:g} s "
+                waited = self.timeout_s if what == "SAMPLES" else self._handshake_s
+                raise DriverError(f"link: no {what} frame from the board at {self.url} for {waited:g} s "
                                   f"(tick {self._k_frame}): the board is silent")  # fmt: skip
-            self._wait(left / 1e9)
+            try:
+                self._wait(left / 1e9)
+            except (OSError, ValueError) as exc:  # the descriptor went away under select
+                self._dead = True
+                raise DriverError(f"link: the port {self.url} vanished ({exc})") from None
 
     def _count_decoder(self) -> None:
         dec = self._dec
@@ -282,10 +290,7 @@ class SerialDriver(Driver):
             raise DriverError(f"link: a {len(body)}-byte frame from the board")
         seq = body[2] | body[3] << 8
         if seq != self._rx_seq:
-            delta = P.seq_delta(seq, self._rx_seq)
-            key, text = (("seq_skipped", f"{delta} frame(s) missing (dropped or reordered)") if delta > 0 else
-                         ("seq_repeated", "a repeated frame (duplicated)") if delta == -1 else
-                         ("seq_stale", "an older frame (reordered)"))  # fmt: skip
+            key, text = P.classify_seq(seq, self._rx_seq, [b[2] | b[3] << 8 for b in self._frames if len(b) >= 4])
             self.stats[key] += 1
             raise DriverError(f"link: board frame seq {seq}, expected {self._rx_seq} at tick {self._k_frame}: {text}")
         self._rx_seq = (seq + 1) & 0xFFFF
@@ -320,7 +325,7 @@ class SerialDriver(Driver):
                 yield self._frames.popleft()
 
     def _await_hello_answer(self, nonce: int) -> tuple[P.Info, int]:
-        deadline = time.perf_counter_ns() + int(self.timeout_s * 1e9)
+        deadline = time.perf_counter_ns() + int(self._handshake_s * 1e9)
         for body in self._frames_until(deadline):
             try:
                 kind, seq, msg = P.parse(body)
@@ -334,7 +339,7 @@ class SerialDriver(Driver):
             self.stats["ignored"] += 1
         if self._dead:
             raise DriverError(f"link: the port {self.url} vanished during the handshake")
-        raise DriverError(f"link: no answer to HELLO from {self.url} within {self.timeout_s:g} s: "
+        raise DriverError(f"link: no answer to HELLO from {self.url} within {self._handshake_s:g} s: "
                           "is a board or `servo emulate` there?")  # fmt: skip
 
     # ---------------------------------------------------------------- reporting

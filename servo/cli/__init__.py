@@ -17,7 +17,7 @@ import tomllib
 
 from servo.errors import ConfigError, ServoError
 
-COMMANDS = ("run", "config")
+COMMANDS = ("run", "config", "emulate")
 
 
 class UsageError(ServoError):
