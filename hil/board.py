@@ -63,7 +63,7 @@ class Board:
         self.caps |= P.CAP_LOCKSTEP if lockstep else 0
         self._drive_cfg = cfg.replace(link={"command_latency_ticks": 0, "batch": 1})
         self._disturbance = scenario_inputs(cfg).d
-        self.decoder = FrameDecoder()
+        self.decoder = FrameDecoder(mark_errors=True)
         self.out = bytearray()
         self.stats = dict.fromkeys(P.STATS_FIELDS, 0)
         self.state = IDLE
@@ -90,15 +90,15 @@ class Board:
     def feed(self, data: bytes, now_ns: int) -> None:
         """Bytes received from the host."""
         dec = self.decoder
-        before = dec.errors
-        bodies = dec.feed(data)
+        items = dec.feed(data)
         self.stats["crc_errors"] = dec.crc_errors - self._dec_base[0]
         self.stats["framing_errors"] = dec.framing_errors + dec.oversize - self._dec_base[1]
-        if dec.errors != before and self.state in (HELLO, READY, ACTIVE):
-            what = "CRC mismatch" if dec.crc_errors else "bad byte stuffing"
-            self._fault(P.FAULT_CORRUPT, f"corrupt frame from the host ({what}; {dec.errors - before} rejected)")
-            return
-        for i, body in enumerate(bodies):
+        for i, body in enumerate(items):
+            if body.__class__ is str:  # a rejected chunk, in stream order
+                if self.state in (HELLO, READY, ACTIVE):
+                    why = {"crc": "CRC mismatch", "framing": "bad byte stuffing", "oversize": "no delimiter"}[body]
+                    self._fault(P.FAULT_CORRUPT, f"corrupt frame from the host ({why})")
+                continue
             # fast path: the next in-sequence COMMANDS frame of a full batch while active
             if (body[1:2] == b"\x04" and self.state == ACTIVE and len(body) == self._cmd_size
                     and body[2] | body[3] << 8 == self.rx_seq and body[0] == P.VERSION):  # fmt: skip
@@ -107,7 +107,7 @@ class Board:
                 self.rx_seq = (self.rx_seq + 1) % P.SEQ_MOD
                 self._on_commands(P.Commands(vals[3], vals[7:]), now_ns)
                 continue
-            self._queued = bodies[i + 1 :] if len(bodies) > 1 else ()
+            self._queued = [b for b in items[i + 1 :] if b.__class__ is bytes] if len(items) > 1 else ()
             self._on_frame(body, now_ns)
 
     def disconnect(self, now_ns: int) -> None:

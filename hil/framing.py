@@ -55,11 +55,16 @@ class FrameDecoder:
       to the next delimiter are discarded (the buffer stays bounded).
 
     Empty chunks (consecutive delimiters) are idle fill, not errors.
+
+    ``mark_errors``: rejected chunks also appear in the returned list, in stream order, as
+    the strings ``"framing"``, ``"crc"`` or ``"oversize"`` (so a receiver can tell which
+    frame of a burst was the bad one).
     """
 
-    __slots__ = ("_buf", "_skipping", "frames", "framing_errors", "crc_errors", "oversize", "bytes")
+    __slots__ = ("_buf", "_skipping", "_mark", "frames", "framing_errors", "crc_errors", "oversize", "bytes")
 
-    def __init__(self) -> None:
+    def __init__(self, mark_errors: bool = False) -> None:
+        self._mark = mark_errors
         self._buf = bytearray()
         self._skipping = False
         self.frames = 0
@@ -83,7 +88,7 @@ class FrameDecoder:
         self._buf.clear()
         self._skipping = False
 
-    def feed(self, data: bytes) -> list[bytes]:
+    def feed(self, data: bytes) -> list:
         self.bytes += len(data)
         buf = self._buf
         if 0 not in data:  # the middle of a frame
@@ -93,6 +98,7 @@ class FrameDecoder:
                     self.oversize += 1
                     buf.clear()
                     self._skipping = True
+                    return ["oversize"] if self._mark else []
             return []
         parts = data.split(b"\x00")
         tail = parts.pop()
@@ -111,14 +117,20 @@ class FrameDecoder:
                 continue
             if len(part) > MAX_ENCODED:
                 self.oversize += 1
+                if self._mark:
+                    out.append("oversize")
                 continue
             try:
                 body = _decode(part)
             except _DecodeError:
                 self.framing_errors += 1
+                if self._mark:
+                    out.append("framing")
                 continue
             if len(body) < 5 or _crc32(body) != CRC_RESIDUE:
                 self.crc_errors += 1
+                if self._mark:
+                    out.append("crc")
                 continue
             self.frames += 1
             out.append(body[:-4])
@@ -126,6 +138,8 @@ class FrameDecoder:
             if len(tail) > MAX_ENCODED:
                 self.oversize += 1
                 self._skipping = True
+                if self._mark:
+                    out.append("oversize")
             else:
                 buf += tail
         return out

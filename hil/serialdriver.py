@@ -65,8 +65,7 @@ class SerialDriver(Driver):
         self.notes: list[str] = []
         self._port = None
         self._dead = False
-        self._dec = FrameDecoder()
-        self._errs = 0
+        self._dec = FrameDecoder(mark_errors=True)
         self._frames: deque = deque()
         self._tx_seq = 0
         self._rx_seq = 0
@@ -254,16 +253,13 @@ class SerialDriver(Driver):
             if data:
                 self.stats["rx_bytes"] += len(data)
                 self._frames.extend(dec.feed(data))
-                if dec.errors != self._errs:
-                    self._count_decoder()
-                    raise DriverError(f"link: corrupt frame from the board at tick {self._k_frame} "
-                                      f"({'CRC mismatch' if dec.crc_errors else 'bad byte stuffing'})")  # fmt: skip
                 if self._frames:
                     return
                 continue
             left = deadline_ns - time.perf_counter_ns()
             if left <= 0:
-                self.stats["timeouts"] += 1
+                if what:  # not the best-effort waits of the handshake and of STOP
+                    self.stats["timeouts"] += 1
                 waited = self.timeout_s if what == "SAMPLES" else self._handshake_s
                 raise DriverError(f"link: no {what} frame from the board at {self.url} for {waited:g} s "
                                   f"(tick {self._k_frame}): the board is silent")  # fmt: skip
@@ -273,17 +269,18 @@ class SerialDriver(Driver):
                 self._dead = True
                 raise DriverError(f"link: the port {self.url} vanished ({exc})") from None
 
-    def _count_decoder(self) -> None:
-        dec = self._dec
-        self._errs = dec.errors
-        self.stats["crc_errors"] = dec.crc_errors
-        self.stats["framing_errors"] = dec.framing_errors + dec.oversize
+    _ERRORS = {"crc": ("crc_errors", "CRC mismatch"), "framing": ("framing_errors", "bad byte stuffing"),
+               "oversize": ("framing_errors", "no delimiter within the longest frame")}  # fmt: skip
 
     def _next_body(self, deadline_ns: int, what: str) -> tuple[int, bytes]:
         """The next frame in sequence: ``(type, body)``."""
         if not self._frames:
             self._receive(deadline_ns, what)
         body = self._frames.popleft()
+        if body.__class__ is str:  # a rejected chunk, in stream order
+            key, why = self._ERRORS[body]
+            self.stats[key] += 1
+            raise DriverError(f"link: corrupt frame from the board at tick {self._k_frame} ({why})")
         self.stats["rx_frames"] += 1
         if len(body) < 4:
             self.stats["malformed"] += 1
@@ -317,12 +314,14 @@ class SerialDriver(Driver):
             if not self._frames:
                 try:
                     self._receive(deadline_ns, "")
-                except DriverError:
-                    if self._dead or time.perf_counter_ns() >= deadline_ns:
-                        return
-                    continue  # a corrupt leftover: keep listening
+                except DriverError:  # silence or a vanished port
+                    return
             while self._frames:
-                yield self._frames.popleft()
+                body = self._frames.popleft()
+                if body.__class__ is str:
+                    self.stats["ignored"] += 1
+                else:
+                    yield body
 
     def _await_hello_answer(self, nonce: int) -> tuple[P.Info, int]:
         deadline = time.perf_counter_ns() + int(self._handshake_s * 1e9)
@@ -334,7 +333,6 @@ class SerialDriver(Driver):
                 continue
             if kind == P.INFO and msg.nonce == nonce:
                 self.stats["rx_frames"] += 1
-                self._errs = self._dec.errors  # leftovers before the answer do not count against the session
                 return msg, seq
             self.stats["ignored"] += 1
         if self._dead:
