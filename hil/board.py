@@ -164,6 +164,8 @@ class Board:
             u = self._ring_val[need % RING]
             self._in_a_row = 0
         else:
+            if self._missed < len(self.missed_at):
+                self.missed_at[self._missed] = k
             self.stats["missed_deadlines"] += 1
             self._missed += 1
             self._in_a_row += 1
@@ -202,6 +204,7 @@ class Board:
         self._last_cmd_ns = 0
         self._u_start = 0.0
         self._u_last = 0.0
+        self.missed_at = [-1] * 8  # ticks of the first missed deadlines (diagnostics)
         self._cmd_struct = P.commands_struct(1)
         self._cmd_size = -1
 
@@ -374,8 +377,10 @@ class Board:
     def _on_stop(self) -> None:
         if self.state == ACTIVE:
             self._safe()
+            first = [t for t in self.missed_at if t >= 0]
             self.log(f"session {self.session}: stopped by the host after {self.k} ticks; drive at zero current; "
-                     + ", ".join(f"{k} {v}" for k, v in self.stats.items() if v and k != "ticks"))  # fmt: skip
+                     + ", ".join(f"{k} {v}" for k, v in self.stats.items() if v and k != "ticks")
+                     + (f"; first missed deadlines at ticks {first}" if first else ""))  # fmt: skip
         self._send(P.stats(self.tx_seq, self.stats))
         self._end_session()
         self.state = HELLO

@@ -182,6 +182,7 @@ def _run_paced(board: Board, transport, stop: threading.Event | None) -> None:
     period_s = 1.0 / board.rate
     pacer = Pacer(period_s, PACER_CHUNK)
     pacer.start()
+    pacer.t0 += pacer.spin_ns  # tick 0 a moment ahead, so it is not entered "late" by construction
     base, overruns = 0, 0
     clock, recv, send, out = time.perf_counter_ns, transport.recv, transport.send, board.out
     while board.state == ACTIVE:
@@ -209,6 +210,11 @@ def _run_paced(board: Board, transport, stop: threading.Event | None) -> None:
         board.stats["overruns"] = overruns + pacer.overruns
         if stop is not None and stop.is_set():
             break
+    r = pacer.report()
+    if r["ticks"]:
+        board.log(f"session {board.session}: pacing of the last {r['ticks']} ticks: lateness "
+                  f"{r['lateness_us_p50']:.0f}/{r['lateness_us_p99']:.0f}/{r['lateness_us_max']:.0f} us "
+                  f"(median/p99/max), {board.stats['overruns']} ticks started late")  # fmt: skip
 
 
 def open_transport(kind: str, port: int = 0):
