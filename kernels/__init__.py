@@ -8,6 +8,7 @@ Imports numpy and numba only.
 from kernels.compensator import FAST, SLOW, compensate, direction, regime_switch, velocity_estimate
 from kernels.controller import CTRL_PARAMS, CTRL_STATE, controller_start, controller_tick
 from kernels.dahl import dahl_closed, dahl_flow, dahl_slope, dahl_update
+from kernels.hysteresis import dahl_trace
 from kernels.delay import shift_in
 from kernels.holding import holding_pi, holding_pi_bumpless
 from kernels.loop import LOG_COLUMNS, STATS_SIZE, closed_loop, error_stats, log_row
@@ -16,7 +17,7 @@ from kernels.plant import PLANT_PARAMS, PLANT_STATE, plant_measure, plant_step
 __all__ = [
     "CTRL_PARAMS", "CTRL_STATE", "FAST", "LOG_COLUMNS", "PLANT_PARAMS", "PLANT_STATE",
     "SLOW", "STATS_SIZE", "closed_loop", "compensate", "controller_start",
-    "controller_tick", "dahl_closed", "dahl_flow", "dahl_slope", "dahl_update", "direction",
+    "controller_tick", "dahl_closed", "dahl_flow", "dahl_slope", "dahl_trace", "dahl_update", "direction",
     "error_stats", "holding_pi", "holding_pi_bumpless", "log_row", "plant_measure",
     "plant_step", "regime_switch", "shift_in", "velocity_estimate",
 ]

@@ -17,7 +17,7 @@ import tomllib
 
 from servo.errors import ConfigError, ServoError
 
-COMMANDS = ("run", "config", "emulate")
+COMMANDS = ("run", "config", "identify", "hysteresis", "bode", "paper", "emulate")
 
 
 class UsageError(ServoError):

@@ -1,0 +1,110 @@
+"""``servo identify``: least squares of eq. (4-5) on a recording, or on the simulated
+drive's square-wave experiment (paper Fig. 5)."""
+from __future__ import annotations
+
+import argparse
+import json
+import time
+from pathlib import Path
+
+from servo.cli.common import add_config_options, config_from_args
+from servo.errors import ConfigError
+
+
+def register(sub) -> None:
+    p = sub.add_parser(
+        "identify",
+        help="least-squares friction identification (eq. 4-5) from a recording",
+        description="Estimate [J, B, Fc, K, h0] of J*x'' + B*x' + Fc*sgn(x') + K*x + h0 = u (paper eq. 3-5) from a "
+        "recording (CSV/NPZ with t,u,x[,v] columns, or MATLAB .mat with --columns/--scale), with standard "
+        "deviations, condition number and relative error; or, with --simulate, from the simulated drive's "
+        "square-wave experiment. Writes summary.json, CSVs and PNGs (estimated vs measured acceleration, force fit).",
+    )
+    p.add_argument("recording", nargs="?", help="CSV, NPZ or .mat recording (omit with --simulate)")
+    p.add_argument("--columns", metavar="ROLE=NAME,...", help="map t,u,x,v to names in the file, e.g. u=vir,x=qm")
+    p.add_argument("--scale", metavar="ROLE=FACTOR,...", help="scale columns by a number or a scalar variable, e.g. u=gtau")
+    p.add_argument("--path", choices=("robust", "paper", "both"), default=None,
+                   help="derivatives: robust (Butterworth + central differences + parallel decimation), paper "
+                   "(measured velocity, backward-difference acceleration), or both (default: both when the "
+                   "recording has v, else robust)")  # fmt: skip
+    p.add_argument("--terms", metavar="T,...", help="terms to identify (default J,B,Fc,K,h0)")
+    p.add_argument("--off", metavar="T,...", help="terms to switch off, e.g. K for a linear axis")
+    p.add_argument("--cutoff-hz", type=float, help="robust path: Butterworth cutoff (default fs/10)")
+    p.add_argument("--butter-order", type=int, default=4, help="robust path: Butterworth order (default 4)")
+    p.add_argument("--decimate", type=int, default=10, help="robust path: parallel decimation factor (default 10; 1 = none)")
+    p.add_argument("--trim", metavar="START,END", default="49,49",
+                   help="robust path: samples dropped at each end after differentiation (default 49,49)")
+    p.add_argument("--emps-reference", action="store_true",
+                   help="robust path with the EMPS reference script's settings (drops the first 49 samples only)")
+    p.add_argument("--force-lag", type=float, metavar="S", default=None,
+                   help="seconds by which the recorded force acts late (input delay; with --path robust add half a "
+                   "sample for a zero-order-held command). Default 0; with --simulate, the drive's input delay "
+                   "(+ half a sample on the robust path)")  # fmt: skip
+    p.add_argument("--force-unit", default="A", help="unit of the force column, for the report (default A; N for EMPS)")
+    p.add_argument("--simulate", action="store_true", help="run the square-wave experiment on the simulated drive instead")
+    p.add_argument("--amplitude", type=float, default=0.02, help="--simulate: square-wave amplitude, A (default 0.02)")
+    p.add_argument("--hz", type=float, default=25.0, help="--simulate: square-wave frequency (default 25)")
+    p.add_argument("--duration", type=float, default=1.0, help="--simulate: seconds (default 1)")
+    p.add_argument("--holding-hz", type=float, default=5.0, help="--simulate: holding loop bandwidth (default 5)")
+    add_config_options(p)
+    p.add_argument("--out", metavar="DIR", help="output folder (default servo-out/identify-<time>)")
+    p.set_defaults(handler=handle)
+
+
+def _trim(text: str) -> tuple[int, int]:
+    try:
+        a, b = (int(s) for s in text.split(","))
+    except ValueError:
+        raise ConfigError(f"--trim {text!r}: expected START,END sample counts, e.g. 49,49") from None
+    return a, b
+
+
+def handle(args: argparse.Namespace) -> int:
+    from servo.identify.regressors import RobustSettings, parse_terms
+    from servo.identify.report import format_summary, run_identify
+    from servo.recording import load_recording, parse_mapping, save_recording_csv
+    from servo.runlog import atomic_write
+
+    terms = parse_terms(args.terms, args.off)
+    start, end = _trim(args.trim)
+    if args.emps_reference:
+        settings = RobustSettings.emps_reference()
+    else:
+        settings = RobustSettings(butter_order=args.butter_order, cutoff_hz=args.cutoff_hz, decimate=args.decimate,
+                                  trim_start=start, trim_end=end)  # fmt: skip
+    out = Path(args.out) if args.out else Path("servo-out") / time.strftime("identify-%Y%m%d-%H%M%S")
+    reference = None
+    lag = 0.0 if args.force_lag is None else args.force_lag
+    if lag < 0:
+        raise ConfigError("--force-lag must be >= 0")
+    if args.simulate:
+        if args.recording:
+            raise ConfigError("give a recording or --simulate, not both")
+        from servo.experiments.square_wave import SquareWave, nominal, representable, run_square_wave
+
+        cfg = config_from_args(args)
+        sw = SquareWave(args.amplitude, args.hz, args.duration, args.holding_hz)
+        if not (sw.amplitude > 0 and sw.hz > 0 and sw.duration_s > 0 and sw.holding_hz > 0):
+            raise ConfigError("--amplitude, --hz, --duration and --holding-hz must be positive")
+        rec, log = run_square_wave(cfg, sw)
+        if args.force_lag is None:
+            from servo.experiments.square_wave import force_lag
+
+            lag = force_lag(cfg)
+        rec.source = f"simulated drive, {sw.amplitude * 1e3:g} mA {sw.hz:g} Hz square wave, {sw.holding_hz:g} Hz holding loop"
+        reference = {"drive": nominal(cfg),
+                     "model (3) of the drive": {p: representable(cfg, log, p, settings) for p in ("robust", "paper")}}
+    else:
+        if not args.recording:
+            raise ConfigError("give a RECORDING (CSV, NPZ or .mat) or --simulate")
+        rec = load_recording(args.recording, parse_mapping(args.columns, "--columns"), parse_mapping(args.scale, "--scale"))
+    paths = {"robust": ("robust",), "paper": ("paper",), "both": ("robust", "paper")}[
+        args.path or ("both" if rec.v is not None else "robust")
+    ]
+    summary = run_identify(rec, out, paths, terms, settings, args.force_unit, reference, lag)
+    if args.simulate:  # written once the fits succeeded: no half-filled folder on an error
+        save_recording_csv(out / "recording.csv", rec)
+        summary["files"] = sorted(summary["files"] + ["recording.csv"])
+        atomic_write(out / "summary.json", lambda f: Path(f).write_text(json.dumps(summary, indent=2)))
+    print(format_summary(summary, out))
+    return 0

@@ -1,0 +1,66 @@
+"""Closed-loop simulation for experiments: the all-compiled fast path, logged in memory.
+
+Experiments run many short simulations (a Bode sweep runs one per frequency and level);
+they need the log as arrays, not as files.  :class:`MemoryLog` has the interface
+:func:`servo.runner.run_closed_loop` uses (``data``, ``rows``, ``maybe_flush``,
+``flush``) and keeps everything in memory.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from kernels.loop import LOG_COLUMNS
+from servo.config import Config
+from servo.controller import Controller
+from servo.runner import log_rows, run_closed_loop
+from servo.scenario import Inputs
+from servo.simdriver import SimDriver
+
+
+class MemoryLog:
+    """A run log that stays in memory: rows of :data:`kernels.loop.LOG_COLUMNS`."""
+
+    def __init__(self, n_rows: int):
+        self.columns = LOG_COLUMNS
+        self.data = np.full((n_rows, len(LOG_COLUMNS)), np.nan)
+        self.rows = 0
+
+    def maybe_flush(self) -> None:
+        pass
+
+    def flush(self) -> None:
+        pass
+
+    def as_dict(self) -> dict[str, np.ndarray]:
+        """Column name -> (rows,) array of what was recorded."""
+        d = self.data[: self.rows]
+        return {c: d[:, i].copy() for i, c in enumerate(self.columns)}
+
+
+def simulate(cfg: Config, u_exc: np.ndarray, r: np.ndarray | None = None, compensation: bool = False,
+             d: np.ndarray | None = None) -> dict[str, np.ndarray]:  # fmt: skip
+    """Run ``len(u_exc)`` ticks of the closed loop on the simulated drive of ``cfg``.
+
+    ``u_exc``: excitation current (A) added to the holding loop's output, one per tick;
+    ``r``: reference (m, from the holding position; default 0); ``d``: force disturbance
+    (A).  Returns the log columns (``t``, ``x``, ``v``, ``u``, ``u_c``, ...) as arrays.
+    """
+    n = int(len(u_exc))
+    cfg = cfg.replace(run={"duration_s": n * cfg.dt, "log_every": 1})
+    if cfg.n_ticks != n:  # rounding of duration_s * rate
+        raise ValueError(f"tick count mismatch: {cfg.n_ticks} != {n}")
+    inputs = Inputs(
+        r=np.zeros(n) if r is None else np.ascontiguousarray(r, dtype=float),
+        u_exc=np.ascontiguousarray(u_exc, dtype=float),
+        d=np.zeros(n) if d is None else np.ascontiguousarray(d, dtype=float),
+    )
+    log = MemoryLog(log_rows(cfg))
+    driver = SimDriver(cfg, inputs.d)
+    try:
+        run_closed_loop(cfg, driver, Controller(cfg, compensation=compensation), inputs, log, fast=True, timing=False)
+    finally:
+        driver.close()
+    return log.as_dict()
+
+
+__all__ = ["MemoryLog", "simulate"]
