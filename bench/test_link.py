@@ -101,7 +101,8 @@ def test_host_cost_per_frame(benchmark, b):
     # budget (measured 1.5 and 0.5 on the 2-core development machine): the link costs the
     # host at most 2.5 simulated-drive ticks per tick unbatched, less than one batched
     assert ratio < (2.5 if b == 1 else 1.0)
-    assert drv._port.written == len(encode_frame(P.commands(0, 0, [0.0] * b))) * FRAMES * 21  # every frame answered
+    port = drv._port
+    assert port.i >= 20 * FRAMES and port.written == len(encode_frame(P.commands(0, 0, [0.0] * b))) * port.i  # all answered
 
 
 def pty_echo_round_trip_us(n=2000) -> float:
