@@ -15,6 +15,7 @@ from __future__ import annotations
 import json
 import time
 from pathlib import Path
+from typing import Callable
 
 import numpy as np
 
@@ -22,10 +23,11 @@ from kernels.loop import LOG_COLUMNS
 from servo import runplots
 from servo.config import Config, to_toml
 from servo.controller import Controller
+from servo.driver import Driver
 from servo.metrics import rms, step_metrics, tick_timing
 from servo.runlog import RunLog, atomic_write
 from servo.runner import LoopResult, log_rows, run_closed_loop
-from servo.scenario import scenario_inputs, segments
+from servo.scenario import Inputs, scenario_inputs, segments
 from servo.simdriver import SimDriver
 
 LABELS = {"on": ("compensated",), "off": ("uncompensated",), "compare": ("compensated", "uncompensated")}
@@ -36,13 +38,18 @@ def default_out_dir() -> Path:
     return Path("servo-out") / time.strftime("run-%Y%m%d-%H%M%S")
 
 
-def run_simulated(cfg: Config, out_dir: Path, compensated: bool, fast: bool) -> tuple[np.ndarray, LoopResult]:
-    """One closed-loop run against a fresh simulated drive; returns (log rows, result)."""
+def run_simulated(cfg: Config, out_dir: Path, compensated: bool, fast: bool,
+                  make_driver: Callable[[Config, Inputs], Driver] | None = None) -> tuple[np.ndarray, LoopResult]:  # fmt: skip
+    """One closed-loop run against a fresh driver (default: the simulated drive); returns
+    (log rows, result).  A driver with a ``report()`` method (the serial link) has it
+    recorded in ``result.link``."""
     label = "compensated" if compensated else "uncompensated"
     inputs = scenario_inputs(cfg)
     meta = {"label": label, "fast_path": fast, "sample_rate_hz": cfg.run.sample_rate_hz, "seed": cfg.run.seed}
-    with SimDriver(cfg, inputs.d) as driver, RunLog(out_dir, f"log_{label}", LOG_COLUMNS, log_rows(cfg), meta) as log:
+    driver = SimDriver(cfg, inputs.d) if make_driver is None else make_driver(cfg, inputs)
+    with driver, RunLog(out_dir, f"log_{label}", LOG_COLUMNS, log_rows(cfg), meta) as log:
         result = run_closed_loop(cfg, driver, Controller(cfg, compensation=compensated), inputs, log, fast=fast)
+    result.link = driver.report() if hasattr(driver, "report") else None
     return log.recorded(), result
 
 
@@ -66,19 +73,23 @@ def summarise(cfg: Config, log: np.ndarray, result: LoopResult) -> dict:
     }
     if result.tick_ns is not None:
         out.update(tick_timing(result.tick_ns, cfg.dt))
+    if result.link is not None:
+        out["link"] = result.link
     return out
 
 
-def run_job(cfg: Config, out_dir: Path, compensation: str = "compare", fast: bool | None = None) -> dict:
+def run_job(cfg: Config, out_dir: Path, compensation: str = "compare", fast: bool | None = None,
+            make_driver: Callable[[Config, Inputs], Driver] | None = None, where: str | None = None) -> dict:  # fmt: skip
     """Run the ``servo run`` job into ``out_dir``; returns the summary (also written as
-    ``summary.json``)."""
+    ``summary.json``).  ``make_driver(cfg, inputs)``: a fresh driver per run instead of the
+    simulated drive (``where`` describes it, e.g. the serial URL)."""
     fast = cfg.run.fast_path if fast is None else fast
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
     atomic_write(out_dir / "config.toml", lambda p: Path(p).write_text(to_toml(cfg)))
     logs, results, runs = {}, {}, {}
     for label in LABELS[compensation]:
-        logs[label], results[label] = run_simulated(cfg, out_dir, label == "compensated", fast)
+        logs[label], results[label] = run_simulated(cfg, out_dir, label == "compensated", fast, make_driver)
         runs[label] = summarise(cfg, logs[label], results[label])
     runplots.plot_run(cfg, logs, results, out_dir)
     summary = {
@@ -86,7 +97,8 @@ def run_job(cfg: Config, out_dir: Path, compensation: str = "compare", fast: boo
         "sample_rate_hz": cfg.run.sample_rate_hz,
         "duration_s": cfg.run.duration_s,
         "seed": cfg.run.seed,
-        "path": "fast (all compiled)" if fast else "tick by tick through the driver interface",
+        "path": "fast (all compiled)" if fast else "tick by tick through the driver interface"
+        + (f" to {where}" if where else ""),
         "period_us": cfg.dt * 1e6,
         "runs": runs,
         "files": sorted({p.name for p in out_dir.iterdir() if not p.name.startswith(".")} | {"summary.json"}),
@@ -115,7 +127,11 @@ def format_summary(summary: dict, out_dir: Path) -> str:
         lines.append(f"  {name:<28}" + cells)
     for lab in labels:
         r = runs[lab]
-        if "tick_us_median" in r:
+        if "link" in r:  # the tick includes waiting for the board's sample: not a compute figure
+            lines.append(f"  tick ({lab}, read to last task, incl. waiting for the board): {r['tick_us_median']:.1f} us "
+                         f"median, {r['tick_us_p99']:.1f} us p99, {r['tick_us_max']:.0f} us max")  # fmt: skip
+            lines.append(f"  link ({lab}): " + format_link(r["link"]))
+        elif "tick_us_median" in r:
             lines.append(
                 f"  compute ({lab}): {r['tick_us_median']:.2f} us/tick median, {r['tick_us_p99']:.2f} us p99, "
                 f"{r['tick_us_max']:.0f} us max; overruns of the {summary['period_us']:g} us period: {r['overruns']}"
@@ -124,6 +140,17 @@ def format_summary(summary: dict, out_dir: Path) -> str:
             lines.append(f"  compute ({lab}): {r['per_sample_us']:.3f} us/sample (controller + simulated drive, average)")
     lines.append(f"  wrote {out_dir}/: " + ", ".join(summary["files"]))
     return "\n".join(lines)
+
+
+def format_link(link: dict) -> str:
+    """One line about a serial link's run: frames, errors, the board's counters."""
+    h, b = link["host"], link.get("board_stats") or {}
+    errors = sum(v for k, v in h.items() if k not in ("rx_frames", "tx_frames", "rx_bytes", "tx_bytes", "ignored"))
+    text = f"{h['rx_frames']} frames in, {h['tx_frames']} out, {errors} host-side errors"
+    if b:
+        text += (f"; board: {b.get('ticks', 0)} ticks, {b.get('missed_deadlines', 0)} missed deadlines, "
+                 f"{b.get('faults', 0)} faults")  # fmt: skip
+    return text
 
 
 def _step_cells(st: dict) -> str:

@@ -31,7 +31,8 @@ class LoopResult:
     """What a closed-loop run measured besides its log.
 
     ``stats``: error estimator accumulators (sum e^2, count, max |e|); ``tick_ns``:
-    per-tick compute time in ns (tick path only, else None); ``wall_s``: loop wall time.
+    per-tick compute time in ns (tick path only, else None); ``wall_s``: loop wall time;
+    ``link``: what a serial driver reports about its link (None for the simulated drive).
     """
 
     n_ticks: int
@@ -39,6 +40,7 @@ class LoopResult:
     stats: np.ndarray
     tick_ns: np.ndarray | None
     wall_s: float
+    link: dict | None = None
 
     @property
     def error_rms(self) -> float:
