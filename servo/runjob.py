@@ -17,6 +17,7 @@ import json
 import time
 from contextlib import nullcontext
 from pathlib import Path
+from typing import Callable
 
 import numpy as np
 
@@ -24,13 +25,14 @@ from kernels.loop import LOG_COLUMNS
 from servo import runplots
 from servo.config import Config, to_toml
 from servo.controller import Controller
+from servo.driver import Driver
 from servo.errors import ConfigError
 from servo.metrics import rms, step_metrics, tick_timing
 from servo.pacing import OverrunFault, realtime_section
 from servo.realtime import REALTIME_LOG_BLOCK, RealtimeOptions, grant_line, lateness_line, make_pacer, plot_lateness, report
 from servo.runlog import RunLog, atomic_write
 from servo.runner import LoopResult, log_rows, run_closed_loop
-from servo.scenario import scenario_inputs, segments
+from servo.scenario import Inputs, scenario_inputs, segments
 from servo.simdriver import SimDriver
 from servo.startup import process_age_s
 
@@ -43,20 +45,27 @@ def default_out_dir() -> Path:
 
 
 def run_simulated(cfg: Config, out_dir: Path, compensated: bool, fast: bool,
+                  make_driver: Callable[[Config, Inputs], Driver] | None = None,
                   realtime: RealtimeOptions | None = None) -> tuple[np.ndarray, LoopResult]:  # fmt: skip
-    """One closed-loop run against a fresh simulated drive; returns (log rows, result).
-    ``realtime``: pace the ticks on the wall clock (tick path only); the result then
-    carries the pacing report and the lateness of every tick."""
+    """One closed-loop run against a fresh driver (default: the simulated drive); returns
+    (log rows, result).  A driver with a ``report()`` method (the serial link) has it
+    recorded in ``result.link``.  ``realtime``: pace the ticks on the wall clock (tick path,
+    simulated drive); the result then carries the pacing report and the lateness of every
+    tick.  A run against a plant in real time (paced, or a board) journals its log in
+    blocks of :data:`~servo.realtime.REALTIME_LOG_BLOCK` rows, so that no write stalls a
+    tick for long."""
     label = "compensated" if compensated else "uncompensated"
     inputs = scenario_inputs(cfg)
     meta = {"label": label, "fast_path": fast, "sample_rate_hz": cfg.run.sample_rate_hz, "seed": cfg.run.seed,
             "realtime": realtime is not None}  # fmt: skip
+    driver = SimDriver(cfg, inputs.d) if make_driver is None else make_driver(cfg, inputs)
     pacer = make_pacer(cfg, realtime) if realtime else None
     section = realtime_section(realtime.cpu, realtime.fifo_priority, realtime.lock_memory) if realtime else nullcontext()
-    block = REALTIME_LOG_BLOCK if realtime else 8192
-    with SimDriver(cfg, inputs.d) as driver, RunLog(out_dir, f"log_{label}", LOG_COLUMNS, log_rows(cfg), meta, block) as log:
+    block = REALTIME_LOG_BLOCK if (realtime or make_driver is not None) else 8192
+    with driver, RunLog(out_dir, f"log_{label}", LOG_COLUMNS, log_rows(cfg), meta, block) as log:
         with section as grant:  # only around configure and the loop: the log is finalised outside
             result = run_closed_loop(cfg, driver, Controller(cfg, compensation=compensated), inputs, log, fast=fast, pacer=pacer)
+    result.link = driver.report() if hasattr(driver, "report") else None
     if realtime:
         result.realtime = report(pacer, realtime, grant)
         result.lateness_ns = pacer.lateness_ns
@@ -83,21 +92,29 @@ def summarise(cfg: Config, log: np.ndarray, result: LoopResult) -> dict:
     }
     if result.tick_ns is not None:
         out.update(tick_timing(result.tick_ns, cfg.dt))
+    if result.link is not None:
+        out["link"] = result.link
     if result.realtime is not None:
         out["realtime"] = result.realtime
     return out
 
 
 def run_job(cfg: Config, out_dir: Path, compensation: str = "compare", fast: bool | None = None,
+            make_driver: Callable[[Config, Inputs], Driver] | None = None, where: str | None = None,
             realtime: RealtimeOptions | None = None) -> dict:  # fmt: skip
     """Run the ``servo run`` job into ``out_dir``; returns the summary (also written as
-    ``summary.json``).  ``realtime``: pace every tick on the wall clock (implies the tick
-    path; asking for the fast path as well is an error).  On a real-time overrun fault
-    the drive is at zero current and the log of the interrupted run is kept."""
+    ``summary.json``).  ``make_driver(cfg, inputs)``: a fresh driver per run instead of the
+    simulated drive (``where`` describes it, e.g. the serial URL).  ``realtime``: pace
+    every tick of the simulated drive on the wall clock (implies the tick path; asking for
+    the fast path as well, or pacing a board, which is its own clock, is an error).  On a
+    real-time overrun fault the drive is at zero current and the log of the interrupted
+    run is kept."""
     if realtime is not None:
         if fast:
             raise ConfigError("--realtime paces the tick path; the all-compiled fast path (--fast) runs blocks "
                               "of ticks per call and cannot be paced")  # fmt: skip
+        if make_driver is not None:
+            raise ConfigError("--realtime paces the simulated drive; a board is the clock master and paces the loop")
         realtime.check()
         fast = False
     fast = cfg.run.fast_path if fast is None else fast
@@ -107,7 +124,7 @@ def run_job(cfg: Config, out_dir: Path, compensation: str = "compare", fast: boo
     logs, results, runs = {}, {}, {}
     for label in LABELS[compensation]:
         try:
-            logs[label], results[label] = run_simulated(cfg, out_dir, label == "compensated", fast, realtime)
+            logs[label], results[label] = run_simulated(cfg, out_dir, label == "compensated", fast, make_driver, realtime)
         except OverrunFault as exc:
             raise OverrunFault(f"{exc}; drive set to zero current, log of the {label} run kept in "
                                f"{out_dir / f'log_{label}.npz'}") from None  # fmt: skip
@@ -124,7 +141,7 @@ def run_job(cfg: Config, out_dir: Path, compensation: str = "compare", fast: boo
         "sample_rate_hz": cfg.run.sample_rate_hz,
         "duration_s": cfg.run.duration_s,
         "seed": cfg.run.seed,
-        "path": path + (", paced in real time" if realtime else ""),
+        "path": path + (f" to {where}" if where else "") + (", paced in real time" if realtime else ""),
         "realtime": realtime is not None,
         "period_us": cfg.dt * 1e6,
         "startup_s": startup,
@@ -155,7 +172,11 @@ def format_summary(summary: dict, out_dir: Path) -> str:
         lines.append(f"  {name:<28}" + cells)
     for lab in labels:
         r = runs[lab]
-        if "tick_us_median" in r:
+        if "link" in r:  # the tick includes waiting for the board's sample: not a compute figure
+            lines.append(f"  tick ({lab}, read to last task, incl. waiting for the board): {r['tick_us_median']:.1f} us "
+                         f"median, {r['tick_us_p99']:.1f} us p99, {r['tick_us_max']:.0f} us max")  # fmt: skip
+            lines.append(f"  link ({lab}): " + format_link(r["link"]))
+        elif "tick_us_median" in r:
             lines.append(
                 f"  compute ({lab}): {r['tick_us_median']:.2f} us/tick median, {r['tick_us_p99']:.2f} us p99, "
                 f"{r['tick_us_max']:.0f} us max, first tick {r['tick_us_first']:.0f} us; "
@@ -173,6 +194,17 @@ def format_summary(summary: dict, out_dir: Path) -> str:
         lines += [lateness_line(lab, runs[lab]["realtime"], summary["period_us"]) for lab in labels]
     lines.append(f"  wrote {out_dir}/: " + ", ".join(summary["files"]))
     return "\n".join(lines)
+
+
+def format_link(link: dict) -> str:
+    """One line about a serial link's run: frames, errors, the board's counters."""
+    h, b = link["host"], link.get("board_stats") or {}
+    errors = sum(v for k, v in h.items() if k not in ("rx_frames", "tx_frames", "rx_bytes", "tx_bytes", "ignored"))
+    text = f"{h['rx_frames']} frames in, {h['tx_frames']} out, {errors} host-side errors"
+    if b:
+        text += (f"; board: {b.get('ticks', 0)} ticks, {b.get('missed_deadlines', 0)} missed deadlines, "
+                 f"{b.get('faults', 0)} faults")  # fmt: skip
+    return text
 
 
 def _step_cells(st: dict) -> str:

@@ -39,8 +39,9 @@ class LoopResult:
     """What a closed-loop run measured besides its log.
 
     ``stats``: error estimator accumulators (sum e^2, count, max |e|); ``tick_ns``:
-    per-tick compute time in ns (tick path only, else None); ``wall_s``: loop wall time.
-    ``started``: :func:`time.perf_counter` when the loop started.  A paced run adds
+    per-tick compute time in ns (tick path only, else None); ``wall_s``: loop wall time;
+    ``started``: :func:`time.perf_counter` when the loop started; ``link``: what a serial
+    driver reports about its link (None for the simulated drive).  A paced run adds
     ``realtime`` (its report, :func:`servo.realtime.report`) and ``lateness_ns`` (each
     tick's start behind its deadline).
     """
@@ -51,6 +52,7 @@ class LoopResult:
     tick_ns: np.ndarray | None
     wall_s: float
     started: float = 0.0
+    link: dict | None = None
     realtime: dict | None = None
     lateness_ns: np.ndarray | None = None
 

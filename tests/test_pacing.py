@@ -172,6 +172,8 @@ def test_servo_run_realtime_fault_is_one_line_and_keeps_the_log(tmp_path):
         (["--realtime", "--max-overruns", "0"], "--max-overruns must be >= 1"),
         (["--realtime", "--cpu", "4096"], "--cpu 4096: this machine has cores"),
         (["--realtime", "--overrun-policy", "never"], "invalid choice: 'never'"),
+        (["--realtime", "--port", "loop://"], "with --port the board is the clock master"),
+        (["--fifo", "50", "--port", "loop://"], "--fifo is for pacing the simulated drive"),
     ],
 )
 def test_servo_run_realtime_bad_options_are_one_line(args, needle, tmp_path):

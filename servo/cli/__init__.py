@@ -17,7 +17,7 @@ import tomllib
 
 from servo.errors import ConfigError, ServoError
 
-COMMANDS = ("run", "config", "identify", "hysteresis", "bode", "paper")
+COMMANDS = ("run", "config", "identify", "hysteresis", "bode", "paper", "emulate")
 
 
 class UsageError(ServoError):
