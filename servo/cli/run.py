@@ -27,16 +27,63 @@ def register(sub) -> None:
     p.add_argument("--port", metavar="URL", help="run against a DSP/VCM board (or `servo emulate`) over this "
                    "pyserial URL: a device or pseudo-terminal path, socket://HOST:PORT, ... (the [link] section "
                    "sets latency, batching, timeouts)")  # fmt: skip
+    rt = p.add_argument_group(
+        "real-time pacing",
+        "Pace each tick on the wall clock at the sample rate (absolute deadlines, sleep then spin), as against "
+        "a plant that lives in real time. Implies the tick path (the fast path cannot be paced); the numbers "
+        "are the same as unpaced. Reports the lateness of each tick (p50/p99/p99.9/max) and the overruns, "
+        "and writes lateness.png.",
+    )
+    rt.add_argument("--realtime", action="store_true", help="pace the run in real time")
+    rt.add_argument("--overrun-policy", choices=("count", "fault"), default=None,
+                    help="count overruns and continue (default), or fault: stop with the drive at zero current "
+                         "after --max-overruns overruns in a row")  # fmt: skip
+    rt.add_argument("--max-overruns", type=int, metavar="N", help="consecutive overruns that fault (default 10)")
+    rt.add_argument("--cpu", type=int, metavar="N", help="pin the process to CPU core N")
+    rt.add_argument("--fifo", type=int, metavar="PRIO", help="SCHED_FIFO at priority PRIO (1-99), if permitted")
+    rt.add_argument("--lock-memory", action="store_true", help="lock the process's memory (mlockall), if permitted")
+    rt.add_argument("--spin-us", type=float, metavar="US", help="spin instead of sleeping for the last US "
+                    "microseconds before each deadline (default 100)")  # fmt: skip
     p.set_defaults(handler=handle)
+
+
+REALTIME_ONLY = ("overrun_policy", "max_overruns", "cpu", "fifo", "lock_memory", "spin_us")
+
+
+def realtime_options(args: argparse.Namespace):
+    """The :class:`~servo.realtime.RealtimeOptions` of the command line, or None."""
+    from servo.realtime import RealtimeOptions
+
+    given = [n for n in REALTIME_ONLY if getattr(args, n) is not None and getattr(args, n) is not False]
+    if args.port is not None and (args.realtime or given):
+        option = "--realtime" if args.realtime else f"--{given[0].replace('_', '-')}"
+        raise UsageError(f"servo run: {option} is for pacing the simulated drive; with --port the board is the "
+                         "clock master and paces the loop")  # fmt: skip
+    if not args.realtime:
+        if given:
+            raise UsageError(f"servo run: --{given[0].replace('_', '-')} needs --realtime")
+        return None
+    if args.fast:
+        raise UsageError("servo run: --realtime paces the tick path; the all-compiled fast path (--fast) runs "
+                         "blocks of ticks per call and cannot be paced")  # fmt: skip
+    d = RealtimeOptions()
+    return RealtimeOptions(
+        policy=args.overrun_policy or d.policy,
+        max_overruns=d.max_overruns if args.max_overruns is None else args.max_overruns,
+        cpu=args.cpu, fifo_priority=args.fifo, lock_memory=args.lock_memory,
+        spin_s=d.spin_s if args.spin_us is None else args.spin_us * 1e-6,
+    ).check()  # fmt: skip
 
 
 def handle(args: argparse.Namespace) -> int:
     from servo.runjob import default_out_dir, format_summary, run_job
 
+    realtime = realtime_options(args)
     cfg = config_from_args(args, run={"duration_s": args.duration, "seed": args.seed})
     out = Path(args.out) if args.out else default_out_dir()
     if args.port is None:
-        summary = run_job(cfg, out, compensation=args.compensation, fast=args.fast)
+        summary = run_job(cfg, out, compensation=args.compensation, fast=False if realtime else args.fast,
+                          realtime=realtime)  # fmt: skip
     else:
         summary = _run_on_port(cfg, out, args)
     print(format_summary(summary, out))
