@@ -41,14 +41,18 @@ def dahl_flow(H, dx, s, sigma, Ha, alpha):
         y = y0 * math.exp(-sigma * xi / Ha)
     else:
         e = 1.0 - alpha
-        if y0 == 0.0 and e < 0.0:
-            y = 0.0
+        if y0 == 0.0:
+            if e < 0.0:
+                y = 0.0
+            else:
+                z = -e * sigma * xi / Ha
+                y = z ** (1.0 / e) if z > 0.0 else 0.0
         else:
-            z = y0**e - e * sigma * xi / Ha
-            if z <= 0.0:
+            w = e * sigma * xi / (Ha * y0**e)
+            if w >= 1.0:
                 y = 0.0 if e > 0.0 else 2.0
             else:
-                y = z ** (1.0 / e)
+                y = y0 * math.exp(math.log1p(-w) / e)
     if y > 2.0:
         y = 2.0
     return s * Ha * (1.0 - y)

@@ -36,14 +36,19 @@ static double dahl_flow(double H, double dx, double s, double sigma, double Ha, 
         y = y0 * exp(-sigma * xi / Ha);
     } else {
         double e = 1.0 - alpha;
-        if (y0 == 0.0 && e < 0.0) {
-            y = 0.0;
+        if (y0 == 0.0) {
+            if (e < 0.0) {
+                y = 0.0;
+            } else {
+                double z = -e * sigma * xi / Ha;
+                y = z > 0.0 ? pow(z, 1.0 / e) : 0.0;
+            }
         } else {
-            double z = pow(y0, e) - e * sigma * xi / Ha;
-            if (z <= 0.0)
+            double w = e * sigma * xi / (Ha * pow(y0, e));
+            if (w >= 1.0)
                 y = e > 0.0 ? 0.0 : 2.0;
             else
-                y = pow(z, 1.0 / e);
+                y = y0 * exp(log1p(-w) / e);
         }
     }
     if (y > 2.0)
