@@ -28,7 +28,8 @@ class Parser(argparse.ArgumentParser):
     """argparse that raises one-line errors instead of printing usage and exiting."""
 
     def error(self, message: str):
-        raise UsageError(f"{self.prog}: {message} (see {self.prog} --help)")
+        where = "" if self.prog == "servo" else f"{self.prog}: "  # the top level is already "servo: error:"
+        raise UsageError(f"{where}{message} (see {self.prog} --help)")
 
 
 def parse_set(items: list[str] | None) -> dict:
