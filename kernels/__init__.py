@@ -3,8 +3,10 @@
 Pure arithmetic on float64 scalars and preallocated arrays: no Python objects, no I/O, no
 allocation in the per-sample path.  Every kernel has an explicit signature, so importing
 this package compiles (or loads from the on-disk cache) all of them before any loop runs.
-Imports numpy and numba only.
+Imports numpy and numba only.  The compiled code is cached on disk in a directory keyed
+by the kernels' source (:mod:`kernels._cache`), so editing any kernel recompiles all.
 """
+from kernels import _cache  # noqa: F401  (first: sets the cache directory)
 from kernels.compensator import FAST, SLOW, compensate, direction, regime_switch, velocity_estimate
 from kernels.controller import CTRL_PARAMS, CTRL_STATE, controller_start, controller_tick
 from kernels.dahl import dahl_closed, dahl_flow, dahl_slope, dahl_update

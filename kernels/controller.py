@@ -57,12 +57,13 @@ CTRL_STATE = np.dtype(
 )
 ctrl_params_t = from_dtype(CTRL_PARAMS)[::1]
 ctrl_state_t = from_dtype(CTRL_STATE)[::1]
+# helpers take the records themselves (by reference): no reference counting per call
+params_rec_t = from_dtype(CTRL_PARAMS)
+state_rec_t = from_dtype(CTRL_STATE)
 
 
-@njit(float64(ctrl_state_t, ctrl_params_t, float64), cache=True)
-def _compensation(cs, cp, x):
-    c = cs[0]
-    p = cp[0]
+@njit(float64(state_rec_t, params_rec_t, float64), cache=True)
+def _compensation(c, p, x):
     if p.comp_on == 0.0:
         return 0.0
     return compensate(int(c.regime), x, c.v, c.s, c.H_dahl, p.B, p.Fc, p.K, p.h0)
@@ -85,7 +86,7 @@ def controller_start(cs, cp, x, v_meas, u_now):
     c.H_dahl = 0.0
     c.regime = float(SLOW)
     c.e = 0.0
-    u_c = _compensation(cs, cp, x)
+    u_c = _compensation(c, p, x)
     c.integ = holding_pi_bumpless(u_now - u_c, 0.0, v, p.kp, p.kd)
     c.u_c = u_c
     c.u_n = u_now - u_c
@@ -114,7 +115,7 @@ def controller_tick(cs, cp, x, v_meas, r, u_exc):
     c.regime = float(
         regime_switch(int(c.regime), v, c.s * (x - c.x_r), turned, p.v_on, p.v_off, p.xi_on)
     )
-    u_c = _compensation(cs, cp, x)  # eq. (9)
+    u_c = _compensation(c, p, x)  # eq. (9)
 
     # the holding loop gets whatever room the compensator leaves under the current limit
     lo = max(-p.u_n_max, -p.u_max - u_c)

@@ -52,17 +52,23 @@ def dahl_flow(H, dx, s, sigma, Ha, alpha):
         y = y0 * math.exp(-sigma * xi / Ha)
     else:
         e = 1.0 - alpha
-        if y0 == 0.0 and e < 0.0:
-            # alpha > 1 at the asymptote: a fixed point of the (Lipschitz) flow
-            y = 0.0
+        if y0 == 0.0:
+            if e < 0.0:
+                y = 0.0  # alpha > 1 at the asymptote: a fixed point of the (Lipschitz) flow
+            else:
+                z = -e * sigma * xi / Ha  # y**(1-alpha) from y0 = 0
+                y = z ** (1.0 / e) if z > 0.0 else 0.0
         else:
-            z = y0**e - e * sigma * xi / Ha  # y**(1-alpha), linear in xi
-            if z <= 0.0:
+            # y**(1-alpha) = y0**(1-alpha) * (1 - w), linear in xi; written as
+            # y = y0*exp(log1p(-w)/e), which stays exact as alpha -> 1 (it tends to the
+            # exponential) where z**(1/e) would cancel catastrophically
+            w = e * sigma * xi / (Ha * y0**e)
+            if w >= 1.0:
                 # alpha < 1: the asymptote is reached in finite distance;
                 # alpha > 1: y -> infinity walking back, i.e. the opposite saturation
                 y = 0.0 if e > 0.0 else 2.0
             else:
-                y = z ** (1.0 / e)
+                y = y0 * math.exp(math.log1p(-w) / e)
     if y > 2.0:
         y = 2.0
     return s * Ha * (1.0 - y)

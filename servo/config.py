@@ -90,6 +90,16 @@ class LinkConfig:
     """The command path between controller and drive."""
 
     command_latency_ticks: int = P(0, "ticks", "a command computed at tick k is applied at k+d", 0, 1000)
+    batch: int = P(1, "samples", "serial link: samples per frame (and commands per reply); needs d >= batch - 1, "
+                   "and d >= batch on a real-time board", 1, 32)
+    timeout_s: float = P(0.2, "s", "serial link: the host stops when no frame has come from the board for this long",
+                         0.0, 60.0, lo_open=True)
+    watchdog_s: float = P(0.05, "s", "serial link: the board falls to zero current when no command has come for "
+                          "this long", 1e-6, 60.0)
+    late_limit_ticks: int = P(0, "ticks", "serial link, real-time board: consecutive ticks it may hold the previous "
+                              "current when a command is late; one more is a fault", 0, 65535)
+    baudrate: int = P(921600, "bit/s", "serial link: line rate of a real UART (pty, socket:// and USB CDC ignore it)",
+                      50, 100_000_000)
 
 
 @dataclass
@@ -267,6 +277,9 @@ def _check_consistency(cfg: Config) -> None:
         raise ConfigError("config: scenario.step_times and scenario.step_positions must have the same length")
     if any(b < a for a, b in zip(s.step_times, s.step_times[1:])):
         raise ConfigError("config: scenario.step_times must be increasing")
+    if cfg.link.command_latency_ticks < cfg.link.batch - 1:
+        raise ConfigError("config: link.command_latency_ticks must be >= link.batch - 1 (a frame's last sample "
+                          "needs the commands of the frame before)")
     if abs(d.initial_position) >= d.stroke:
         raise ConfigError("config: drive.initial_position must lie inside +-drive.stroke")
 

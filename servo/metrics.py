@@ -29,9 +29,11 @@ def rms(x: np.ndarray) -> float:
 
 
 def tick_timing(tick_ns: np.ndarray, period_s: float) -> dict:
-    """Per-tick compute time (us): median, p99, max; overruns = ticks longer than the period."""
+    """Per-tick compute time (us): the first tick (after ``configure``), median, p99, max;
+    overruns = ticks longer than the period."""
     us = tick_ns / 1e3
     return {
+        "tick_us_first": float(us[0]),
         "tick_us_median": float(np.median(us)),
         "tick_us_p99": float(np.percentile(us, 99)),
         "tick_us_max": float(us.max()),

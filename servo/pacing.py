@@ -10,9 +10,11 @@ The scheduler counts ticks; a :class:`Pacer` ties tick ``k`` to the wall clock:
   :class:`OverrunFault` after ``max_consecutive`` overruns in a row, so the caller's
   lifecycle puts the drive in its safe state.
 
-:func:`realtime_section` keeps the garbage collector out of the loop (``gc.freeze`` then
-``gc.disable``), and asks the OS, where it permits, for CPU affinity, ``SCHED_FIFO`` and
-locked memory; it reports what it got and what it did not, one line each.
+:func:`gc_paused` keeps the garbage collector out of a loop (``gc.disable``; restored
+after).  :func:`realtime_section` collects, freezes and disables it, and asks the OS,
+where it permits, for CPU affinity, ``SCHED_FIFO`` and locked memory; it reports what it
+got and what it did not, one line each.  Pacing never changes a number: it only decides
+*when* tick ``k`` runs (``tests/test_pacing.py`` checks a paced log equals the unpaced one).
 """
 from __future__ import annotations
 
@@ -48,14 +50,17 @@ class Pacer:
         self.spin_ns = int(round(spin_s * 1e9))
         self.policy = policy
         self.max_consecutive = max_consecutive
-        self.lateness_ns = np.zeros(n_ticks, dtype=np.int64)
+        self.lateness_ns = np.full(n_ticks, 0, dtype=np.int64)  # written now: no page faults in the loop
         self.overruns = 0
         self.consecutive = 0
         self.t0 = 0
         self.k_last = -1
 
     def start(self) -> None:
-        self.t0 = time.perf_counter_ns()
+        """Set the deadlines: tick ``k`` at ``start + (k + 1)*period``.  Tick 0 is one
+        period away, so that it is waited for like any other (were its deadline "now",
+        the call overhead alone would count it as an overrun)."""
+        self.t0 = time.perf_counter_ns() + self.period_ns
 
     def wait(self, k: int) -> None:
         deadline = self.t0 + k * self.period_ns
@@ -122,52 +127,68 @@ def _munlockall() -> None:
 
 
 @contextmanager
+def gc_paused(collect: bool = False):
+    """Keep the garbage collector out of the block: ``gc.disable()``, restored after;
+    nests.  Objects allocated in the block are still freed by reference counting; only
+    cycles wait.  ``collect``: first collect and ``gc.freeze()`` what survives (tens of ms
+    once numba, scipy and matplotlib are loaded: worth it before a long real-time run,
+    not before every short simulation of a sweep)."""
+    was_enabled = gc.isenabled()
+    if collect:
+        gc.collect()
+        gc.freeze()
+    gc.disable()
+    try:
+        yield
+    finally:
+        if collect:
+            gc.unfreeze()
+        if was_enabled:
+            gc.enable()
+
+
+@contextmanager
 def realtime_section(cpu: int | None = None, fifo_priority: int | None = None, lock_memory: bool = False):
     """Prepare the process for a paced loop and restore it afterwards.
 
-    Always: collect, ``gc.freeze()`` and ``gc.disable()`` (no collection pauses in the
-    loop).  Optional, where the OS permits: pin to ``cpu``; ``SCHED_FIFO`` at
-    ``fifo_priority``; ``mlockall``.  Yields a :class:`RealtimeGrant`.
+    Always: collect, freeze and disable the garbage collector (:func:`gc_paused`).
+    Optional, where the OS permits: pin to ``cpu``; ``SCHED_FIFO`` at ``fifo_priority``;
+    ``mlockall``.  Yields a :class:`RealtimeGrant`; what was refused is in its ``notes``,
+    one line each.
     """
     grant = RealtimeGrant()
     old_affinity = os.sched_getaffinity(0) if hasattr(os, "sched_getaffinity") else None
     old_policy = os.sched_getscheduler(0) if hasattr(os, "sched_getscheduler") else None
     old_param = os.sched_getparam(0) if hasattr(os, "sched_getparam") else None
-    was_enabled = gc.isenabled()
-    gc.collect()
-    gc.freeze()
-    gc.disable()
-    grant.gc_frozen = True
-    try:
-        if cpu is not None:
-            try:
-                os.sched_setaffinity(0, {cpu})
-                grant.affinity = [cpu]
-            except (OSError, AttributeError, ValueError) as exc:
-                grant.notes.append(f"CPU affinity to core {cpu}: not available ({exc})")
-        if fifo_priority is not None:
-            try:
-                os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(fifo_priority))
-                grant.sched_fifo = True
-            except (OSError, AttributeError) as exc:
-                grant.notes.append(f"SCHED_FIFO priority {fifo_priority}: not permitted ({exc})")
-        if lock_memory:
-            note = _mlockall()
-            if note:
-                grant.notes.append(note)
-            else:
-                grant.memory_locked = True
-        yield grant
-    finally:
-        if grant.memory_locked:
-            _munlockall()
-        if grant.sched_fifo and old_policy is not None:
-            try:
-                os.sched_setscheduler(0, old_policy, old_param)
-            except OSError:
-                pass
-        if grant.affinity is not None and old_affinity is not None:
-            os.sched_setaffinity(0, old_affinity)
-        gc.unfreeze()
-        if was_enabled:
-            gc.enable()
+    with gc_paused(collect=True):
+        grant.gc_frozen = True
+        try:
+            if cpu is not None:
+                try:
+                    os.sched_setaffinity(0, {cpu})
+                    grant.affinity = [cpu]
+                except (OSError, AttributeError, ValueError) as exc:
+                    grant.notes.append(f"CPU affinity to core {cpu}: not available ({exc})")
+            if fifo_priority is not None:
+                try:
+                    os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(fifo_priority))
+                    grant.sched_fifo = True
+                except (OSError, AttributeError) as exc:
+                    grant.notes.append(f"SCHED_FIFO priority {fifo_priority}: not permitted ({exc})")
+            if lock_memory:
+                note = _mlockall()
+                if note:
+                    grant.notes.append(note)
+                else:
+                    grant.memory_locked = True
+            yield grant
+        finally:
+            if grant.memory_locked:
+                _munlockall()
+            if grant.sched_fifo and old_policy is not None:
+                try:
+                    os.sched_setscheduler(0, old_policy, old_param)
+                except OSError:
+                    pass
+            if grant.affinity is not None and old_affinity is not None:
+                os.sched_setaffinity(0, old_affinity)

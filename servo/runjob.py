@@ -6,15 +6,18 @@ into one output folder:
 
 * ``log_compensated.{npz,csv}``, ``log_uncompensated.{npz,csv}``: the run logs;
 * ``summary.json``: tracking error RMS per segment, per-step overshoot and settling,
-  compute time per sample, ticks, overruns;
-* ``tracking.png``, ``steps.png``, ``current.png`` (and ``timing.png`` tick by tick);
+  compute time per sample, ticks, overruns, the cold start (process start to first tick);
+* ``tracking.png``, ``steps.png``, ``current.png`` (and ``timing.png`` tick by tick;
+  ``lateness.png`` when paced in real time, see :mod:`servo.realtime`);
 * ``config.toml``: the effective configuration (rerun it for the same bits).
 """
 from __future__ import annotations
 
 import json
 import time
+from contextlib import nullcontext
 from pathlib import Path
+from typing import Callable
 
 import numpy as np
 
@@ -22,11 +25,16 @@ from kernels.loop import LOG_COLUMNS
 from servo import runplots
 from servo.config import Config, to_toml
 from servo.controller import Controller
+from servo.driver import Driver
+from servo.errors import ConfigError
 from servo.metrics import rms, step_metrics, tick_timing
+from servo.pacing import OverrunFault, realtime_section
+from servo.realtime import REALTIME_LOG_BLOCK, RealtimeOptions, grant_line, lateness_line, make_pacer, plot_lateness, report
 from servo.runlog import RunLog, atomic_write
 from servo.runner import LoopResult, log_rows, run_closed_loop
-from servo.scenario import scenario_inputs, segments
+from servo.scenario import Inputs, scenario_inputs, segments
 from servo.simdriver import SimDriver
+from servo.startup import process_age_s
 
 LABELS = {"on": ("compensated",), "off": ("uncompensated",), "compare": ("compensated", "uncompensated")}
 COL = {c: i for i, c in enumerate(LOG_COLUMNS)}
@@ -36,13 +44,31 @@ def default_out_dir() -> Path:
     return Path("servo-out") / time.strftime("run-%Y%m%d-%H%M%S")
 
 
-def run_simulated(cfg: Config, out_dir: Path, compensated: bool, fast: bool) -> tuple[np.ndarray, LoopResult]:
-    """One closed-loop run against a fresh simulated drive; returns (log rows, result)."""
+def run_simulated(cfg: Config, out_dir: Path, compensated: bool, fast: bool,
+                  make_driver: Callable[[Config, Inputs], Driver] | None = None,
+                  realtime: RealtimeOptions | None = None) -> tuple[np.ndarray, LoopResult]:  # fmt: skip
+    """One closed-loop run against a fresh driver (default: the simulated drive); returns
+    (log rows, result).  A driver with a ``report()`` method (the serial link) has it
+    recorded in ``result.link``.  ``realtime``: pace the ticks on the wall clock (tick path,
+    simulated drive); the result then carries the pacing report and the lateness of every
+    tick.  A run against a plant in real time (paced, or a board) journals its log in
+    blocks of :data:`~servo.realtime.REALTIME_LOG_BLOCK` rows, so that no write stalls a
+    tick for long."""
     label = "compensated" if compensated else "uncompensated"
     inputs = scenario_inputs(cfg)
-    meta = {"label": label, "fast_path": fast, "sample_rate_hz": cfg.run.sample_rate_hz, "seed": cfg.run.seed}
-    with SimDriver(cfg, inputs.d) as driver, RunLog(out_dir, f"log_{label}", LOG_COLUMNS, log_rows(cfg), meta) as log:
-        result = run_closed_loop(cfg, driver, Controller(cfg, compensation=compensated), inputs, log, fast=fast)
+    meta = {"label": label, "fast_path": fast, "sample_rate_hz": cfg.run.sample_rate_hz, "seed": cfg.run.seed,
+            "realtime": realtime is not None}  # fmt: skip
+    driver = SimDriver(cfg, inputs.d) if make_driver is None else make_driver(cfg, inputs)
+    pacer = make_pacer(cfg, realtime) if realtime else None
+    section = realtime_section(realtime.cpu, realtime.fifo_priority, realtime.lock_memory) if realtime else nullcontext()
+    block = REALTIME_LOG_BLOCK if (realtime or make_driver is not None) else 8192
+    with driver, RunLog(out_dir, f"log_{label}", LOG_COLUMNS, log_rows(cfg), meta, block) as log:
+        with section as grant:  # only around configure and the loop: the log is finalised outside
+            result = run_closed_loop(cfg, driver, Controller(cfg, compensation=compensated), inputs, log, fast=fast, pacer=pacer)
+    result.link = driver.report() if hasattr(driver, "report") else None
+    if realtime:
+        result.realtime = report(pacer, realtime, grant)
+        result.lateness_ns = pacer.lateness_ns
     return log.recorded(), result
 
 
@@ -66,28 +92,59 @@ def summarise(cfg: Config, log: np.ndarray, result: LoopResult) -> dict:
     }
     if result.tick_ns is not None:
         out.update(tick_timing(result.tick_ns, cfg.dt))
+    if result.link is not None:
+        out["link"] = result.link
+    if result.realtime is not None:
+        out["realtime"] = result.realtime
     return out
 
 
-def run_job(cfg: Config, out_dir: Path, compensation: str = "compare", fast: bool | None = None) -> dict:
+def run_job(cfg: Config, out_dir: Path, compensation: str = "compare", fast: bool | None = None,
+            make_driver: Callable[[Config, Inputs], Driver] | None = None, where: str | None = None,
+            realtime: RealtimeOptions | None = None) -> dict:  # fmt: skip
     """Run the ``servo run`` job into ``out_dir``; returns the summary (also written as
-    ``summary.json``)."""
+    ``summary.json``).  ``make_driver(cfg, inputs)``: a fresh driver per run instead of the
+    simulated drive (``where`` describes it, e.g. the serial URL).  ``realtime``: pace
+    every tick of the simulated drive on the wall clock (implies the tick path; asking for
+    the fast path as well, or pacing a board, which is its own clock, is an error).  On a
+    real-time overrun fault the drive is at zero current and the log of the interrupted
+    run is kept."""
+    if realtime is not None:
+        if fast:
+            raise ConfigError("--realtime paces the tick path; the all-compiled fast path (--fast) runs blocks "
+                              "of ticks per call and cannot be paced")  # fmt: skip
+        if make_driver is not None:
+            raise ConfigError("--realtime paces the simulated drive; a board is the clock master and paces the loop")
+        realtime.check()
+        fast = False
     fast = cfg.run.fast_path if fast is None else fast
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
     atomic_write(out_dir / "config.toml", lambda p: Path(p).write_text(to_toml(cfg)))
     logs, results, runs = {}, {}, {}
     for label in LABELS[compensation]:
-        logs[label], results[label] = run_simulated(cfg, out_dir, label == "compensated", fast)
+        try:
+            logs[label], results[label] = run_simulated(cfg, out_dir, label == "compensated", fast, make_driver, realtime)
+        except OverrunFault as exc:
+            raise OverrunFault(f"{exc}; drive set to zero current, log of the {label} run kept in "
+                               f"{out_dir / f'log_{label}.npz'}") from None  # fmt: skip
+        if not runs:
+            age = process_age_s()
+            startup = None if age is None else age - (time.perf_counter() - results[label].started)
         runs[label] = summarise(cfg, logs[label], results[label])
     runplots.plot_run(cfg, logs, results, out_dir)
+    if realtime is not None:
+        plot_lateness(cfg, {k: r.lateness_ns for k, r in results.items()}, out_dir / "lateness.png")
+    path = "fast (all compiled)" if fast else "tick by tick through the driver interface"
     summary = {
         "ticks": cfg.n_ticks,
         "sample_rate_hz": cfg.run.sample_rate_hz,
         "duration_s": cfg.run.duration_s,
         "seed": cfg.run.seed,
-        "path": "fast (all compiled)" if fast else "tick by tick through the driver interface",
+        "path": path + (f" to {where}" if where else "") + (", paced in real time" if realtime else ""),
+        "realtime": realtime is not None,
         "period_us": cfg.dt * 1e6,
+        "startup_s": startup,
         "runs": runs,
         "files": sorted({p.name for p in out_dir.iterdir() if not p.name.startswith(".")} | {"summary.json"}),
     }
@@ -115,15 +172,39 @@ def format_summary(summary: dict, out_dir: Path) -> str:
         lines.append(f"  {name:<28}" + cells)
     for lab in labels:
         r = runs[lab]
-        if "tick_us_median" in r:
+        if "link" in r:  # the tick includes waiting for the board's sample: not a compute figure
+            lines.append(f"  tick ({lab}, read to last task, incl. waiting for the board): {r['tick_us_median']:.1f} us "
+                         f"median, {r['tick_us_p99']:.1f} us p99, {r['tick_us_max']:.0f} us max")  # fmt: skip
+            lines.append(f"  link ({lab}): " + format_link(r["link"]))
+        elif "tick_us_median" in r:
             lines.append(
                 f"  compute ({lab}): {r['tick_us_median']:.2f} us/tick median, {r['tick_us_p99']:.2f} us p99, "
-                f"{r['tick_us_max']:.0f} us max; overruns of the {summary['period_us']:g} us period: {r['overruns']}"
+                f"{r['tick_us_max']:.0f} us max, first tick {r['tick_us_first']:.0f} us; "
+                f"overruns of the {summary['period_us']:g} us period: {r['overruns']}"
             )
         else:
             lines.append(f"  compute ({lab}): {r['per_sample_us']:.3f} us/sample (controller + simulated drive, average)")
+    if summary.get("startup_s") is not None:
+        lines.append(f"  startup: {summary['startup_s']:.2f} s from process start to the first tick "
+                     "(interpreter, imports, cached kernels, configure)")  # fmt: skip
+    if summary.get("realtime"):
+        g = runs[labels[0]]["realtime"]["granted"]
+        lines.append(f"  realtime: {grant_line(g)}")
+        lines += [f"  realtime: {note}" for note in g["notes"]]
+        lines += [lateness_line(lab, runs[lab]["realtime"], summary["period_us"]) for lab in labels]
     lines.append(f"  wrote {out_dir}/: " + ", ".join(summary["files"]))
     return "\n".join(lines)
+
+
+def format_link(link: dict) -> str:
+    """One line about a serial link's run: frames, errors, the board's counters."""
+    h, b = link["host"], link.get("board_stats") or {}
+    errors = sum(v for k, v in h.items() if k not in ("rx_frames", "tx_frames", "rx_bytes", "tx_bytes", "ignored"))
+    text = f"{h['rx_frames']} frames in, {h['tx_frames']} out, {errors} host-side errors"
+    if b:
+        text += (f"; board: {b.get('ticks', 0)} ticks, {b.get('missed_deadlines', 0)} missed deadlines, "
+                 f"{b.get('faults', 0)} faults")  # fmt: skip
+    return text
 
 
 def _step_cells(st: dict) -> str:

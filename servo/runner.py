@@ -8,6 +8,13 @@ for the simulated drive they produce the same log, bit for bit:
 * after the command: ``estimator`` every ``run.estimator_every`` ticks (tracking-error
   statistics, :func:`kernels.loop.error_stats`), then ``log`` every ``run.log_every``
   ticks (one row of :data:`kernels.loop.LOG_COLUMNS`).
+
+Nothing compiles or warms up inside the loop: the driver warms its kernels at
+``configure``, the controller and the log/estimator kernels are called once on scratch
+copies before the first tick, and the garbage collector is disabled
+(:func:`servo.pacing.gc_paused`) from before ``configure`` to the end of the loop, so that
+no collection (tens of ms with numba, scipy and matplotlib loaded) lands on a tick.  A pacer, if given, is started right
+before the first tick.
 """
 from __future__ import annotations
 
@@ -20,6 +27,7 @@ from kernels.loop import LOG_COLUMNS, STATS_SIZE, closed_loop, error_stats, log_
 from servo.config import Config
 from servo.controller import Controller
 from servo.driver import Driver, DriverState
+from servo.pacing import gc_paused
 from servo.runlog import RunLog
 from servo.scenario import Inputs
 from servo.scheduler import Pacer, Scheduler, Task
@@ -31,7 +39,11 @@ class LoopResult:
     """What a closed-loop run measured besides its log.
 
     ``stats``: error estimator accumulators (sum e^2, count, max |e|); ``tick_ns``:
-    per-tick compute time in ns (tick path only, else None); ``wall_s``: loop wall time.
+    per-tick compute time in ns (tick path only, else None); ``wall_s``: loop wall time;
+    ``started``: :func:`time.perf_counter` when the loop started; ``link``: what a serial
+    driver reports about its link (None for the simulated drive).  A paced run adds
+    ``realtime`` (its report, :func:`servo.realtime.report`) and ``lateness_ns`` (each
+    tick's start behind its deadline).
     """
 
     n_ticks: int
@@ -39,6 +51,10 @@ class LoopResult:
     stats: np.ndarray
     tick_ns: np.ndarray | None
     wall_s: float
+    started: float = 0.0
+    link: dict | None = None
+    realtime: dict | None = None
+    lateness_ns: np.ndarray | None = None
 
     @property
     def error_rms(self) -> float:
@@ -64,25 +80,41 @@ def run_closed_loop(
     """Run ``cfg.n_ticks`` ticks of ``controller`` against ``driver``.
 
     Configures the driver if it is not yet, activates it, and deactivates it (safe state)
-    on every exit path.  ``fast`` uses the all-compiled loop (simulated drive only).
+    on every exit path.  ``fast`` uses the all-compiled loop (simulated drive only); it
+    runs a block of ticks per call, so it cannot be paced.
     """
     if fast and not isinstance(driver, SimDriver):
         raise ValueError("the compiled fast path runs against the simulated drive only")
-    if driver.state is DriverState.UNCONFIGURED:
-        driver.configure()
-    driver.activate()
-    stats = np.zeros(STATS_SIZE)
-    tick_ns = np.zeros(cfg.n_ticks, dtype=np.int64) if (timing and not fast) else None
-    t0 = time.perf_counter()
-    try:
-        if fast:
-            _run_fast(cfg, driver, controller, inputs, log, stats)
-        else:
-            _run_ticks(cfg, driver, controller, inputs, log, stats, pacer, tick_ns)
-    finally:
-        driver.deactivate()
-        log.flush()
-    return LoopResult(cfg.n_ticks, fast, stats, tick_ns, time.perf_counter() - t0)
+    if fast and pacer is not None:
+        raise ValueError("the compiled fast path cannot be paced: real-time pacing needs the tick path")
+    with gc_paused():
+        if driver.state is DriverState.UNCONFIGURED:
+            driver.configure()
+        stats = np.zeros(STATS_SIZE)
+        tick_ns = np.full(cfg.n_ticks, 0, dtype=np.int64) if (timing and not fast) else None  # written: no page faults in the loop
+        _warm_up(controller, log)
+        driver.activate()
+        t0 = time.perf_counter()
+        try:
+            if fast:
+                _run_fast(cfg, driver, controller, inputs, log, stats)
+            else:
+                _run_ticks(cfg, driver, controller, inputs, log, stats, pacer, tick_ns)
+        finally:
+            driver.deactivate()
+            log.flush()
+        return LoopResult(cfg.n_ticks, fast, stats, tick_ns, time.perf_counter() - t0, started=t0)
+
+
+def _warm_up(controller, log: RunLog) -> None:
+    """First calls of the controller and the log/estimator kernels, on scratch copies."""
+    warm = getattr(controller, "warm_up", None)
+    if warm is not None:
+        warm()
+    state = getattr(controller, "state", None)
+    if state is not None:
+        log_row(np.empty(len(LOG_COLUMNS)), 0, 1.0, 0.0, 0.0, state.copy())
+    error_stats(np.zeros(STATS_SIZE), 0.0)
 
 
 def _run_ticks(cfg, driver, controller, inputs, log, stats, pacer, tick_ns) -> None:
@@ -109,6 +141,8 @@ def _run_ticks(cfg, driver, controller, inputs, log, stats, pacer, tick_ns) -> N
         Task("estimator", cfg.run.estimator_every, estimator),
         Task("log", cfg.run.log_every, logger),
     ]
+    if pacer is not None:
+        pacer.start()
     sched.run(0, cfg.n_ticks, start=True, tick_ns=tick_ns)
 
 

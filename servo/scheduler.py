@@ -59,6 +59,10 @@ class ControllerLike(Protocol):
 
 
 class Pacer(Protocol):
+    """Ties ticks to the wall clock (:class:`servo.pacing.Pacer`): ``start()`` right
+    before the first tick, ``wait(k)`` before tick ``k``."""
+
+    def start(self) -> None: ...
     def wait(self, k: int) -> None: ...
 
 

@@ -97,3 +97,14 @@ def test_late_detected_reversal_still_turns_at_the_extreme():
     s, x_r, H_r, x_ext, H = dahl_update(2.5e-6, -1.0, s, x_r, H_r, x_ext, SIGMA, HA, 1.0)  # detected here
     assert (x_r, H_r) == (3e-6, pytest.approx(H_peak, rel=1e-14))
     assert H == pytest.approx(dahl_flow(H_peak, -0.5e-6, -1.0, SIGMA, HA, 1.0), rel=1e-14)
+
+
+@pytest.mark.parametrize("alpha", [1 - 1e-9, 1 - 1e-5, 1 + 1e-5, 1 + 1e-9])
+def test_closed_form_is_continuous_at_alpha_one(alpha):
+    """Near alpha = 1 the alpha != 1 form must tend to the exponential, not cancel away
+    (a naive y**(1-alpha) round trip loses every digit at alpha = 1 - 1e-9)."""
+    for s, H_r in [(1.0, -0.8e-3), (-1.0, 0.5e-3), (1.0, 0.99e-3)]:
+        for dx in np.linspace(-2e-6, 1e-5, 25):
+            H_a = dahl_flow(H_r, s * dx, s, SIGMA, HA, alpha)
+            H_1 = dahl_flow(H_r, s * dx, s, SIGMA, HA, 1.0)
+            assert abs(H_a - H_1) <= 10 * abs(alpha - 1) * HA + 1e-15

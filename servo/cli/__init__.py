@@ -17,7 +17,7 @@ import tomllib
 
 from servo.errors import ConfigError, ServoError
 
-COMMANDS = ("run", "config", "identify", "hysteresis", "bode", "paper", "diagnose")
+COMMANDS = ("run", "config", "identify", "hysteresis", "bode", "paper", "emulate", "diagnose")
 
 
 class UsageError(ServoError):
@@ -28,7 +28,8 @@ class Parser(argparse.ArgumentParser):
     """argparse that raises one-line errors instead of printing usage and exiting."""
 
     def error(self, message: str):
-        raise UsageError(f"{self.prog}: {message} (see {self.prog} --help)")
+        where = "" if self.prog == "servo" else f"{self.prog}: "  # the top level is already "servo: error:"
+        raise UsageError(f"{where}{message} (see {self.prog} --help)")
 
 
 def parse_set(items: list[str] | None) -> dict:

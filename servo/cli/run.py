@@ -4,13 +4,14 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
+from servo.cli import UsageError
 from servo.cli.common import add_config_options, config_from_args
 
 
 def register(sub) -> None:
     p = sub.add_parser(
         "run",
-        help="run the closed loop against the simulated drive",
+        help="run the closed loop against the simulated drive (or a board: --port URL)",
         description="Run the closed loop (PI holding loop plus the paper's compensator) against the simulated "
         "drive: hold, reference steps, a sinusoidal disturbance. Prints a summary; writes logs, summary.json "
         "and PNG plots into the output folder.",
@@ -23,14 +24,93 @@ def register(sub) -> None:
                    help="run with the compensator, without, or both and compare (default)")  # fmt: skip
     p.add_argument("--fast", action=argparse.BooleanOptionalAction, default=None,
                    help="all-compiled fast path instead of tick by tick (default: run.fast_path)")  # fmt: skip
+    p.add_argument("--port", metavar="URL", help="run against a DSP/VCM board (or `servo emulate`) over this "
+                   "pyserial URL: a device or pseudo-terminal path, socket://HOST:PORT, ... (the [link] section "
+                   "sets latency, batching, timeouts)")  # fmt: skip
+    rt = p.add_argument_group(
+        "real-time pacing",
+        "Pace each tick on the wall clock at the sample rate (absolute deadlines, sleep then spin), as against "
+        "a plant that lives in real time. Implies the tick path (the fast path cannot be paced); the numbers "
+        "are the same as unpaced. Reports the lateness of each tick (p50/p99/p99.9/max) and the overruns, "
+        "and writes lateness.png.",
+    )
+    rt.add_argument("--realtime", action="store_true", help="pace the run in real time")
+    rt.add_argument("--overrun-policy", choices=("count", "fault"), default=None,
+                    help="count overruns and continue (default), or fault: stop with the drive at zero current "
+                         "after --max-overruns overruns in a row")  # fmt: skip
+    rt.add_argument("--max-overruns", type=int, metavar="N", help="consecutive overruns that fault (default 10)")
+    rt.add_argument("--cpu", type=int, metavar="N", help="pin the process to CPU core N")
+    rt.add_argument("--fifo", type=int, metavar="PRIO", help="SCHED_FIFO at priority PRIO (1-99), if permitted")
+    rt.add_argument("--lock-memory", action="store_true", help="lock the process's memory (mlockall), if permitted")
+    rt.add_argument("--spin-us", type=float, metavar="US", help="spin instead of sleeping for the last US "
+                    "microseconds before each deadline (default 100)")  # fmt: skip
     p.set_defaults(handler=handle)
+
+
+REALTIME_ONLY = ("overrun_policy", "max_overruns", "cpu", "fifo", "lock_memory", "spin_us")
+
+
+def realtime_options(args: argparse.Namespace):
+    """The :class:`~servo.realtime.RealtimeOptions` of the command line, or None."""
+    from servo.realtime import RealtimeOptions
+
+    given = [n for n in REALTIME_ONLY if getattr(args, n) is not None and getattr(args, n) is not False]
+    if args.port is not None and (args.realtime or given):
+        option = "--realtime" if args.realtime else f"--{given[0].replace('_', '-')}"
+        raise UsageError(f"servo run: {option} is for pacing the simulated drive; with --port the board is the "
+                         "clock master and paces the loop")  # fmt: skip
+    if not args.realtime:
+        if given:
+            raise UsageError(f"servo run: --{given[0].replace('_', '-')} needs --realtime")
+        return None
+    if args.fast:
+        raise UsageError("servo run: --realtime paces the tick path; the all-compiled fast path (--fast) runs "
+                         "blocks of ticks per call and cannot be paced")  # fmt: skip
+    d = RealtimeOptions()
+    return RealtimeOptions(
+        policy=args.overrun_policy or d.policy,
+        max_overruns=d.max_overruns if args.max_overruns is None else args.max_overruns,
+        cpu=args.cpu, fifo_priority=args.fifo, lock_memory=args.lock_memory,
+        spin_s=d.spin_s if args.spin_us is None else args.spin_us * 1e-6,
+    ).check()  # fmt: skip
 
 
 def handle(args: argparse.Namespace) -> int:
     from servo.runjob import default_out_dir, format_summary, run_job
 
+    realtime = realtime_options(args)
     cfg = config_from_args(args, run={"duration_s": args.duration, "seed": args.seed})
     out = Path(args.out) if args.out else default_out_dir()
-    summary = run_job(cfg, out, compensation=args.compensation, fast=args.fast)
+    if args.port is None:
+        summary = run_job(cfg, out, compensation=args.compensation, fast=False if realtime else args.fast,
+                          realtime=realtime)  # fmt: skip
+    else:
+        summary = _run_on_port(cfg, out, args)
     print(format_summary(summary, out))
     return 0
+
+
+def _run_on_port(cfg, out: Path, args: argparse.Namespace) -> dict:
+    """The same job against the serial link: a fresh session (driver) per run.  The first
+    driver is configured (handshake, version and rate checks) before anything is written,
+    so a bad URL or an absent board leaves no output folder."""
+    from hil.serialdriver import SerialDriver
+    from servo.pacing import realtime_section
+    from servo.runjob import run_job
+
+    if args.fast or (args.fast is None and cfg.run.fast_path):
+        raise UsageError("servo run: --port runs tick by tick through the link; drop --fast (run.fast_path)")
+    first = SerialDriver(cfg, args.port)
+    first.configure()
+    pending = [first]
+
+    def make_driver(cfg, inputs):
+        return pending.pop() if pending else SerialDriver(cfg, args.port)
+
+    try:
+        with realtime_section():  # no garbage-collector pauses while the board waits for commands
+            return run_job(cfg, out, compensation=args.compensation, fast=False, make_driver=make_driver,
+                           where=f"{first.info.name} (d = {cfg.link.command_latency_ticks}, "
+                           f"batch = {cfg.link.batch})")  # fmt: skip
+    finally:
+        first.close()

@@ -1,0 +1,69 @@
+"""Per-sample time budgets, as fractions of the sample period of the config.
+
+Every budget is ``fraction * period`` with the period taken from ``run.sample_rate_hz``
+(20 us at the default 50 kHz), so a faster servo gets tighter budgets with no number to
+edit.  The fractions and why (figures measured on the team's shared 2-core VM, quiet;
+when the host's cores are contended everything slows by up to ~2.4x, so each budget
+keeps at least ~2x over the worst loaded figure seen, and ratios are measured against
+references in the same run, where the slowdown cancels):
+
+* **controller tick**, compiled (Dahl update + compensator + PI + limits), 1/100: the
+  arithmetic of one sample must be a small part of the tick, whose cost is the Python
+  dispatch around it (~0.5 us per kernel call).  ~30-50 ns measured.
+* its **parts**: the Dahl update 1/100, the whole tick's budget (it is the costliest
+  part: with alpha != 1 it calls ``pow`` twice, ~40 ns), the compensator and the PI loop
+  1/1000 each (a few multiply-adds, ~1.5 ns).
+* **plant**: ``plant_step`` 1/8 (four RK4 sub-steps with the Dahl closed form and six
+  modes, ~0.5 us: the simulated drive is most of the fast path), ``plant_measure`` and
+  the link's ``shift_in`` 1/200 (~15 ns).
+* **tick path**, per tick through the scheduler and the driver interface with
+  ``SimDriver`` (read, controller, write, excitation/estimator/log tasks): 3/4.  A paced
+  tick starts at its deadline and must end before the next one; the last quarter is the
+  slack that absorbs wake-up jitter and lets the loop catch up after a late tick (a
+  lateness L is recovered in ``L / (T/4)`` ticks).  ~5.3 us measured (27 %), ~9 us when
+  the host's cores are contended.
+* **fast path**, per simulated sample of the all-compiled loop with logging: 1/4, i.e.
+  at least 4x faster than real time (it is the path for long simulations and sweeps;
+  ~0.6 us measured, 33x real time).
+* **first tick** after ``configure``: 10 periods.  Nothing may compile, draw noise or
+  collect garbage in it (each costs 0.2 ms to seconds); what is left is cold caches.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from servo.config import Config
+
+
+@dataclass(frozen=True)
+class Budget:
+    """``fraction`` of the sample period, and why."""
+
+    fraction: float
+    why: str
+
+    def ns(self, cfg: Config) -> float:
+        """The budget in ns at the config's sample rate."""
+        return self.fraction * cfg.dt * 1e9
+
+
+BUDGETS = {
+    "controller_tick": Budget(1 / 100, "one sample of the compiled controller"),
+    "dahl_update": Budget(1 / 100, "Dahl estimate, eq. (6-7), alpha == 1 or not"),
+    "compensate": Budget(1 / 1000, "compensation current, eq. (9)"),
+    "holding_pi": Budget(1 / 1000, "PI holding loop with anti-windup"),
+    "plant_step": Budget(1 / 8, "one sample of the simulated drive"),
+    "plant_measure": Budget(1 / 200, "the drive's sensor"),
+    "shift_in": Budget(1 / 200, "the link's 3-tick command queue"),
+    "tick_path": Budget(3 / 4, "one tick through scheduler + driver interface + SimDriver"),
+    "fast_path": Budget(1 / 4, "one simulated sample of the all-compiled loop (>= 4x real time)"),
+    "first_tick": Budget(10.0, "the first tick after configure"),
+}
+
+#: Numba/C time ratio, same arithmetic, same run: at most this ("near 1").
+NUMBA_OVER_C_MAX = 2.5
+#: Python/Numba time ratio of the controller tick: at least this (compiling must pay).
+PYTHON_OVER_NUMBA_MIN = 20.0
+#: Cold start (process start to first tick of ``servo run``) at most this multiple of the
+#: time the interpreter takes to import numba, numpy, scipy.linalg and matplotlib.
+STARTUP_OVER_DEPENDENCIES_MAX = 3.0

@@ -1,0 +1,61 @@
+"""``python -m bench.probe``: what a fresh process pays before and at its first tick.
+
+Imports the kernels and ``servo.runjob`` (timed), runs 2000 ticks of the tick path on
+the default drive, then lists every Numba dispatcher of ``kernels`` that compiled instead
+of loading from the on-disk cache, or that gained a specialization beyond its explicit
+signatures (i.e. compiled inside the loop).  Prints one JSON object.
+"""
+from __future__ import annotations
+
+import json
+import sys
+import tempfile
+import time
+
+
+def main() -> int:
+    t0 = time.perf_counter()
+    import kernels  # noqa: F401  (compiles or loads every kernel)
+
+    t1 = time.perf_counter()
+    import servo.runjob  # noqa: F401
+
+    t2 = time.perf_counter()
+    import numpy as np
+    from numba.core.registry import CPUDispatcher
+
+    from kernels.loop import LOG_COLUMNS
+    from servo.config import Config
+    from servo.controller import Controller
+    from servo.runlog import RunLog
+    from servo.runner import log_rows, run_closed_loop
+    from servo.scenario import scenario_inputs
+    from servo.simdriver import SimDriver
+
+    cfg = Config().replace(run={"duration_s": 0.04})
+    inputs = scenario_inputs(cfg)
+    with tempfile.TemporaryDirectory() as tmp:
+        with SimDriver(cfg, inputs.d) as drv, RunLog(tmp, "probe", LOG_COLUMNS, log_rows(cfg)) as log:
+            res = run_closed_loop(cfg, drv, Controller(cfg), inputs, log)
+    dispatchers = {}
+    for name, mod in list(sys.modules.items()):
+        if name == "kernels" or name.startswith("kernels."):
+            for attr, obj in vars(mod).items():
+                if isinstance(obj, CPUDispatcher):
+                    dispatchers[f"{obj.py_func.__module__}.{obj.py_func.__name__}"] = obj
+    compiled = sorted(n for n, d in dispatchers.items() if sum(d.stats.cache_misses.values()) > 0)
+    extra = sorted(n for n, d in dispatchers.items() if len(d.overloads) > len(d.signatures))
+    print(json.dumps({
+        "import_kernels_s": t1 - t0,
+        "import_runjob_s": t2 - t1,
+        "dispatchers": len(dispatchers),
+        "compiled_not_cached": compiled,
+        "specialised_after_import": extra,
+        "first_tick_us": float(res.tick_ns[0]) / 1e3,
+        "tick_us_median": float(np.median(res.tick_ns)) / 1e3,
+    }))  # fmt: skip
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

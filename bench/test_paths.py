@@ -1,0 +1,80 @@
+"""The two ways a run executes, per sample: tick by tick through the scheduler and the
+driver interface (the path real-time runs use), and the all-compiled fast path.
+
+Both run the ``servo run`` scenario through :func:`servo.runner.run_closed_loop`, with its
+standard tasks (excitation, estimator, log) and a run log on disk, as a user runs them.
+"""
+import numpy as np
+
+from bench.budgets import BUDGETS
+from bench.timing import per_sample_ns
+from kernels.loop import LOG_COLUMNS
+from servo.controller import Controller
+from servo.runlog import RunLog
+from servo.runner import log_rows, run_closed_loop
+from servo.scenario import scenario_inputs
+from servo.simdriver import SimDriver
+
+ROUNDS = 9
+
+
+class Runs:
+    """Fresh driver, controller and log for each round (configured outside the timing)."""
+
+    def __init__(self, cfg, tmp_path, fast):
+        self.cfg, self.tmp, self.fast = cfg, tmp_path, fast
+        self.inputs = scenario_inputs(cfg)
+        self.tick_ns = []
+        self.open = []
+
+    def setup(self):
+        drv = SimDriver(self.cfg, self.inputs.d)
+        drv.configure()
+        log = RunLog(self.tmp, f"r{len(self.open)}", LOG_COLUMNS, log_rows(self.cfg))
+        self.open.append((drv, log))
+        return (drv, Controller(self.cfg), log), {}
+
+    def run(self, drv, ctl, log):
+        res = run_closed_loop(self.cfg, drv, ctl, self.inputs, log, fast=self.fast)
+        if res.tick_ns is not None:
+            self.tick_ns.append(res.tick_ns)
+
+    def close(self):
+        for drv, log in self.open:
+            drv.close()
+            log.close()
+
+
+def test_tick_path_per_tick(benchmark, cfg, record, tmp_path):
+    """Read -> controller -> write -> tasks through Scheduler and SimDriver: the median of
+    the scheduler's per-tick compute times over all rounds, against 3/4 of the period."""
+    c = cfg.replace(run={"duration_s": 0.1})  # 5000 ticks per round
+    runs = Runs(c, tmp_path, fast=False)
+    try:
+        round_ns = per_sample_ns(benchmark, runs.run, c.n_ticks, ROUNDS, setup=runs.setup)
+    finally:
+        runs.close()
+    ticks = np.concatenate(runs.tick_ns)
+    median_us = float(np.median(ticks)) / 1e3
+    benchmark.extra_info["tick_us_median"] = median_us
+    record.figure("tick_path", median_us * 1e3, "tick_path", round_ns_per_tick=round_ns,
+                  tick_us_p99=float(np.percentile(ticks, 99)) / 1e3, ticks=int(ticks.size))  # fmt: skip
+    limit = BUDGETS["tick_path"].ns(cfg) / 1e3
+    assert median_us <= limit, f"tick path: {median_us:.2f} us per tick (median), over its budget of {limit:.1f} us (3/4 of the period)"
+
+
+def test_fast_path_samples_per_second(benchmark, cfg, record, tmp_path):
+    """The all-compiled closed loop (controller + simulated drive + logging), per sample,
+    against 1/4 of the period: at least 4x faster than real time."""
+    c = cfg.replace(run={"duration_s": 0.5})  # 25000 ticks per round
+    runs = Runs(c, tmp_path, fast=True)
+    try:
+        ns = per_sample_ns(benchmark, runs.run, c.n_ticks, ROUNDS, setup=runs.setup)
+    finally:
+        runs.close()
+    rate = 1e9 / ns
+    benchmark.extra_info["samples_per_s"] = rate
+    record.figure("fast_path", ns, "fast_path", samples_per_s=rate, real_time_factor=rate / cfg.run.sample_rate_hz)
+    limit = BUDGETS["fast_path"].ns(cfg)
+    assert ns <= limit, (f"fast path: {ns:.0f} ns per simulated sample ({rate:.3g} samples/s), over its budget of "
+                         f"{limit:.0f} ns (1/4 of the period: 4x real time)")  # fmt: skip

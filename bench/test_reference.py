@@ -1,0 +1,187 @@
+"""References measured in the same run: the controller tick and plant step in C (built
+now with the system C compiler, called through ctypes), and the controller tick in pure
+Python.  First that they compute the same numbers as the Numba kernels (otherwise a time
+ratio means nothing), then their per-sample figures and the ratios.
+
+Ratios are timed in adjacent pairs (:func:`bench.timing.paired`): on a loaded host
+absolute times move by 2x, the ratio of two calls made back to back does not.
+"""
+import numpy as np
+import pytest
+
+from bench import loops, pyref
+from bench import workload as w
+from bench.budgets import NUMBA_OVER_C_MAX, PYTHON_OVER_NUMBA_MIN
+from bench.timing import paired, per_sample_ns
+from servo.config import Config
+
+ROUNDS = 15
+
+#: Configurations that take every branch of the C/Python transcriptions.
+CASES = {
+    "default": {},
+    "alpha 1.5, estimated velocity": {"drive": {"alpha": 1.5}, "compensator": {"alpha": 1.5},
+                                      "controller": {"velocity_source": "estimated", "direction_deadband": 5e-5}},
+    "alpha 0.6, no velocity sensor": {"drive": {"alpha": 0.6, "measures_velocity": False}, "compensator": {"alpha": 0.6}},
+    "compensator off, tight limits": {"compensator": {"enabled": False},
+                                      "controller": {"holding_limit": 2e-3, "current_limit": 3e-3}},
+    "Coulomb/Stribeck, cogging, kf, delay 2.25 samples, stops": {
+        "drive": {"Fc": 1e-3, "Fs": 1.5e-3, "fc_asymmetry": 0.2, "b_asymmetry": -0.1, "cogging": 1e-4,
+                  "kf_linear": 0.05, "kf_quadratic": -0.1, "input_delay_s": 45e-6, "stroke": 25e-6,
+                  "mode_hz": [], "mode_zeta": [], "mode_gain": [], "position_quantum": 0.0}},
+}  # fmt: skip
+
+
+def same(a, b, rtol=1e-12):
+    """Largest relative difference of ``a`` and ``b``, asserting it is within ``rtol``."""
+    a, b = np.asarray(a, dtype=float).ravel(), np.asarray(b, dtype=float).ravel()
+    assert np.array_equal(np.isnan(a), np.isnan(b))
+    a, b = a[~np.isnan(a)], b[~np.isnan(b)]
+    scale = np.maximum(np.abs(a), np.abs(b))
+    rel = np.where(scale > 0, np.abs(a - b) / np.where(scale > 0, scale, 1.0), 0.0)
+    worst = float(rel.max(initial=0.0))
+    assert worst <= rtol, f"relative difference {worst:.3g} > {rtol:g}"
+    return worst
+
+
+def records(rec):
+    return np.array(rec.tolist(), dtype=float)
+
+
+@pytest.mark.parametrize("case", list(CASES))
+def test_c_computes_what_numba_computes(cref_lib, record, case):
+    """Controller alone, plant alone, and the closed loop (plant_measure -> controller_tick
+    -> plant_step) for 20 000 samples: the same numbers, state and every output."""
+    cfg = Config().replace(**CASES[case])
+    worst = 0.0
+    xin = w.controller_inputs(cfg)
+    a, b = w.controller(cfg), w.controller(cfg)
+    worst = max(worst, same(loops.loop_controller_tick(20_000, xin, a.state, a.params),
+                            cref_lib.loop_controller_tick(20_000, xin, b.state, b.params)))  # fmt: skip
+    worst = max(worst, same(records(a.state), records(b.state)))
+    uin = w.plant_inputs(cfg)
+    pa, pb = w.plant(cfg), w.plant(cfg)
+    worst = max(worst, same(loops.loop_plant_step(20_000, uin, pa.state, pa.params, pa.q, pa.mab, pa.ubuf),
+                            cref_lib.loop_plant_step(20_000, uin, pb)))  # fmt: skip
+    worst = max(worst, same(records(pa.state), records(pb.state)), same(pa.q, pb.q), same(pa.ubuf, pb.ubuf))
+    # the closed loop, sample by sample through the single-step entry points
+    from kernels.controller import controller_tick
+    from kernels.plant import plant_measure, plant_step
+
+    ref, noise = w.closed_loop_inputs(cfg), w.noise()
+    pa, pb, a, b = w.plant(cfg), w.plant(cfg), w.controller(cfg), w.controller(cfg)
+    out = np.empty((2, 20_000, 3))
+    for k in range(20_000):
+        j = k % ref.shape[0]
+        x, v = plant_measure(pa.state, pa.params, pa.q, pa.gain, noise[j, 0], noise[j, 1])
+        u = controller_tick(a.state, a.params, x, v, ref[j, 0], ref[j, 1])
+        plant_step(pa.state, pa.params, pa.q, pa.mab, pa.ubuf, u, ref[j, 2])
+        out[0, k] = x, v, u
+        x, v = cref_lib.plant_measure(pb, noise[j, 0], noise[j, 1])
+        u = cref_lib.controller_tick(b.state, b.params, x, v, ref[j, 0], ref[j, 1])
+        cref_lib.plant_step(pb, u, ref[j, 2])
+        out[1, k] = x, v, u
+    worst = max(worst, same(out[0], out[1]), same(records(a.state), records(b.state)))
+    assert np.ptp(out[0, :, 0]) > 1e-6  # the loop moved the arm
+    record.check(f"C == Numba: {case}", max_relative_difference=worst, bitwise=worst == 0.0)
+
+
+@pytest.mark.parametrize("case", [c for c in CASES if "Coulomb" not in c])
+def test_python_computes_what_numba_computes(record, case):
+    cfg = Config().replace(**CASES[case])
+    xin = w.controller_inputs(cfg)
+    a, b = w.controller(cfg), w.controller(cfg)
+    c, p = pyref.Record(b.state), pyref.Record(b.params)
+    rows = [tuple(map(float, r)) for r in xin]
+    worst = same(loops.loop_controller_tick(10_000, xin, a.state, a.params), pyref.loop_controller_tick(10_000, rows, c, p))
+    worst = max(worst, same(records(a.state), records(c.to_array(a.state))))
+    record.check(f"Python == Numba: {case}", max_relative_difference=worst, bitwise=worst == 0.0)
+
+
+# ---- per-sample figures of the references -------------------------------------------------
+
+
+def test_controller_tick_c(benchmark, cfg, cref_lib, record):
+    ctl, xin, n = w.controller(cfg), w.controller_inputs(cfg), 100_000
+    ns = per_sample_ns(benchmark, cref_lib.loop_controller_tick, n, ROUNDS, setup=lambda: ((n, xin, ctl.state, ctl.params), {}))
+    record.figure("controller_tick_c", ns)
+
+
+def test_plant_step_c(benchmark, cfg, cref_lib, record):
+    uin, n = w.plant_inputs(cfg), 20_000
+    ns = per_sample_ns(benchmark, cref_lib.loop_plant_step, n, ROUNDS, setup=lambda: ((n, uin, w.plant(cfg)), {}))
+    record.figure("plant_step_c", ns)
+
+
+def test_closed_loop_kernels(benchmark, cfg, record):
+    """plant_measure -> controller_tick -> plant_step in one compiled loop, no logging."""
+    ref, noise, n = w.closed_loop_inputs(cfg), w.noise(), 20_000
+
+    def setup():
+        p, c = w.plant(cfg), w.controller(cfg)
+        return (n, ref, noise, p.state, p.params, p.q, p.mab, p.gain, p.ubuf, c.state, c.params), {}
+
+    record.figure("closed_loop_kernels", per_sample_ns(benchmark, loops.loop_closed, n, ROUNDS, setup=setup))
+
+
+def test_closed_loop_c(benchmark, cfg, cref_lib, record):
+    ref, noise, n = w.closed_loop_inputs(cfg), w.noise(), 20_000
+
+    def setup():
+        c = w.controller(cfg)
+        return (n, ref, noise, w.plant(cfg), c.state, c.params), {}
+
+    record.figure("closed_loop_c", per_sample_ns(benchmark, cref_lib.loop_closed, n, ROUNDS, setup=setup))
+
+
+def test_controller_tick_python(benchmark, cfg, record):
+    ctl, n = w.controller(cfg), 2_000
+    rows = [tuple(map(float, r)) for r in w.controller_inputs(cfg)]
+
+    def setup():
+        return (n, rows, pyref.Record(ctl.state), pyref.Record(ctl.params)), {}
+
+    record.figure("controller_tick_python", per_sample_ns(benchmark, pyref.loop_controller_tick, n, 9, setup=setup))
+
+
+# ---- ratios, timed in adjacent pairs ---------------------------------------------------------
+
+
+def _numba_c(cfg, cref_lib, what):
+    if what == "controller_tick":
+        xin, a, b, n = w.controller_inputs(cfg), w.controller(cfg), w.controller(cfg), 5_000
+        return (lambda: loops.loop_controller_tick(n, xin, a.state, a.params),
+                lambda: cref_lib.loop_controller_tick(n, xin, b.state, b.params), n)  # fmt: skip
+    if what == "plant_step":
+        uin, pa, pb, n = w.plant_inputs(cfg), w.plant(cfg), w.plant(cfg), 1_000
+        return (lambda: loops.loop_plant_step(n, uin, pa.state, pa.params, pa.q, pa.mab, pa.ubuf),
+                lambda: cref_lib.loop_plant_step(n, uin, pb), n)  # fmt: skip
+    ref, noise, n = w.closed_loop_inputs(cfg), w.noise(), 1_000
+    pa, pb, a, b = w.plant(cfg), w.plant(cfg), w.controller(cfg), w.controller(cfg)
+    return (lambda: loops.loop_closed(n, ref, noise, pa.state, pa.params, pa.q, pa.mab, pa.gain, pa.ubuf, a.state, a.params),
+            lambda: cref_lib.loop_closed(n, ref, noise, pb, b.state, b.params), n)  # fmt: skip
+
+
+@pytest.mark.parametrize("what", ["controller_tick", "plant_step", "closed_loop"])
+def test_numba_over_c_ratio(cfg, cref_lib, record, what):
+    """Numba/C per-sample time ratio on the same arithmetic: near 1 (at most 2.5)."""
+    numba_fn, c_fn, n = _numba_c(cfg, cref_lib, what)
+    r = paired(numba_fn, c_fn, pairs=201)
+    record.ratio(f"numba_over_c_{what}", r.ratio, f"<= {NUMBA_OVER_C_MAX:g}", numba_ns=r.a_ns / n, c_ns=r.b_ns / n)
+    assert r.ratio <= NUMBA_OVER_C_MAX, (f"{what}: Numba takes {r.ratio:.2f}x the time of C "
+                                         f"({r.a_ns / n:.1f} vs {r.b_ns / n:.1f} ns per sample)")  # fmt: skip
+
+
+def test_python_over_numba_ratio(cfg, record):
+    """Pure Python/Numba per-sample time ratio of the controller tick: at least 20."""
+    xin, a = w.controller_inputs(cfg), w.controller(cfg)
+    rows = [tuple(map(float, r)) for r in xin]
+    c, p = pyref.Record(a.state), pyref.Record(a.params)
+    b = w.controller(cfg)
+    n_py, n_nb = 200, 20_000
+    r = paired(lambda: pyref.loop_controller_tick(n_py, rows, c, p),
+               lambda: loops.loop_controller_tick(n_nb, xin, b.state, b.params), pairs=61)  # fmt: skip
+    ratio = (r.a_ns / n_py) / (r.b_ns / n_nb)
+    record.ratio("python_over_numba_controller_tick", ratio, f">= {PYTHON_OVER_NUMBA_MIN:g}",
+                 python_ns=r.a_ns / n_py, numba_ns=r.b_ns / n_nb)  # fmt: skip
+    assert ratio >= PYTHON_OVER_NUMBA_MIN, f"the compiled controller tick is only {ratio:.1f}x faster than pure Python"

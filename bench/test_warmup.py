@@ -1,0 +1,97 @@
+"""Warm-up: nothing compiles in a loop; the first tick after ``configure`` and the cold
+start of ``servo run`` are measured and kept low.
+
+Each figure comes from fresh processes (a warm process would hide first-call costs):
+``python -m bench.probe`` (imports, a short tick-path run, the Numba cache counters)
+and ``python -m servo run`` itself, whose ``summary.json`` gives its cold start (process
+start to first tick) and its first tick.  Medians of 3 processes.
+"""
+import json
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from bench.budgets import BUDGETS, STARTUP_OVER_DEPENDENCIES_MAX
+
+PROCESSES = 3
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def _run(args):
+    """A fresh interpreter in the repository root (so ``-m bench.probe`` and ``-m servo``
+    resolve to this checkout wherever pytest was started)."""
+    return subprocess.run([sys.executable, *args], capture_output=True, text=True, timeout=600, cwd=ROOT)
+
+
+@pytest.fixture(scope="module")
+def probes():
+    out = []
+    for _ in range(PROCESSES):
+        r = _run(["-m", "bench.probe"])
+        assert r.returncode == 0, r.stderr
+        out.append(json.loads(r.stdout.strip().splitlines()[-1]))
+    return out
+
+
+@pytest.fixture(scope="module")
+def servo_runs(tmp_path_factory):
+    out = []
+    for i in range(PROCESSES):
+        d = tmp_path_factory.mktemp(f"run{i}")
+        r = _run(["-m", "servo", "run", "--duration", "0.02", "--compensation", "on", "--out", str(d)])
+        assert r.returncode == 0, r.stderr
+        out.append(json.loads((d / "summary.json").read_text()))
+    return out
+
+
+def test_no_kernel_compiles_after_the_first_import(probes, record):
+    """Every kernel loads from the on-disk cache (this session's import wrote it), and no
+    dispatcher gains a specialization after import: nothing can compile in a loop."""
+    p = probes[-1]
+    record.check("kernels load from the cache", dispatchers=p["dispatchers"], compiled=p["compiled_not_cached"],
+                 specialised_after_import=p["specialised_after_import"])  # fmt: skip
+    assert p["dispatchers"] >= 20
+    assert p["compiled_not_cached"] == [], f"compiled instead of loaded from the cache: {p['compiled_not_cached']}"
+    assert p["specialised_after_import"] == [], f"compiled after import: {p['specialised_after_import']}"
+
+
+def test_first_tick_after_configure(cfg, probes, servo_runs, record):
+    """The first tick of a fresh process, through the runner (probe) and through
+    ``servo run``: median within 10 periods (nothing compiles, draws noise or collects
+    garbage in it)."""
+    probe_us = float(np.median([p["first_tick_us"] for p in probes]))
+    run_us = float(np.median([s["runs"]["compensated"]["tick_us_first"] for s in servo_runs]))
+    median_tick_us = float(np.median([p["tick_us_median"] for p in probes]))
+    record.figure("first_tick", run_us * 1e3, "first_tick", probe_first_tick_us=probe_us, tick_us_median=median_tick_us)
+    limit = BUDGETS["first_tick"].ns(cfg) / 1e3
+    for what, us in (("servo run", run_us), ("probe", probe_us)):
+        assert us <= limit, f"first tick after configure ({what}): {us:.0f} us, over its budget of {limit:.0f} us (10 periods)"
+
+
+def test_cold_start_of_servo_run(servo_runs, probes, record):
+    """Process start to the first tick of ``servo run`` (interpreter, imports, loading the
+    cached kernels, configure), against the import of its dependencies measured in the
+    same session: at most 3x."""
+    deps = []
+    for _ in range(PROCESSES):
+        t0 = time.perf_counter()
+        r = _run(["-c", "import numba, numpy, scipy.linalg, matplotlib.pyplot"])
+        deps.append(time.perf_counter() - t0)
+        assert r.returncode == 0, r.stderr
+    deps_s = float(np.median(deps))
+    startup = [s["startup_s"] for s in servo_runs]
+    if any(s is None for s in startup):
+        pytest.skip("process start time unavailable (no /proc): cold start not measured")
+    startup_s = float(np.median(startup))
+    import_kernels_s = float(np.median([p["import_kernels_s"] for p in probes]))
+    record.figure("cold_start", startup_s * 1e9, dependencies_import_s=deps_s, import_kernels_s=import_kernels_s,
+                  import_runjob_s=float(np.median([p["import_runjob_s"] for p in probes])))  # fmt: skip
+    record.ratio("cold_start_over_dependencies", startup_s / deps_s, f"<= {STARTUP_OVER_DEPENDENCIES_MAX:g}",
+                 startup_s=startup_s, dependencies_s=deps_s)  # fmt: skip
+    assert startup_s <= STARTUP_OVER_DEPENDENCIES_MAX * deps_s, (
+        f"servo run takes {startup_s:.2f} s from process start to its first tick, more than "
+        f"{STARTUP_OVER_DEPENDENCIES_MAX:g}x the {deps_s:.2f} s its dependencies take to import")

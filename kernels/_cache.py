@@ -1,0 +1,54 @@
+"""Where Numba keeps the compiled kernels: a directory keyed by the kernels' source.
+
+Numba's on-disk cache (``cache=True``) checks only the timestamp of the file that defines
+each function.  A kernel that calls (and inlines) a kernel of another file keeps its
+cached machine code when only the callee's file changes: after editing ``dahl.py`` the
+cached ``controller_tick`` would still run the old Dahl model.  Keying the cache
+directory on a hash of every kernel source file makes any edit start a fresh cache.
+
+The directory is ``$SERVO_NUMBA_CACHE`` or ``~/.cache/servo-numba`` (``$XDG_CACHE_HOME``
+if set), then ``<hash>/``.  ``NUMBA_CACHE_DIR``, if the user set it, is respected as is.
+Import this module before any kernel is defined (``kernels/__init__.py`` does).
+"""
+from __future__ import annotations
+
+import hashlib
+import os
+from pathlib import Path
+
+from numba.core import config
+
+HERE = Path(__file__).resolve().parent
+
+
+def source_hash(folder: Path = HERE) -> str:
+    """First 16 hex digits of the SHA-256 of every ``*.py`` in ``folder`` (name, content)."""
+    h = hashlib.sha256()
+    for path in sorted(Path(folder).glob("*.py")):
+        h.update(path.name.encode())
+        h.update(path.read_bytes())
+    return h.hexdigest()[:16]
+
+
+def cache_dir() -> Path:
+    base = os.environ.get("SERVO_NUMBA_CACHE")
+    if not base:
+        xdg = os.environ.get("XDG_CACHE_HOME")
+        base = Path(xdg) / "servo-numba" if xdg else Path.home() / ".cache" / "servo-numba"
+    return Path(base) / source_hash()
+
+
+def configure() -> None:
+    """Point Numba's cache at :func:`cache_dir` unless ``NUMBA_CACHE_DIR`` is set or the
+    directory cannot be created (then Numba's default, beside the sources, is used)."""
+    if os.environ.get("NUMBA_CACHE_DIR"):
+        return
+    path = cache_dir()
+    try:
+        path.mkdir(parents=True, exist_ok=True)
+    except OSError:
+        return
+    config.CACHE_DIR = str(path)
+
+
+configure()

@@ -1,0 +1,236 @@
+"""The board side of the link, driven byte by byte with a fake clock: latency semantics,
+watchdog, missed deadlines, config checks, and every board-side fault."""
+import math
+
+import numpy as np
+import pytest
+
+from hil import protocol as P
+from hil.board import ACTIVE, FAULTED, HELLO, IDLE, READY, Board
+from hil.framing import FrameDecoder, encode_frame
+from servo.config import Config
+from servo.scenario import scenario_inputs
+from servo.simdriver import SimDriver
+
+CFG = Config().replace(run={"duration_s": 0.01, "sample_rate_hz": 20_000.0},
+                       drive={"mode_hz": [3000.0], "mode_zeta": [0.01], "mode_gain": [-0.01]},
+                       scenario={"disturbance_start": 0.0})  # fmt: skip
+MS = 1_000_000  # ns
+
+
+class Host:
+    """The host's side of the bytes, by hand."""
+
+    def __init__(self, board: Board):
+        self.board, self.seq, self.dec = board, 0, FrameDecoder()
+
+    def send(self, make, now=0):
+        self.board.feed(encode_frame(make(self.seq)), now)
+        self.seq += 1
+
+    def recv(self):
+        out = [P.parse(b) for b in self.dec.feed(bytes(self.board.out))]
+        self.board.out.clear()
+        return [m for _, _, m in out]
+
+    def start(self, d=0, b=1, watchdog_ms=5, late=0, rate=None, now=0):
+        self.send(lambda s: P.hello(s, 42), now)
+        self.send(lambda s: P.config(s, P.ConfigMsg(1, b, d, watchdog_ms * 1000, late, rate or self.board.rate)), now)
+        msgs = self.recv()
+        assert [type(m) for m in msgs] == [P.Info, P.Ready], msgs
+        self.send(P.start, now)
+        return msgs
+
+    def command(self, tick0, *u, now=0):
+        self.send(lambda s: P.commands(s, tick0, u), now)
+
+
+def samples(msgs):
+    return [m for m in msgs if isinstance(m, P.Samples)]
+
+
+@pytest.mark.parametrize("d,b", [(0, 1), (2, 1), (3, 2)])
+def test_lockstep_board_applies_the_command_of_sample_k_at_tick_k_plus_d(d, b):
+    board = Board(CFG)
+    host = Host(board)
+    info, ready = host.start(d=d, b=b)
+    assert info.nonce == 42 and info.sample_rate_hz == 20_000.0 and info.caps & P.CAP_LOCKSTEP
+    ref = SimDriver(CFG.replace(link={"command_latency_ticks": d, "batch": b}), scenario_inputs(CFG).d)
+    ref.configure()
+    ref.activate()
+    assert (ready.x, ready.i) == (ref.read()[0], ref.applied_current)  # READY: tick 0 and the holding current
+    rng = np.random.default_rng(3)
+    got, want, pending = [], [], []
+    for k in range(60):  # the host's loop, by hand: sample k in, command k out
+        while len(got) <= 3 * k:
+            frames = samples(host.recv())
+            assert frames, f"the board sent no sample for tick {k}: deadlock"
+            for f in frames:
+                assert f.tick0 == len(got) // 3 and len(f.values) == 3 * b
+                got += f.values
+        x, v = ref.read()
+        want += (x, v, ref.applied_current)
+        u = 2e-3 + 1e-3 * rng.standard_normal()
+        ref.write(u)  # the SimDriver applies it at k + d
+        pending.append(u)
+        if len(pending) == b:
+            host.command(k - b + 1, *pending)
+            pending = []
+    assert len(got) >= 3 * 60 and len(got) <= 3 * (60 + d + b)  # the board runs ahead by up to d ticks
+    assert np.array_equal(np.array(got[: 3 * 60]), np.array(want))  # bit for bit, not close
+    assert board.stats["missed_deadlines"] == 0 and board.state == ACTIVE
+
+
+def test_watchdog_drops_to_zero_current_when_commands_stop():
+    board = Board(CFG)
+    host = Host(board)
+    host.start(watchdog_ms=5, now=0)
+    host.command(0, 0.01, now=1 * MS)
+    assert board.k == 1 and board.applied_current == 0.01
+    board.check_watchdog(6 * MS)  # exactly the watchdog time since the last command: not yet
+    assert board.state == ACTIVE
+    board.check_watchdog(6 * MS + 1)
+    assert board.state == FAULTED and board.applied_current == 0.0
+    fault, stats = host.recv()[-2:]
+    assert fault.code == P.FAULT_WATCHDOG and "no command for 5.0 ms" in fault.text
+    assert stats.counters["watchdog_trips"] == 1 and stats.counters["faults"] == 1
+    host.command(1, 0.5, now=7 * MS)  # commands after the fault are ignored
+    assert board.applied_current == 0.0 and board.k == 1
+
+
+def test_realtime_board_holds_late_commands_then_faults_on_missed_deadlines():
+    board = Board(CFG, lockstep=False)
+    host = Host(board)
+    host.start(d=1, late=2)
+    u_hold = board.applied_current
+    board.tick(0)  # tick 0: nothing due yet (d = 1): the holding current
+    host.command(0, 0.02)
+    board.tick(0)  # tick 1: u_0 applied
+    assert board.applied_current == 0.02 and board.stats["missed_deadlines"] == 0
+    board.tick(0)  # tick 2: u_1 missing -> held
+    board.tick(0)  # tick 3: u_2 missing -> held
+    assert board.stats["missed_deadlines"] == 2 and board.state == ACTIVE and board.applied_current == 0.02
+    host.command(1, 0.03)  # u_1 arrives after its tick
+    assert board.stats["late_commands"] == 1
+    frames = samples(host.recv())
+    assert [f.status for f in frames] == [0, 0, P.STATUS_HELD, P.STATUS_HELD] and frames[-1].missed == 2
+    assert frames[0].values[2] == u_hold
+    board.tick(0)  # tick 4: u_3 missing, the third in a row > late_limit 2
+    assert board.state == FAULTED and board.applied_current == 0.0
+    fault = [m for m in host.recv() if isinstance(m, P.Fault)][0]
+    assert fault.code == P.FAULT_DEADLINE and "host too slow" in fault.text
+
+
+@pytest.mark.parametrize(
+    "lockstep,change,needle",
+    [
+        (False, dict(d=1, b=2), "latency 1 ticks < batch 2"),
+        (True, dict(d=0, b=2), "would deadlock"),
+        (True, dict(rate=50_000.0), "the host expects 50000 Hz, the board samples at 20000 Hz"),
+        (True, dict(b=40), "batch 40 outside 1..32"),
+    ],
+)
+def test_config_outside_what_the_board_accepts_is_refused(lockstep, change, needle):
+    board = Board(CFG, lockstep=lockstep)
+    host = Host(board)
+    host.send(lambda s: P.hello(s, 1))
+    d, b, rate = change.get("d", 0), change.get("b", 1), change.get("rate", board.rate)
+    host.send(lambda s: P.config(s, P.ConfigMsg(1, b, d, 1000, 0, rate)))
+    fault = host.recv()[1]
+    assert fault.code == P.FAULT_CONFIG and needle in fault.text
+    assert board.state == FAULTED
+
+
+def _running(d=2):
+    board = Board(CFG)
+    host = Host(board)
+    host.start(d=d)
+    host.first = samples(host.recv())[0]
+    return board, host
+
+
+@pytest.mark.parametrize(
+    "inject,code,counter",
+    [
+        ("duplicate", P.FAULT_SEQUENCE, "seq_repeated"),
+        ("skip", P.FAULT_SEQUENCE, "seq_dropped"),
+        ("nan", P.FAULT_COMMAND, None),
+        ("ahead", P.FAULT_COMMAND, None),
+        ("corrupt", P.FAULT_CORRUPT, "crc_errors"),
+        ("malformed", P.FAULT_PROTOCOL, "malformed"),
+        ("wrong state", P.FAULT_PROTOCOL, None),
+    ],
+)
+def test_every_board_side_fault_ends_in_the_safe_state(inject, code, counter):
+    board, host = _running()
+    host.command(0, 0.01)
+    if inject == "duplicate":
+        host.seq -= 1
+        host.command(0, 0.01)
+    elif inject == "skip":
+        host.seq += 1
+        host.command(1, 0.01)
+    elif inject == "nan":
+        host.command(1, math.nan)
+    elif inject == "ahead":
+        host.command(1, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0)  # commands for samples not sent yet
+    elif inject == "corrupt":
+        frame = bytearray(encode_frame(P.commands(host.seq, 1, (0.01,))))
+        frame[5] ^= 0x10
+        board.feed(bytes(frame), 0)
+    elif inject == "malformed":
+        host.send(lambda s: P.commands(s, 1, (0.01,))[:-1])
+    elif inject == "wrong state":
+        host.send(lambda s: P.config(s, P.ConfigMsg(1, 1, 0, 1000, 0, board.rate)))
+    assert board.state == FAULTED and board.applied_current == 0.0
+    fault, stats = host.recv()[-2:]
+    assert fault.code == code, fault
+    if counter:
+        assert stats.counters[counter] == 1
+    assert stats.counters["faults"] == 1
+
+
+def test_stop_answers_stats_and_a_new_config_starts_the_drive_afresh():
+    board, host = _running(d=0)
+    for k in range(5):
+        host.command(k, 0.05)
+    host.recv()
+    host.send(P.stop)
+    assert board.state == HELLO and board.applied_current == 0.0
+    (stats,) = host.recv()
+    assert stats.counters["ticks"] == 5 and stats.counters["rx_frames"] == 3 + 5 + 1
+    host.send(lambda s: P.config(s, P.ConfigMsg(1, 1, 0, 1000, 0, board.rate)))
+    host.send(P.start)
+    again = samples(host.recv())
+    assert board.state == ACTIVE and again[0].values == host.first.values  # same initial state and noise
+
+
+def test_bytes_outside_a_session_are_ignored_and_hello_restarts_a_running_board():
+    board = Board(CFG)
+    board.feed(b"\x13\x37 line noise \x00" + encode_frame(P.commands(0, 0, (1.0,))), 0)
+    assert board.state == IDLE and not board.out and board.decoder.errors == 1
+    host = Host(board)
+    host.start()
+    host.recv()
+    assert board.state == ACTIVE
+    host.seq = 0
+    host.send(lambda s: P.hello(s, 9))
+    assert board.state == HELLO and board.applied_current == 0.0
+    assert host.recv()[0].nonce == 9
+
+
+def test_a_closed_connection_is_the_safe_state():
+    board, host = _running()
+    board.disconnect(0)
+    assert board.state == IDLE and board.applied_current == 0.0 and board.sessions_ended == 1
+    assert board.stats["faults"] == 1
+
+
+def test_ready_state_needs_start_before_commands():
+    board = Board(CFG)
+    host = Host(board)
+    host.send(lambda s: P.hello(s, 1))
+    host.send(lambda s: P.config(s, P.ConfigMsg(1, 1, 0, 1000, 0, board.rate)))
+    assert board.state == READY
+    host.command(0, 0.1)
+    assert board.state == FAULTED and host.recv()[-2].code == P.FAULT_PROTOCOL

@@ -1,0 +1,307 @@
+"""Hardware in the loop without hardware: the serial driver against the device emulator.
+
+* lockstep runs through ``servo emulate`` over a pseudo-terminal are bit-identical to the
+  simulated-drive runs (same config, seed, latency), with and without batching, and
+  through ``servo run --port``;
+* every link fault (corrupt, dropped, duplicated, reordered frames, a silent peer, a port
+  that disappears, a host too slow for a real-time board) is detected and counted, the
+  board ends at zero current, the host stops with one line, and the log of every tick
+  before the fault is on disk.
+"""
+import math
+import os
+import re
+import select
+import signal
+import subprocess
+import sys
+import time
+from contextlib import contextmanager
+
+import numpy as np
+import pytest
+
+from hil.board import ACTIVE, FAULTED, HELLO, Board
+from hil import protocol as P
+from hil.emulator import start_in_thread
+from hil.serialdriver import SerialDriver
+from kernels.loop import LOG_COLUMNS
+from servo.config import Config, to_toml
+from servo.controller import Controller
+from servo.driver import DriverState
+from servo.errors import DriverError
+from servo.runlog import RunLog
+from servo.runner import log_rows, run_closed_loop
+from servo.scenario import scenario_inputs
+from servo.simdriver import SimDriver
+
+# 0.2 s at 50 kHz: 10 000 ticks, across a noise block; every scenario segment in it
+CFG = Config().replace(run={"duration_s": 0.2},
+                       scenario={"step_times": [0.02, 0.06, 0.1, 0.14], "disturbance_start": 0.16})  # fmt: skip
+NO_MODES = {"mode_hz": [], "mode_zeta": [], "mode_gain": []}
+
+
+def servo_cmd(*args):
+    return [sys.executable, "-m", "servo", *args]
+
+
+@contextmanager
+def emulator(*args, timeout=60.0):
+    """``servo emulate ARGS`` in a subprocess; yields (process, url).  Always ends it."""
+    proc = subprocess.Popen(servo_cmd("emulate", *args), stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    try:
+        ready, _, _ = select.select([proc.stdout], [], [], timeout)
+        line = proc.stdout.readline() if ready else ""
+        m = re.search(r"listening on (\S+)", line)
+        assert m, f"emulator did not start: {line!r} {proc.stderr.read() if proc.poll() is not None else ''}"
+        yield proc, m.group(1)
+    finally:
+        if proc.poll() is None:
+            proc.terminate()
+            try:
+                proc.wait(5)
+            except subprocess.TimeoutExpired:
+                proc.kill()
+                proc.wait()
+        proc.stdout.close()
+        proc.stderr.close()
+
+
+def run_log(cfg, driver, tmp_path, name, controller=None):
+    """Run the scenario of ``cfg`` against ``driver``; returns (rows, driver)."""
+    inputs = scenario_inputs(cfg)
+    with driver, RunLog(tmp_path, name, LOG_COLUMNS, log_rows(cfg)) as log:
+        run_closed_loop(cfg, driver, controller or Controller(cfg), inputs, log)
+    return log.recorded().copy()
+
+
+@pytest.fixture(scope="module")
+def lockstep_emulator(tmp_path_factory):
+    cfg_file = tmp_path_factory.mktemp("emu") / "cfg.toml"
+    cfg_file.write_text(to_toml(CFG))
+    with emulator("--pty", "--lockstep", "--config", str(cfg_file)) as (proc, url):
+        yield url, cfg_file
+
+
+@pytest.mark.parametrize("d,b", [(0, 1), (3, 2), (8, 8)])
+def test_lockstep_through_the_emulator_is_bit_identical_to_the_simulator(lockstep_emulator, d, b, tmp_path):
+    url, _ = lockstep_emulator
+    cfg = CFG.replace(link={"command_latency_ticks": d, "batch": b, "watchdog_s": 2.0})
+    sim = run_log(cfg, SimDriver(cfg, scenario_inputs(cfg).d), tmp_path, "sim")
+    drv = SerialDriver(cfg, url)
+    hil = run_log(cfg, drv, tmp_path, "hil")
+    assert hil.shape == sim.shape == (10_000, len(LOG_COLUMNS))
+    assert np.array_equal(hil, sim)  # every column, every bit
+    assert np.ptp(sim[:, LOG_COLUMNS.index("x")]) > 10e-6  # the steps happened
+    st = drv.report()
+    assert st["board_stats"]["ticks"] >= 10_000 and st["board_stats"]["faults"] == 0
+    assert st["host"]["rx_frames"] == 2 + 10_000 // b and sum(st["host"][k] for k in ("crc_errors", "seq_dropped")) == 0
+    assert drv.info.command_latency_ticks == d and drv.state is DriverState.CLOSED
+
+
+def test_servo_run_port_gives_the_simulator_run_bit_for_bit(lockstep_emulator, tmp_path):
+    url, cfg_file = lockstep_emulator
+    out = tmp_path / "port"
+    r = subprocess.run(servo_cmd("run", "--config", str(cfg_file), "--port", url, "--out", str(out)),
+                       capture_output=True, text=True, timeout=300)  # fmt: skip
+    assert r.returncode == 0, r.stderr
+    assert "link (compensated): 10002 frames in" in r.stdout and "0 host-side errors" in r.stdout
+    for label, comp in (("compensated", True), ("uncompensated", False)):
+        sim = run_log(CFG, SimDriver(CFG, scenario_inputs(CFG).d), tmp_path, label, Controller(CFG, comp))
+        port = np.load(out / f"log_{label}.npz")
+        for i, col in enumerate(LOG_COLUMNS):
+            assert np.array_equal(port[col], sim[:, i]), col
+
+
+# ------------------------------------------------------------------------------- faults
+
+FAULT_CFG = Config().replace(run={"duration_s": 0.02},
+                             link={"command_latency_ticks": 2, "timeout_s": 0.1, "watchdog_s": 0.03})  # fmt: skip
+# frames are counted from 1 per direction: rx 1 INFO, 2 READY, 3 + k the samples of tick k;
+# tx 1 HELLO, 2 CONFIG, 3 START, 4 + k the command of tick k.  So the faults hit tick 100.
+FAULTS = [
+    ("corrupt_rx=103", r"corrupt frame from the board at tick 100 \(CRC mismatch\)", "host", "crc_errors"),
+    ("corrupt_tx=104", r"board fault, corrupt frame at tick \d+: corrupt frame from the host", "board", "crc_errors"),
+    ("drop_rx=103", r"board frame seq 103, expected 102 at tick 100: 1 frame\(s\) missing \(dropped\)", "host", "seq_dropped"),
+    ("drop_tx=104", r"board fault, sequence error .*1 frame\(s\) missing \(dropped\)", "board", "seq_dropped"),
+    ("dup_rx=103", r"a repeated frame \(duplicated\)", "host", "seq_repeated"),
+    ("dup_tx=104", r"board fault, sequence error .*a repeated frame \(duplicated\)", "board", "seq_repeated"),
+    ("swap_rx=103", r"the expected frame came after a later one \(reordered\)", "host", "seq_reordered"),
+    ("swap_tx=104", r"board fault, sequence error .*\(reordered\)", "board", "seq_reordered"),
+    ("silent_rx=103", r"no SAMPLES frame from the board .* for 0.1 s \(tick 100\): the board is silent", "host", "timeouts"),
+    ("silent_tx=104", r"board fault, watchdog at tick \d+: no command for", "board", "watchdog_trips"),
+    ("vanish_rx=103", r"the port faulty://.* vanished", None, None),
+]  # fmt: skip
+
+
+def wait_until(cond, timeout=3.0):
+    end = time.monotonic() + timeout
+    while not cond() and time.monotonic() < end:
+        time.sleep(0.005)
+    return cond()
+
+
+@pytest.mark.parametrize("fault,message,side,counter", FAULTS, ids=[f[0] for f in FAULTS])
+def test_each_link_fault_is_detected_counted_and_stops_cleanly(fault, message, side, counter, tmp_path):
+    board = Board(FAULT_CFG)
+    with start_in_thread(board) as url:
+        drv = SerialDriver(FAULT_CFG, f"faulty://{url}?{fault}")
+        with pytest.raises(DriverError) as err:
+            run_log(FAULT_CFG, drv, tmp_path, "log")
+        # the board falls to its safe state: by the host's STOP, its own fault, or its watchdog
+        assert wait_until(lambda: board.state != ACTIVE)
+        assert board.state in (FAULTED, HELLO) and board.applied_current == 0.0
+    text = str(err.value)
+    assert re.search(message, text), text
+    assert "\n" not in text and isinstance(err.value, DriverError) and err.value.exit_code == 3
+    if side == "host":
+        assert drv.stats[counter] == 1
+    elif side == "board":
+        assert board.stats[counter] == 1 and drv.board_fault is not None
+    assert drv.state is DriverState.CLOSED
+    # the log of every tick before the fault is complete on disk, nothing half-written
+    data = np.load(tmp_path / "log.npz")
+    rows = data["tick"].shape[0]
+    assert 100 <= rows <= 105
+    np.testing.assert_array_equal(data["tick"], np.arange(rows))
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["log.csv", "log.npz"]
+
+
+def test_a_port_that_disappears_mid_run_stops_servo_run_with_one_line(tmp_path):
+    """The emulator process dies (the pty's master side goes away) while ``servo run`` runs."""
+    cfg_file = tmp_path / "cfg.toml"
+    cfg_file.write_text(to_toml(Config().replace(run={"duration_s": 4.0})))
+    out = tmp_path / "out"
+    with emulator("--pty", "--config", str(cfg_file)) as (emu, url):
+        host = subprocess.Popen(servo_cmd("run", "--config", str(cfg_file), "--port", url, "--out", str(out),
+                                          "--compensation", "on"), stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                                text=True)  # fmt: skip
+        try:
+            journal = out / "log_compensated.journal"
+            assert wait_until(lambda: journal.exists() and journal.stat().st_size > 8192 * 8 * 12, timeout=60)
+            emu.send_signal(signal.SIGKILL)
+            _, err = host.communicate(timeout=30)
+        finally:
+            if host.poll() is None:
+                host.kill()
+                host.communicate()
+    assert host.returncode == 3
+    assert err.count("\n") == 1 and re.match(r"servo: error: link: the port /dev/pts/\d+ vanished", err), err
+    data = np.load(out / "log_compensated.npz")
+    rows = data["tick"].shape[0]
+    assert 8192 <= rows < 200_000
+    np.testing.assert_array_equal(data["tick"], np.arange(rows))
+    assert not list(out.glob("*.journal")) and not list(out.glob(".*.tmp"))
+
+
+def test_a_host_too_slow_for_a_real_time_board_is_a_deadline_fault(tmp_path):
+    cfg = Config().replace(run={"duration_s": 1.0, "sample_rate_hz": 2000.0}, drive=NO_MODES,
+                           link={"command_latency_ticks": 2, "watchdog_s": 1.0, "timeout_s": 0.5})  # fmt: skip
+    cfg_file = tmp_path / "cfg.toml"
+    cfg_file.write_text(to_toml(cfg))
+    with emulator("--pty", "--realtime", "--config", str(cfg_file)) as (emu, url):
+        drv = SerialDriver(cfg, f"faulty://{url}?pause_tx=400&pause_ms=30")  # the host stalls 30 ms at tick 396
+        with pytest.raises(DriverError, match=r"board fault, deadline missed at tick \d+: the command of tick \d+ "
+                           r"was not there at tick \d+ \(1 in a row\): host too slow"):  # fmt: skip
+            run_log(cfg, drv, tmp_path, "log")
+        emu.terminate()
+        out, _ = emu.communicate(timeout=10)
+    assert drv.board_stats["missed_deadlines"] >= 1 and drv.board_stats["faults"] == 1
+    assert "FAULT deadline missed" in out and "drive at zero current" in out
+    rows = np.load(tmp_path / "log.npz")["tick"].shape[0]
+    assert 1 <= rows <= 400
+
+
+def test_tcp_transport_matches_the_simulator_and_a_closed_connection_is_the_safe_state(tmp_path):
+    cfg = CFG.replace(run={"duration_s": 0.02}, link={"command_latency_ticks": 1})
+    board = Board(cfg)
+    with start_in_thread(board, "tcp") as url:
+        assert url.startswith("socket://127.0.0.1:")
+        drv = SerialDriver(cfg, url)
+        hil = run_log(cfg, drv, tmp_path, "hil")
+        assert "TCP_NODELAY set" in drv.notes
+        sim = run_log(cfg, SimDriver(cfg, scenario_inputs(cfg).d), tmp_path, "sim")
+        assert np.array_equal(hil, sim)
+        with pytest.raises(DriverError, match="vanished"):
+            run_log(cfg, SerialDriver(cfg, f"faulty://?url={url}&vanish_rx=50"), tmp_path, "cut")
+        # the board sees the connection close: zero current at once, no watchdog needed
+        assert wait_until(lambda: board.sessions_ended == 2, timeout=2.0)
+        assert board.applied_current == 0.0 and board.stats["watchdog_trips"] == 0
+
+
+# --------------------------------------------------------------------- handshake and CLI
+
+
+def test_the_handshake_checks_versions_and_sample_rate(tmp_path):
+    class FutureBoard(Board):
+        def _on_hello(self, seq, msg):
+            super()._on_hello(seq, msg)
+            self.out.clear()
+            self.tx_seq = 0
+            self._send(P.info(0, P.Info(msg.nonce, 2, 3, self.caps, self.rate, 1.0, 32, 1000, "future")))
+
+    with start_in_thread(FutureBoard(FAULT_CFG)) as url:
+        with pytest.raises(DriverError, match=r"speaks protocol versions 2..3, this host 1..1"):
+            SerialDriver(FAULT_CFG, url).configure()
+    board = Board(FAULT_CFG)
+    with start_in_thread(board) as url:
+        other = FAULT_CFG.replace(run={"sample_rate_hz": 40_000.0})
+        with pytest.raises(DriverError, match=r"the board samples at 50000 Hz, the config says 40000 Hz"):
+            SerialDriver(other, url).configure()
+        drv = SerialDriver(FAULT_CFG, url)
+        info = drv.configure()  # the board takes a new HELLO after a failed one
+        assert info.has_velocity and info.current_limit == 1.0 and info.name.startswith("board 'servo emulator'")
+        x, v = drv.read()  # inactive: the sample of READY
+        assert math.isfinite(x) and drv.applied_current == pytest.approx(2e-3)
+        drv.close()
+        assert drv.state is DriverState.CLOSED
+
+
+def test_a_port_with_nobody_behind_it_is_one_line_after_the_handshake_timeout():
+    master, slave = os.openpty()
+    try:
+        drv = SerialDriver(FAULT_CFG, os.ttyname(slave))
+        t = time.monotonic()
+        with pytest.raises(DriverError, match=r"no answer to HELLO from /dev/pts/\d+ within 2 s"):
+            drv.configure()
+        assert 1.9 < time.monotonic() - t < 10 and drv.state is DriverState.CLOSED
+    finally:
+        os.close(master)
+        os.close(slave)
+
+
+@pytest.fixture
+def cli(capsys):
+    from servo.cli import main
+
+    old = signal.getsignal(signal.SIGTERM)
+
+    def run(*args):
+        code = main(list(args))
+        return code, capsys.readouterr()
+
+    yield run
+    signal.signal(signal.SIGTERM, old)
+
+
+@pytest.mark.parametrize(
+    "args,code,needle",
+    [
+        (["--port", "/dev/no-such-tty"], 3, "link: cannot open /dev/no-such-tty"),
+        (["--port", "nope://x"], 3, "link: bad port URL 'nope://x'"),
+        (["--port", "faulty:///dev/null?explode=1"], 3, "unknown option 'explode'"),
+        (["--port", "/dev/null", "--fast"], 2, "drop --fast"),
+    ],
+)
+def test_bad_port_input_is_one_line_and_writes_nothing(cli, args, code, needle, tmp_path):
+    rc, cap = cli("run", *args, "--out", str(tmp_path / "o"))
+    assert rc == code
+    assert cap.err.count("\n") == 1 and cap.err.startswith("servo: error:") and needle in cap.err, cap.err
+    assert not (tmp_path / "o").exists()
+
+
+def test_emulate_rejects_bad_options_in_one_line(cli):
+    rc, cap = cli("emulate", "--sessions", "0")
+    assert rc == 2 and cap.err.strip() == "servo: error: emulate: --sessions must be >= 1"
+    rc, cap = cli("emulate", "--set", "link.batch=4")  # d = 0 < batch - 1
+    assert rc == 2 and "link.command_latency_ticks must be >= link.batch - 1" in cap.err
