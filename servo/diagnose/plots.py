@@ -39,11 +39,11 @@ def plot_time(D: Diagnosis, path: Path) -> Path:
     mid = [0.5 * (x["t0"] + x["t1"]) for x in w]
     ax[1].step(mid, [x["rms"] * k if x["rms"] is not None else np.nan for x in w], where="mid", color="tab:red",
                label="baseline residual RMS per window")  # fmt: skip
-    ax[1].axhline(D.locate["time"]["noise_rms"] * k, color="gray", ls=":", label="noise level")
+    ax[1].axhline(D.locate["time"]["noise_rms"] * k, color="gray", ls=":", label="median window")
     ax[0].set_ylabel(f"force residual ({unit})")
     ax[1].set_ylabel(f"RMS ({unit})")
     ax[1].set_xlabel("time (s)")
-    ax[0].set_title(f"{_title(D)}\nresidual over time; shaded: windows with excess power "
+    ax[0].set_title(f"{_title(D)}\nresidual over time; shaded: windows whose power stands out from the others "
                     f"(family-wise false alarm {100 * D.opt.alpha:.0f} %)")  # fmt: skip
     for a in ax:
         a.grid(alpha=0.3)
