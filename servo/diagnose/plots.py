@@ -142,9 +142,8 @@ def plot_fits(D: Diagnosis, path: Path) -> Path:
     ax[0].set_title(f"{_title(D)}\nheld-out part: force error {e['test_force_rel_pct']['before']:.3g} % -> "
                     f"{e['test_force_rel_pct']['after']:.3g} %")  # fmt: skip
     if D.pred_before is not None:
-        lat = next(((f.params["step"], f.params["offset"]) for f in D.findings if f.physics == "quantization"), None)
-        for pred, col, lab, lt in ((D.pred_before, "tab:red", "baseline", None), (D.pred_after, "k", "final model", lat)):
-            eb, _ = pred.sse(lt)
+        for pred, col, lab in ((D.pred_before, "tab:red", "baseline"), (D.pred_after, "k", "final model")):
+            eb, _ = pred.sse()
             rms = np.sqrt(eb / pred.pred.shape[1])
             ax[2].semilogy(sig.t[pred.starts], np.maximum(rms, 1e-15), color=col, lw=0.8, label=lab)
         _, dref = D.pred_before.sse()

@@ -29,9 +29,9 @@ from servo.diagnose.model import Design, Model, Term
 from servo.diagnose.quantization import Lattice, candidate_paths, improvement_test, lattice_test
 from servo.diagnose.select import ALPHA, N_BLOCKS, Grams, Score, Selector, make_blocks
 from servo.diagnose.signals import Signals, distance_since_reversal, make_signals
+from servo.diagnose.simulate import Prediction, Unsimulable, horizon_samples, predict, starts_in
 from servo.diagnose.terms import VOCABULARY
 from servo.errors import ServoError
-from servo.diagnose.simulate import Prediction, Unsimulable, horizon_samples, predict, starts_in
 from servo.identify.regressors import IdentificationError, RobustSettings
 from servo.recording import Recording
 

@@ -45,7 +45,7 @@ from servo.recording import Recording
 #: ``|x'|`` below this many noise standard deviations: the direction is uncertain.
 DIRECTION_Z = 3.0
 #: a row is unusable if its decimation filter's response to a sample there exceeds this
-#: fraction of the response's peak (the filter's reach, about 13 rows by default)
+#: fraction of the response's peak (the filter's reach: 15 rows with the default settings)
 REACH_LEVEL = 0.01
 
 

@@ -19,8 +19,7 @@ normalised by what the force model has to explain, the motion that is not coasti
     NRMSE = ||x_meas[k+i] - x_pred[k+i]|| / ||x_meas[k+i] - xf[k] - vf[k]*i*dt||
 
 over all starts and steps ``i = 1..horizon``: 0 is a perfect prediction, 1 is no better
-than coasting at the initial velocity.  A quantised sensor is modelled by rounding the
-prediction to the sensor's lattice (:mod:`servo.diagnose.quantization`).
+than coasting at the initial velocity.
 """
 from __future__ import annotations
 
@@ -31,7 +30,7 @@ import numpy as np
 from kernels.plant import PLANT_PARAMS, PLANT_STATE
 from kernels.predict import mode_trace, multistep
 from servo.diagnose.fit import Fit
-from servo.diagnose.model import Design, Term
+from servo.diagnose.model import Design
 from servo.diagnose.terms import VOCABULARY
 from servo.drive import mode_matrices
 
@@ -50,22 +49,16 @@ class Prediction:
     meas: np.ndarray
     coast: np.ndarray
 
-    def sse(self, lattice: tuple | None = None) -> tuple[np.ndarray, np.ndarray]:
+    def sse(self) -> tuple[np.ndarray, np.ndarray]:
         """Per start: squared prediction error and squared non-coasting motion (S,)."""
-        p = self.pred if lattice is None else quantize(self.pred, *lattice)
-        e = np.sum((self.meas - p) ** 2, axis=1)
+        e = np.sum((self.meas - self.pred) ** 2, axis=1)
         d = np.sum((self.meas - self.coast) ** 2, axis=1)
         return e, d
 
-    def nrmse(self, mask: np.ndarray | None = None, lattice: tuple | None = None) -> float:
-        e, d = self.sse(lattice)
+    def nrmse(self, mask: np.ndarray | None = None) -> float:
+        e, d = self.sse()
         m = np.ones(e.size, bool) if mask is None else mask
         return float(np.sqrt(e[m].sum() / max(d[m].sum(), TINY)))
-
-
-def quantize(x: np.ndarray, step: float, offset: float) -> np.ndarray:
-    """``x`` rounded to the lattice ``offset + k*step``."""
-    return offset + np.round((x - offset) / step) * step
 
 
 class Unsimulable(Exception):
@@ -116,7 +109,7 @@ def drive_params(fit: Fit, design: Design) -> tuple[np.ndarray, dict]:
     return rec, modes
 
 
-def p_has_dahl(fit: Fit) -> bool:
+def has_dahl(fit: Fit) -> bool:
     return fit.combined().get("hysteresis", {}).get("Ha", 0.0) > 0
 
 
@@ -148,7 +141,7 @@ def predict(design: Design, fit: Fit, starts: np.ndarray, horizon: int) -> Predi
     x0 = sig.xf[starts] - (q0[:, :, 0] @ gain if nm else 0.0)
     v0 = sig.vf[starts] - (q0[:, :, 1] @ gain if nm else 0.0)
     hy = fit.model.get("hysteresis")
-    if hy is not None and p_has_dahl(fit):
+    if hy is not None and has_dahl(fit):
         H0 = VOCABULARY["hysteresis"].full(design, hy.params, u)[starts] * pp["Ha"][0]
     else:
         H0 = np.zeros(starts.size)
@@ -170,5 +163,5 @@ def horizon_samples(design: Design, horizon_s: float | None = None) -> int:
     return max(1, int(round(horizon_s / design.sig.dt)))
 
 
-__all__ = ["HORIZON_ROWS", "Prediction", "Unsimulable", "drive_params", "horizon_samples", "predict", "quantize",
-           "starts_in", "Term"]  # fmt: skip
+__all__ = ["HORIZON_ROWS", "Prediction", "Unsimulable", "drive_params", "horizon_samples", "predict",
+           "starts_in"]  # fmt: skip
