@@ -21,7 +21,7 @@ from servo.config import Config
 from servo.drive import SimPlant, build_plant
 from servo.driver import Driver, DriverInfo
 
-NOISE_BLOCK = 8192
+NOISE_BLOCK = 1024  # ticks; drawing a block takes ~25 us, small enough not to upset a paced tick
 
 
 class SimDriver(Driver):
