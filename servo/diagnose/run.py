@@ -76,6 +76,7 @@ class Finding:
     where: dict = field(default_factory=dict)
     params: dict = field(default_factory=dict)
     std: dict = field(default_factory=dict)
+    prediction: Prediction | None = None  # quantisation: the baseline's output on the default path
 
     @property
     def physics(self) -> str:
@@ -103,7 +104,7 @@ class Diagnosis:
     test_rows: np.ndarray
     locate: dict
     state: dict
-    pred_before: Prediction | None
+    pred_before: Prediction | None  # the baseline's (on the default path, if a quantisation finding moved the rows)
     pred_after: Prediction | None
     errors: dict
     lattice: Lattice
@@ -235,9 +236,10 @@ def _quantization(rec: Recording, opt: Options, base: Model, design: Design, H: 
     t, p = improvement_test(np.array([e0[b].sum() for b in blk]), np.array([e2[b].sum() for b in blk]))
     level = opt.alpha / len(paths)
     starts_te = starts_in(d2, ~d2.train_rows, H)  # the starts the rest of the proof uses
-    nr0, nr2 = predict(design, fit0, starts_te, H).nrmse(), predict(d2, f2, starts_te, H).nrmse()
+    p0_te = predict(design, fit0, starts_te, H)
+    nr0, nr2 = p0_te.nrmse(), predict(d2, f2, starts_te, H).nrmse()
     s2 = d2.sig.settings
-    q = Finding(Term.make("quantization", {"step": lat.step}), None, level, {}, lat, (t, p))
+    q = Finding(Term.make("quantization", {"step": lat.step}), None, level, {}, lat, (t, p), prediction=p0_te)
     q.params = {"step": lat.step, "offset": lat.offset, "noise_share": min(lat.step**2 / 12 / max(sig.noise_x**2, 1e-300), 1.0),
                 "decimate": float(s2.decimate), "cutoff_hz": s2.cutoff(1.0 / sig.dt)}  # fmt: skip
     q.before = {"force_rel_pct": force_error_pct(design, fit0, ~design.train_rows & sig.valid), "output_nrmse": nr0}
@@ -346,7 +348,8 @@ def diagnose(rec: Recording, opt: Options | None = None) -> Diagnosis:
         rec=rec, opt=opt, sig=sig, design=design, baseline=base, baseline_fit=fits[0], final_fit=final,
         findings=findings, unconfirmed=unconfirmed, rounds=rounds, not_testable=not_testable, implausible=implausible,
         residual_before=r_before, residual_after=r_after, test_rows=test_rows, locate=loc, state=variables,
-        pred_before=preds[0], pred_after=preds[-1], errors=errors, lattice=lattice,
+        pred_before=qfind.prediction if qfind is not None else preds[0], pred_after=preds[-1], errors=errors,
+        lattice=lattice,
         simulate_note="; ".join(x for x in (note, qnote) if x),
     )  # fmt: skip
 
