@@ -15,11 +15,12 @@ from kernels.delay import shift_in
 from kernels.holding import holding_pi, holding_pi_bumpless
 from kernels.loop import LOG_COLUMNS, STATS_SIZE, closed_loop, error_stats, log_row
 from kernels.plant import PLANT_PARAMS, PLANT_STATE, plant_measure, plant_step
+from kernels.predict import mode_trace, multistep
 
 __all__ = [
     "CTRL_PARAMS", "CTRL_STATE", "FAST", "LOG_COLUMNS", "PLANT_PARAMS", "PLANT_STATE",
     "SLOW", "STATS_SIZE", "closed_loop", "compensate", "controller_start",
     "controller_tick", "dahl_closed", "dahl_flow", "dahl_slope", "dahl_trace", "dahl_update", "direction",
-    "error_stats", "holding_pi", "holding_pi_bumpless", "log_row", "plant_measure",
+    "error_stats", "holding_pi", "holding_pi_bumpless", "log_row", "mode_trace", "multistep", "plant_measure",
     "plant_step", "regime_switch", "shift_in", "velocity_estimate",
 ]

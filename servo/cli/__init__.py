@@ -17,7 +17,7 @@ import tomllib
 
 from servo.errors import ConfigError, ServoError
 
-COMMANDS = ("run", "config", "identify", "hysteresis", "bode", "paper", "emulate")
+COMMANDS = ("run", "config", "identify", "hysteresis", "bode", "paper", "emulate", "diagnose")
 
 
 class UsageError(ServoError):

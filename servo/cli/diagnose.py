@@ -1,0 +1,67 @@
+"""``servo diagnose``: find the physics a model left out, model it, prove the fit improves."""
+from __future__ import annotations
+
+import argparse
+import time
+from pathlib import Path
+
+from servo.errors import ConfigError
+
+
+def register(sub) -> None:
+    p = sub.add_parser(
+        "diagnose",
+        help="find the physics a model leaves out of a recording, model it, prove the fit improves",
+        description="Hold a model (a term set of eq. 3 fitted on the training part, or a model file) against a "
+        "recording; locate where the residual is structured (time, state, frequency); name the missing physics "
+        "from a vocabulary of candidate terms (blocked cross-validation, family-wise false-alarm level); fit it "
+        "and prove the improvement on held-out data.  Writes report.json, final_model.toml and PNGs into --out.",
+    )
+    p.add_argument("recording", help="CSV, NPZ or .mat recording (t, u, x columns; map with --columns/--scale)")
+    p.add_argument("--columns", metavar="ROLE=NAME,...", help="map t,u,x to names in the file, e.g. u=vir,x=qm")
+    p.add_argument("--scale", metavar="ROLE=FACTOR,...", help="scale columns by a number or a scalar variable, e.g. u=gtau")
+    g = p.add_mutually_exclusive_group()
+    g.add_argument("--baseline", metavar="TERMS", help="terms of eq. 3 fitted on the training part (default J,B,Fc,K,h0)")
+    g.add_argument("--model", metavar="FILE", help="a fixed model: servo config TOML, identify summary.json or diagnose report.json")
+    p.add_argument("--test-fraction", type=float, default=0.25, help="fraction of the recording held out at the end (default 0.25)")
+    p.add_argument("--blocks", type=int, default=10, help="cross-validation blocks (default 10)")
+    p.add_argument("--alpha", type=float, default=0.05, help="family-wise false-alarm level (default 0.05)")
+    p.add_argument("--horizon", type=float, metavar="S", help="simulated-output horizon, s (default 10 row spacings)")
+    p.add_argument("--cutoff-hz", type=float, help="Butterworth cutoff on position (default fs/10)")
+    p.add_argument("--decimate", type=int, default=10, help="parallel decimation factor (default 10)")
+    p.add_argument("--force-unit", default="A", help="unit of the input column for the report (default A; N for EMPS)")
+    p.add_argument("--no-plots", action="store_true", help="write report.json and final_model.toml only")
+    p.add_argument("--out", metavar="DIR", help="output folder (default servo-out/diagnose-<time>)")
+    p.set_defaults(handler=handle)
+
+
+def handle(args: argparse.Namespace) -> int:
+    from servo.diagnose.report import build_report, format_summary, write_drive_toml, write_report
+    from servo.diagnose.run import Options, diagnose
+    from servo.identify.regressors import RobustSettings
+    from servo.recording import load_recording, parse_mapping
+
+    if not 0.0 < args.alpha < 0.5:
+        raise ConfigError(f"--alpha {args.alpha!r}: expected a level between 0 and 0.5")
+    if args.horizon is not None and not args.horizon > 0:
+        raise ConfigError(f"--horizon {args.horizon!r}: expected a positive number of seconds")
+    rec = load_recording(args.recording, parse_mapping(args.columns, "--columns"), parse_mapping(args.scale, "--scale"))
+    opt = Options(baseline=args.baseline, model=args.model, test_fraction=args.test_fraction, blocks=args.blocks,
+                  alpha=args.alpha, horizon_s=args.horizon, force_unit=args.force_unit,
+                  settings=RobustSettings(cutoff_hz=args.cutoff_hz, decimate=args.decimate))  # fmt: skip
+    D = diagnose(rec, opt)  # everything computed before any file is written
+    out = Path(args.out) if args.out else Path("servo-out") / time.strftime("diagnose-%Y%m%d-%H%M%S")
+    out.mkdir(parents=True, exist_ok=True)
+    files = ["report.json"]
+    if not args.no_plots:
+        from servo.diagnose.plots import write_plots
+
+        files += write_plots(D, out)
+    report = build_report(D, files + ["final_model.toml"])
+    if write_drive_toml(report, out):
+        pass
+    else:
+        report["files"].remove("final_model.toml")
+    write_report(report, out)
+    print(format_summary(report, out))
+    return 0

@@ -1,0 +1,9 @@
+"""``servo diagnose``: find the physics a model left out, model it, prove the fit improves.
+
+Modules, bottom up: :mod:`~servo.diagnose.signals` (the inverse-dynamics path at full
+rate and its rows), :mod:`~servo.diagnose.terms` (the vocabulary of physics),
+:mod:`~servo.diagnose.model` (a model's terms and its rows), :mod:`~servo.diagnose.select`
+(blocked cross-validation, the tests, greedy selection), :mod:`~servo.diagnose.concealed`
+(recordings with a concealed effect on the simulated drive).  ``docs/diagnosis.md``
+explains the method.
+"""

@@ -1,0 +1,119 @@
+"""A model fitted on the training rows: coefficients, uncertainties, residuals, errors.
+
+The free coefficients are the least-squares solution on the training rows that are
+usable (:attr:`servo.diagnose.model.Design.train_valid`).  Their standard deviations
+are the ordinary least-squares figure inflated by the residual's integrated
+autocorrelation time ``tau`` (the rows are filtered, so they are not independent):
+``cov = tau * s^2 * (Z'Z)^-1``.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from servo.diagnose.model import Design, Model
+from servo.diagnose.select import integrated_time, solve
+from servo.diagnose.terms import VOCABULARY
+
+
+@dataclass
+class Fit:
+    """``model`` with ``coefs[i]`` / ``std[i]`` the coefficients of ``model.terms[i]``
+    (fixed ones with zero std); ``y`` (m,) its target rows; ``residual`` (m,) target minus
+    fit on every row; ``tau`` the residual's integrated autocorrelation time;
+    ``theta_std[i]`` the std of term ``i``'s nonlinear parameters (if known)."""
+
+    model: Model
+    coefs: list
+    std: list
+    y: np.ndarray
+    residual: np.ndarray
+    tau: float
+    theta_std: list
+
+    def term_params(self, i: int) -> dict:
+        """Reported parameters of term ``i`` (:meth:`Physics.physical`)."""
+        t = self.model.terms[i]
+        return VOCABULARY[t.physics].physical(t.params, self.coefs[i])
+
+    def term_std(self, i: int) -> dict:
+        t = self.model.terms[i]
+        phys = VOCABULARY[t.physics]
+        out = {n: float(s) for n, s in zip(phys.coefs, self.std[i])}
+        out.update(self.theta_std[i])
+        if t.physics == "hysteresis" and "Ha" in out and "dahl_length" in out:
+            p = self.term_params(i)
+            out["sigma"] = float(p["sigma"] * np.hypot(out["Ha"] / p["Ha"] if p["Ha"] else 0,
+                                                        out["dahl_length"] / p["dahl_length"]))  # fmt: skip
+        if t.physics == "cogging" and self.std[i]:
+            out["amplitude"] = float(np.hypot(*self.std[i]) / np.sqrt(2))
+        return out
+
+    def combined(self) -> dict:
+        """Physics name -> reported parameters, a fixed term and its correction added
+        (a model file's ``B`` plus a found ``viscous_friction`` correction)."""
+        out: dict = {}
+        for i, t in enumerate(self.model.terms):
+            p = self.term_params(i)
+            if t.physics in out and not VOCABULARY[t.physics].thetas:
+                out[t.physics] = {k: out[t.physics][k] + p[k] for k in p}
+            else:
+                out[t.physics] = p
+        return out
+
+    def contribution(self, design: Design, i: int) -> np.ndarray:
+        """Rows (m,) of term ``i``'s part of the force (zero for an input term)."""
+        t = self.model.terms[i]
+        if VOCABULARY[t.physics].kind != "column":
+            return np.zeros(design.sig.m)
+        return design.term_rows(t, self.model) @ np.asarray(self.coefs[i])
+
+
+def fit_model(design: Design, model: Model, theta_std: list | None = None, rows: np.ndarray | None = None) -> Fit:
+    """Least squares of the free coefficients of ``model`` on ``rows`` (default: the
+    training rows that are usable)."""
+    w = design.train_valid if rows is None else rows
+    y, Phi, _ = design.matrix(model)
+    Z, yy = Phi[w], y[w]
+    c = solve(Z.T @ Z, Z.T @ yy)
+    r = y - Phi @ c
+    rw = r[w]
+    first, last = np.flatnonzero(w)[[0, -1]]
+    tau = integrated_time(np.where(w, r, 0.0)[first : last + 1])
+    p = Phi.shape[1]
+    s2 = float(rw @ rw) / max(rw.size - p, 1)
+    if p:
+        G = Z.T @ Z
+        d = np.sqrt(np.clip(np.diag(G), 1e-300, None))
+        cov = np.linalg.pinv(G / np.outer(d, d)) / np.outer(d, d)
+        sd = np.sqrt(np.clip(np.diag(cov), 0, None) * s2 * tau)
+    else:
+        sd = np.zeros(0)
+    coefs, std, j = [], [], 0
+    for t in model.terms:
+        phys = VOCABULARY[t.physics]
+        if phys.kind != "column":
+            coefs.append(())
+            std.append(())
+        elif t.free:
+            k = len(phys.coefs)
+            coefs.append(tuple(float(v) for v in c[j : j + k]))
+            std.append(tuple(float(v) for v in sd[j : j + k]))
+            j += k
+        else:
+            coefs.append(t.coef)
+            std.append(tuple(0.0 for _ in t.coef))
+    ts = list(theta_std) if theta_std is not None else [{} for _ in model.terms]
+    ts += [{} for _ in range(len(model.terms) - len(ts))]
+    return Fit(model, coefs, std, y, r, tau, ts)
+
+
+def force_error_pct(design: Design, fit: Fit, rows: np.ndarray) -> float:
+    """Relative force error on ``rows`` (%): ``100*||residual||/||recorded force||`` (the
+    aligned, filtered, decimated input of the recording)."""
+    y0 = design.target_raw(Model())
+    return float(100 * np.linalg.norm(fit.residual[rows]) / max(np.linalg.norm(y0[rows]), 1e-300))
+
+
+__all__ = ["Fit", "fit_model", "force_error_pct"]

@@ -1,0 +1,160 @@
+"""A model held against a recording: a list of physical terms, and the rows it makes.
+
+A :class:`Term` is one piece of physics from the vocabulary (:mod:`servo.diagnose.terms`)
+with its nonlinear parameters ``theta`` fixed (a Stribeck velocity, a Dahl length, a
+mode's frequency and damping, a delay...) and its linear coefficients either free
+(fitted by least squares on the rows) or fixed (a model file held against the data).
+The force balance is always
+
+    u_eff = sum over column terms of coef * column(theta)          (one row per sample)
+
+where ``u_eff`` is the recorded input after the model's *input* terms (saturation, then
+delay, as in the drive) and the columns are functions of the filtered motion (and of
+``u_eff`` for a position-dependent gain or a resonance).  :class:`Design` turns a model
+into rows: the target (aligned, filtered, decimated ``u_eff`` minus the fixed terms) and
+the matrix of free columns; it caches every column, since a diagnosis asks for the same
+ones many times.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from servo.diagnose.signals import Signals
+
+
+@dataclass(frozen=True)
+class Term:
+    """One term of a model: ``physics`` (a vocabulary name), ``theta`` its nonlinear
+    parameters as sorted ``(name, value)`` pairs, ``coef`` its fixed linear
+    coefficients or None when they are free."""
+
+    physics: str
+    theta: tuple = ()
+    coef: tuple | None = None
+
+    @classmethod
+    def make(cls, physics: str, theta: dict | None = None, coef=None) -> "Term":
+        th = tuple(sorted((k, float(v)) for k, v in (theta or {}).items()))
+        return cls(physics, th, None if coef is None else tuple(float(c) for c in coef))
+
+    @property
+    def params(self) -> dict:
+        return dict(self.theta)
+
+    @property
+    def free(self) -> bool:
+        return self.coef is None
+
+
+@dataclass
+class Model:
+    """An ordered list of terms (baseline first, then what a diagnosis added)."""
+
+    terms: list = field(default_factory=list)
+
+    def has(self, physics: str) -> bool:
+        return any(t.physics == physics for t in self.terms)
+
+    def has_free(self, physics: str) -> bool:
+        return any(t.physics == physics and t.free for t in self.terms)
+
+    def get(self, physics: str) -> Term | None:
+        for t in self.terms:
+            if t.physics == physics:
+                return t
+        return None
+
+    def plus(self, term: Term) -> "Model":
+        return Model(self.terms + [term])
+
+    def without(self, physics: str) -> "Model":
+        return Model([t for t in self.terms if t.physics != physics])
+
+    def input_terms(self) -> list:
+        from servo.diagnose.terms import VOCABULARY
+
+        return [t for t in self.terms if VOCABULARY[t.physics].kind == "input"]
+
+    def column_terms(self) -> list:
+        from servo.diagnose.terms import VOCABULARY
+
+        return [t for t in self.terms if VOCABULARY[t.physics].kind == "column"]
+
+
+class Design:
+    """Rows of models on one recording's :class:`Signals`, with a column cache."""
+
+    def __init__(self, sig: Signals, train_rows: np.ndarray | None = None):
+        self.sig = sig
+        #: (m,) rows of the training part; ``train_valid`` those usable by fits
+        self.train_rows = np.ones(sig.m, bool) if train_rows is None else np.asarray(train_rows, bool)
+        self.train_valid = self.train_rows & sig.valid
+        #: (n,) full-rate samples up to the last training row
+        last = sig.keep[np.flatnonzero(self.train_rows)[-1]] if self.train_rows.any() else 0
+        self.train_samples = np.arange(sig.n) <= last
+        self._rows: dict = {}
+        self._u: dict = {}
+
+    # ---- the input -----------------------------------------------------------------
+    @staticmethod
+    def input_key(model: Model) -> tuple:
+        return tuple((t.physics, t.theta) for t in model.input_terms())
+
+    def u_eff(self, model: Model, extra: Term | None = None) -> np.ndarray:
+        """The force that reaches the arm (n,): the recording's input through the model's
+        input terms (and ``extra``): saturation first, then the delay, as in the drive."""
+        from servo.diagnose.terms import VOCABULARY
+
+        terms = model.input_terms() + ([extra] if extra is not None else [])
+        key = tuple(sorted((t.physics, t.theta) for t in terms))
+        if key not in self._u:
+            u = self.sig.u
+            for name in ("input_saturation", "time_delay"):
+                for t in terms:
+                    if t.physics == name:
+                        u = VOCABULARY[name].transform(u, t.params, self.sig.dt)
+            self._u[key] = u
+        return self._u[key]
+
+    def cached_rows(self, key, make) -> np.ndarray:
+        """Rows for ``key``, computed once by ``make()`` (a (m,) or (m, k) array)."""
+        if key not in self._rows:
+            self._rows[key] = make()
+        return self._rows[key]
+
+    def target_raw(self, model: Model, extra: Term | None = None) -> np.ndarray:
+        """Rows of the aligned effective force (m,)."""
+        u = self.u_eff(model, extra)
+        key = ("y",) + self.input_key(model) + ((extra.physics, extra.theta) if extra else ())
+        return self.cached_rows(key, lambda: self.sig.force_rows(u))
+
+    def term_rows(self, term: Term, model: Model) -> np.ndarray:
+        """Rows of the columns of ``term`` (m, k) under ``model``'s input."""
+        from servo.diagnose.terms import VOCABULARY
+
+        phys = VOCABULARY[term.physics]
+        key = (term.physics, term.theta) + (self.input_key(model) if phys.uses_input else ())
+        return self.cached_rows(key, lambda: phys.rows(self, term.params, self.u_eff(model)))
+
+    def matrix(self, model: Model, extra: Term | None = None) -> tuple[np.ndarray, np.ndarray, list]:
+        """``(y, Phi, names)``: the target (force minus the fixed terms, (m,)), the free
+        columns (m, p) and their ``(physics, coefficient)`` names.  ``extra`` is an input
+        term tried on top of the model (the columns are not recomputed for it)."""
+        from servo.diagnose.terms import VOCABULARY
+
+        y = self.target_raw(model, extra).copy()
+        cols, names = [], []
+        for t in model.column_terms():
+            C = self.term_rows(t, model)
+            if t.free:
+                cols.append(C)
+                names += [(t.physics, c) for c in VOCABULARY[t.physics].coefs]
+            else:
+                y -= C @ np.asarray(t.coef)
+        Phi = np.column_stack(cols) if cols else np.zeros((y.size, 0))
+        return y, Phi, names
+
+
+__all__ = ["Design", "Model", "Term"]

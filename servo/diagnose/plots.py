@@ -1,0 +1,176 @@
+"""Figures of a diagnosis: the residual over time with the located windows, against the
+state, its spectrum, and the fits before and after on the held-out part."""
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from servo.diagnose.run import Diagnosis
+from servo.plotting import plt, save_figure
+
+
+def _scale(fu: str):
+    return (1e3, "m" + fu) if fu == "A" else (1.0, fu)
+
+
+def _title(D: Diagnosis) -> str:
+    names = ", ".join(f.physics for f in D.findings) or "no finding"
+    return f"{Path(D.rec.source).name or D.rec.source}: {names}"
+
+
+def plot_time(D: Diagnosis, path: Path) -> Path:
+    """Held-out force residual over time, before and after, with the flagged windows."""
+    sig, (k, unit) = D.sig, _scale(D.opt.force_unit)
+    t, v = sig.t_rows, sig.valid
+    fig, ax = plt.subplots(2, 1, figsize=(11, 7), sharex=True)
+    rb = np.where(v, D.residual_before, np.nan) * k
+    ra = np.where(v, D.residual_after, np.nan) * k
+    ax[0].plot(t, rb, color="tab:red", lw=0.6, label="baseline (held out)")
+    ax[0].plot(t, ra, color="k", lw=0.6, alpha=0.8, label="final model (held out)")
+    for t0, t1 in D.locate["time"]["flagged"]:
+        for a in ax:
+            a.axvspan(t0, t1, color="gold", alpha=0.3, lw=0)
+    t_split = t[np.flatnonzero(D.design.train_rows)[-1]]
+    for a in ax:
+        a.axvline(t_split, color="tab:blue", ls="--", lw=1)
+    ax[0].text(t_split, np.nanmax(rb) if np.isfinite(np.nanmax(rb)) else 0, "  test part", color="tab:blue", va="top")
+    w = D.locate["time"]["windows"]
+    mid = [0.5 * (x["t0"] + x["t1"]) for x in w]
+    ax[1].step(mid, [x["rms"] * k if x["rms"] is not None else np.nan for x in w], where="mid", color="tab:red",
+               label="baseline residual RMS per window")  # fmt: skip
+    ax[1].axhline(D.locate["time"]["noise_rms"] * k, color="gray", ls=":", label="median window")
+    ax[0].set_ylabel(f"force residual ({unit})")
+    ax[1].set_ylabel(f"RMS ({unit})")
+    ax[1].set_xlabel("time (s)")
+    ax[0].set_title(f"{_title(D)}\nresidual over time; shaded: windows whose power stands out from the others "
+                    f"(family-wise false alarm {100 * D.opt.alpha:.0f} %)")  # fmt: skip
+    for a in ax:
+        a.grid(alpha=0.3)
+        a.legend(fontsize=8, loc="upper left")
+    return save_figure(fig, path)
+
+
+def plot_state(D: Diagnosis, path: Path) -> Path:
+    """Residual against position, velocity, direction and distance since reversal,
+    with bin means before (red) and after (black)."""
+    k, unit = _scale(D.opt.force_unit)
+    v = D.sig.valid
+    fig, axes = plt.subplots(2, 2, figsize=(11, 8))
+    st = D.locate["state"]["variables"]
+    for ax, (name, (vals, sign, u)) in zip(axes.ravel(), D.state.items()):
+        rb = (D.residual_before * (sign if sign is not None else 1.0))[v] * k
+        ra = (D.residual_after * (sign if sign is not None else 1.0))[v] * k
+        x = vals[v]
+        if name == "distance_since_reversal":
+            x = np.maximum(x, 1e-12)
+            ax.set_xscale("log")
+        ax.plot(x, rb, ".", ms=1.5, color="tab:red", alpha=0.25, rasterized=True)
+        ax.plot(x, ra, ".", ms=1.5, color="k", alpha=0.15, rasterized=True)
+        info = st[name]
+        for b in info["bins"]:
+            lo, hi = b["lo"], b["hi"]
+            if name == "distance_since_reversal":
+                lo = max(lo, 1e-12)
+            sel = (vals[v] >= b["lo"]) & (vals[v] <= b["hi"])
+            ax.plot([lo, hi], [b["mean"] * k] * 2, color="tab:red", lw=2.5 if b["flagged"] else 1.2)
+            if sel.any():
+                ax.plot([lo, hi], [ra[sel].mean()] * 2, color="k", lw=1.2)
+        lab = "residual x direction" if sign is not None else "residual"
+        ax.set_xlabel(f"{name.replace('_', ' ')} ({u})")
+        ax.set_ylabel(f"{lab} ({unit})")
+        ax.set_title(f"{name.replace('_', ' ')}: p = {info['p']:.2g}" + (" (structured)" if info["flagged"] else ""),
+                     fontsize=9)  # fmt: skip
+        ax.grid(alpha=0.3)
+        lo, hi = np.percentile(np.concatenate([rb, ra]), [0.5, 99.5])
+        pad = 0.2 * (hi - lo)
+        ax.set_ylim(lo - pad, hi + pad)
+    fig.suptitle(f"{_title(D)}\nheld-out residual vs state: baseline (red, bin means thick where flagged), "
+                 "final model (black)", fontsize=10)  # fmt: skip
+    fig.tight_layout()
+    return save_figure(fig, path)
+
+
+def plot_spectrum(D: Diagnosis, path: Path) -> Path:
+    """Residual spectra before/after with the peak threshold, and the coherence of the
+    baseline residual with the input."""
+    from scipy import signal
+
+    k, unit = _scale(D.opt.force_unit)
+    sp, co = D.locate["spectrum"], D.locate["coherence"]
+    fs = 1.0 / D.sig.row_dt
+    f, Pa = signal.welch(np.where(D.sig.valid, D.residual_after, 0.0) * k, fs, nperseg=2 * (sp["f_hz"].size - 1))
+    fig, ax = plt.subplots(2, 1, figsize=(11, 7), sharex=True)
+    ax[0].loglog(sp["f_hz"][1:], sp["psd"][1:] * k * k, color="tab:red", label="baseline residual")
+    ax[0].loglog(f[1:], Pa[1:], color="k", label="final model residual")
+    ax[0].loglog(sp["f_hz"][1:], sp["floor"][1:] * sp["threshold_ratio"] * k * k, color="gray", ls=":",
+                 label="peak threshold (family-wise 5 %)")  # fmt: skip
+    ax[0].set_ylabel(f"PSD ({unit}^2/Hz)")
+    ax[0].legend(fontsize=8)
+    ax[1].semilogx(co["f_hz"][1:], co["coherence"][1:], color="tab:red", label="baseline residual vs input")
+    ax[1].axhline(co["threshold"], color="gray", ls=":", label="independence threshold (closed loop: see docs)")
+    ax[1].set_ylabel("coherence")
+    ax[1].set_xlabel("frequency (Hz)")
+    ax[1].set_ylim(0, 1)
+    ax[1].legend(fontsize=8)
+    ax[0].set_title(f"{_title(D)}\nresidual spectrum and residual-input coherence")
+    for a in ax:
+        a.grid(alpha=0.3, which="both")
+    return save_figure(fig, path)
+
+
+def plot_fits(D: Diagnosis, path: Path) -> Path:
+    """On the held-out part: force, baseline and final fits (a zoom), and the
+    short-horizon simulated output error before and after."""
+    k, unit = _scale(D.opt.force_unit)
+    sig = D.sig
+    test = np.flatnonzero(~D.design.train_rows)
+    n = test.size
+    z = test[n // 2 - min(n // 2, 150) : n // 2 + min(n // 2, 150)]
+    y = D.baseline_fit.y + 0.0
+    fig, ax = plt.subplots(3, 1, figsize=(11, 9))
+    t = sig.t_rows
+    ax[0].plot(t[z], y[z] * k, color="tab:blue", lw=1.5, label="recorded force (rows)")
+    ax[0].plot(t[z], (y - D.baseline_fit.residual)[z] * k, color="tab:red", lw=1, ls="--", label="baseline")
+    ax[0].plot(t[z], (D.final_fit.y - D.final_fit.residual)[z] * k, color="k", lw=1, ls=":", label="final model")
+    ax[0].set_ylabel(f"force ({unit})")
+    vz = sig.valid[z]
+    ax[1].plot(t[z], np.where(vz, D.baseline_fit.residual[z], np.nan) * k, color="tab:red", lw=0.8, label="baseline")
+    ax[1].plot(t[z], np.where(vz, D.final_fit.residual[z], np.nan) * k, color="k", lw=0.8, label="final model")
+    ax[1].set_ylabel(f"residual ({unit})")
+    e = D.errors
+    rows = " (quantisation-aware rows; the force error before is on the default rows)" if any(
+        f.physics == "quantization" for f in D.findings) else ""
+    ax[0].set_title(f"{_title(D)}\nheld-out part: force error {e['test_force_rel_pct']['before']:.3g} % -> "
+                    f"{e['test_force_rel_pct']['after']:.3g} %{rows}")  # fmt: skip
+    if D.pred_before is not None:
+        moved = any(f.physics == "quantization" for f in D.findings)
+        before = "baseline (default path)" if moved else "baseline"
+        for pred, col, lab in ((D.pred_before, "tab:red", before), (D.pred_after, "k", "final model")):
+            eb, _ = pred.sse()
+            rms = np.sqrt(eb / pred.pred.shape[1])
+            ax[2].semilogy(sig.t[pred.starts], np.maximum(rms, 1e-15), color=col, lw=0.8, label=lab)
+        _, dref = D.pred_before.sse()
+        ax[2].semilogy(sig.t[D.pred_before.starts], np.sqrt(dref / D.pred_before.pred.shape[1]), color="gray", lw=0.6,
+                       ls=":", label="motion beyond coasting")  # fmt: skip
+        ax[2].set_title(f"simulated output, {1e3 * e['horizon_s']:.3g} ms ahead from measured states: NRMSE "
+                        f"{e['test_output_nrmse']['before']:.3g} -> {e['test_output_nrmse']['after']:.3g}", fontsize=9)  # fmt: skip
+        ax[2].set_ylabel("RMS position error (m)")
+    else:
+        ax[2].text(0.5, 0.5, D.simulate_note, ha="center", transform=ax[2].transAxes)
+    ax[2].set_xlabel("time (s)")
+    for a in ax:
+        a.grid(alpha=0.3)
+        a.legend(fontsize=8, loc="upper right")
+    fig.tight_layout()
+    return save_figure(fig, path)
+
+
+def write_plots(D: Diagnosis, out: Path) -> list:
+    names = ["residual_time.png", "residual_state.png", "residual_spectrum.png", "fits.png"]
+    for fn, name in zip((plot_time, plot_state, plot_spectrum, plot_fits), names):
+        fn(D, out / name)
+    return names
+
+
+__all__ = ["plot_fits", "plot_spectrum", "plot_state", "plot_time", "write_plots"]

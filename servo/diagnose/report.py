@@ -1,0 +1,248 @@
+"""The outputs of a diagnosis: ``report.json`` (schema in ``docs/diagnosis.md``), the
+final model as a drive config, and the human summary (one line per finding)."""
+from __future__ import annotations
+
+import json
+import math
+from dataclasses import asdict
+from pathlib import Path
+
+import numpy as np
+
+from servo.config import from_dict, to_toml
+from servo.diagnose.fit import Fit
+from servo.diagnose.run import Diagnosis, Finding
+from servo.diagnose.terms import VOCABULARY
+from servo.errors import ConfigError
+from servo.runlog import atomic_write
+
+SCHEMA = 1
+
+
+def _num(v):
+    if isinstance(v, (np.floating, float)):
+        return float(v) if math.isfinite(v) else None
+    if isinstance(v, np.integer):
+        return int(v)
+    if isinstance(v, np.ndarray):
+        return [_num(x) for x in v.tolist()]
+    if isinstance(v, dict):
+        return {k: _num(x) for k, x in v.items()}
+    if isinstance(v, (list, tuple)):
+        return [_num(x) for x in v]
+    return v
+
+
+def _units(physics: str, params: dict, fu: str) -> dict:
+    return {k: VOCABULARY[physics].unit(k, fu) for k in params}
+
+
+def fit_terms(fit: Fit, fu: str) -> list:
+    out = []
+    for i, t in enumerate(fit.model.terms):
+        p = fit.term_params(i)
+        out.append({"physics": t.physics, "params": p, "std": fit.term_std(i), "units": _units(t.physics, p, fu),
+                    "fixed": not t.free})  # fmt: skip
+    return out
+
+
+def _evidence(f: Finding) -> dict:
+    if f.physics == "quantization":
+        return {"test": "lattice + output improvement", "fraction_on_lattice": f.lattice.fraction,
+                "lattice_p": f.lattice.p, "output_t": f.quant_test[0], "output_p": f.quant_test[1], "level": f.level}  # fmt: skip
+    s = f.score
+    return {
+        "test": "blocked CV, corrected paired t-test + BIC", "t": s.t, "p": s.p, "level": f.level,
+        "delta_ic": s.delta_ic, "cv_improvement_pct": s.improvement_pct,
+        "blocks_improved": f"{int(np.sum(s.S1 < s.S0))}/{s.S0.size}", "cv_sse_before": s.S0, "cv_sse_after": s.S1,
+    }  # fmt: skip
+
+
+def finding_dict(f: Finding, fu: str) -> dict:
+    return {
+        "physics": f.physics, "params": f.params, "std": f.std, "units": _units(f.physics, f.params, fu),
+        "where": f.where, "evidence": _evidence(f), "error_before": f.before, "error_after": f.after,
+        "note": VOCABULARY[f.physics].note(f.params),
+    }  # fmt: skip
+
+
+def drive_section(fit: Fit, lattice_step: float | None) -> tuple[dict | None, str]:
+    """The final model as a ``[drive]`` section of a servo config (A, m), validated by
+    :func:`servo.config.from_dict`; ``(None, why)`` when it is not a valid drive."""
+    p = fit.combined()
+    stroke = 0.015
+    d = {
+        "J": p.get("inertia", {}).get("J", 0.0), "B": p.get("viscous_friction", {}).get("B", 0.0),
+        "K": p.get("stiffness", {}).get("K", 0.0), "h0": p.get("offset", {}).get("h0", 0.0),
+        "mode_hz": [], "mode_zeta": [], "mode_gain": [], "input_delay_s": 0.0, "position_quantum": lattice_step or 0.0,
+    }  # fmt: skip
+    Fc = p.get("coulomb_friction", {}).get("Fc", 0.0)
+    d["Fc"] = Fc
+    d["Fs"] = Fc + p.get("stribeck_friction", {}).get("dFs", 0.0)
+    if "stribeck_friction" in p:
+        d["stribeck_velocity"] = p["stribeck_friction"]["stribeck_velocity"]
+    if "asymmetric_friction" in p and d["B"]:
+        d["b_asymmetry"] = p["asymmetric_friction"]["dB"] / d["B"]
+    hy = p.get("hysteresis")
+    if hy and hy["Ha"] > 0:
+        d["Ha"], d["sigma"] = hy["Ha"], hy["sigma"]
+        d["alpha"] = fit.model.get("hysteresis").params.get("alpha", 1.0)
+    else:
+        d["Ha"], d["sigma"] = 1e-12, 1e-12
+    if "cogging" in p:
+        c = p["cogging"]
+        d["cogging"], d["cogging_period"] = c["amplitude"], c["period"]
+        d["cogging_phase"] = (c["phase"] + math.pi) % (2 * math.pi) - math.pi
+    if "position_dependent_gain" in p:
+        g = p["position_dependent_gain"]
+        d["kf_linear"], d["kf_quadratic"], d["stroke"] = g["kf_linear"] * stroke, g["kf_quadratic"] * stroke**2, stroke
+    for i, t in enumerate(fit.model.terms):
+        if t.physics == "resonance":
+            q = fit.term_params(i)
+            d["mode_hz"].append(q["frequency_hz"])
+            d["mode_zeta"].append(q["zeta"])
+            d["mode_gain"].append(q["gain"])
+    if "time_delay" in p:
+        d["input_delay_s"] = p["time_delay"]["delay_s"]
+    if "input_saturation" in p:
+        d["current_limit"] = p["input_saturation"]["level"]
+    d = {k: (float(v) if not isinstance(v, list) else [float(x) for x in v]) for k, v in d.items()}
+    try:
+        from_dict({"drive": d})
+    except ConfigError as exc:
+        return None, str(exc)
+    return d, ""
+
+
+def build_report(D: Diagnosis, files: list | None = None) -> dict:
+    fu = D.opt.force_unit
+    sig = D.sig
+    rec = D.rec
+    drive, why = drive_section(D.final_fit, next((f.params["step"] for f in D.findings if f.physics == "quantization"), None))
+    rounds = []
+    for r in D.rounds:
+        rounds.append([{"physics": s.physics, "t": s.t, "p": s.p, "level": r["level"], "delta_ic": s.delta_ic,
+                        "cv_improvement_pct": s.improvement_pct, "passed": s.passes(r["level"])}
+                       for s in sorted(r["scores"], key=lambda s: s.p)])  # fmt: skip
+    loc = D.locate
+    report = {
+        "schema": SCHEMA,
+        "recording": {"source": rec.source, "samples": rec.n, "sample_rate_hz": rec.sample_rate_hz,
+                      "duration_s": float(rec.t[-1] - rec.t[0]), "force_unit": fu},
+        "settings": {"baseline": None if D.opt.model else (D.opt.baseline or "J,B,Fc,K,h0"), "model": D.opt.model,
+                     "test_fraction": D.opt.test_fraction, "blocks": D.opt.blocks, "alpha": D.opt.alpha,
+                     "horizon_s": D.errors["horizon_s"], "robust": asdict(D.opt.settings)},
+        "rows": {"total": sig.m, "row_dt_s": sig.row_dt, "train": int(D.design.train_rows.sum()),
+                 "test": int((~D.design.train_rows).sum()), "usable_fraction": float(sig.valid.mean()),
+                 "direction_threshold_m_s": sig.v_threshold, "position_noise_m": sig.noise_x, "tau_rows": loc["tau"]},
+        "baseline": {"source": "model file" if D.opt.model else "terms", "terms": fit_terms(D.baseline_fit, fu),
+                     "error": {"train_force_rel_pct": D.errors["train_force_rel_pct"]["before"],
+                               "test_force_rel_pct": D.errors["test_force_rel_pct"]["before"],
+                               "test_output_nrmse": D.errors["test_output_nrmse"]["before"]}},
+        "findings": [finding_dict(f, fu) for f in D.findings],
+        "final_model": {"terms": fit_terms(D.final_fit, fu) + [
+                            {"physics": "quantization", "params": f.params, "std": {}, "units": {"step": "m", "offset": "m"},
+                             "fixed": False} for f in D.findings if f.physics == "quantization"],
+                        "drive": drive, "drive_note": why,
+                        "error": {"train_force_rel_pct": D.errors["train_force_rel_pct"]["after"],
+                                  "test_force_rel_pct": D.errors["test_force_rel_pct"]["after"],
+                                  "test_output_nrmse": D.errors["test_output_nrmse"]["after"]}},
+        "unconfirmed": [{**finding_dict(f, fu), "reason": "did not lower the held-out error of the test part",
+                         "test_error_before": a, "test_error_after": b} for f, a, b in D.unconfirmed],
+        "not_testable": D.not_testable,
+        "implausible": D.implausible,
+        "candidates": rounds,
+        "locate": {
+            "tau_rows": loc["tau"],
+            "time": {k: loc["time"][k] for k in ("false_alarm", "level_per_window", "noise_rms", "flagged", "windows")},
+            "state": loc["state"],
+            "spectrum": {k: loc["spectrum"][k] for k in ("false_alarm", "threshold_ratio", "flagged_hz")},
+            "coherence": {k: loc["coherence"][k] for k in ("false_alarm", "threshold", "flagged_hz", "closed_loop_caveat")},
+            "xcorr": {k: loc["xcorr"][k] for k in ("false_alarm", "bound", "flagged_lag_s", "closed_loop_caveat")},
+        },
+        "simulation_note": D.simulate_note,
+        "files": sorted(files or []),
+    }  # fmt: skip
+    return _num(report)
+
+
+def write_report(report: dict, out: Path) -> None:
+    atomic_write(out / "report.json", lambda f: Path(f).write_text(json.dumps(report, indent=2)))
+
+
+def write_drive_toml(report: dict, out: Path) -> bool:
+    """``final_model.toml``: the final model as a servo config (``[drive]``), usable as
+    ``servo run --config`` or ``servo diagnose --model``; False if not a valid drive."""
+    d = report["final_model"]["drive"]
+    if d is None:
+        return False
+    full = to_toml(from_dict({"drive": d}), comments=False)
+    section = full[full.index("[drive]") :].split("\n\n")[0]
+    text = "# servo diagnose: the final model as the simulated drive's [drive] section\n" + section + "\n"
+    atomic_write(out / "final_model.toml", lambda f: Path(f).write_text(text))
+    return True
+
+
+def _fmt_params(params: dict, units: dict, std: dict | None = None) -> str:
+    parts = []
+    for k, v in params.items():
+        if k in ("a_sin", "a_cos"):
+            continue
+        s = f"{k} {v:.4g}"
+        if std and std.get(k) is not None and math.isfinite(std[k]) and std[k] > 0:
+            s += f" +- {std[k]:.2g}"
+        u = units.get(k, "-")
+        parts.append(s + ("" if u == "-" else f" {u}"))
+    return ", ".join(parts)
+
+
+def _err(e: dict) -> str:
+    o = e.get("output_nrmse")
+    return f"{e['force_rel_pct']:.3g} %" + (f" / NRMSE {o:.3g}" if o is not None else "")
+
+
+def _change(f: dict) -> str:
+    b, a = f["error_before"], f["error_after"]
+    if a.get("rows_differ"):
+        return (f"output NRMSE {b['output_nrmse']:.3g} -> {a['output_nrmse']:.3g} (force error {b['force_rel_pct']:.3g} % "
+                f"-> {a['force_rel_pct']:.3g} %, on the narrower rows)")  # fmt: skip
+    return f"{_err(b)} -> {_err(a)}"
+
+
+def format_summary(report: dict, out: Path) -> str:
+    """The human summary: recording, baseline, one line per finding, final model."""
+    rc, rows, b, fm = report["recording"], report["rows"], report["baseline"], report["final_model"]
+    lines = [
+        f"servo diagnose: {rc['source']} ({rc['samples']} samples at {rc['sample_rate_hz']:.6g} Hz, {rc['duration_s']:.3g} s)",
+        f"  rows: {rows['total']} ({rows['train']} training, {rows['test']} held out for the proof), "
+        f"{100 * rows['usable_fraction']:.0f} % usable (direction known)",
+    ]
+    s = report["settings"]
+    what = f"terms {s['baseline']}" if s["baseline"] else f"model file {s['model']}"
+    be = b["error"]
+    lines.append(f"  baseline ({what}): held-out force error {be['test_force_rel_pct']:.3g} %"
+                 + (f", output NRMSE {be['test_output_nrmse']:.3g}" if be["test_output_nrmse"] is not None else ""))  # fmt: skip
+    if report["findings"]:
+        lines.append(f"  findings (family-wise false-alarm level {100 * s['alpha']:.0f} %), held-out error "
+                     "(force / simulated output) before -> after:")  # fmt: skip
+        for i, f in enumerate(report["findings"], 1):
+            note = f" [{f['note']}]" if f.get("note") else ""
+            lines.append(f"    {i}. {f['physics']}: {_fmt_params(f['params'], f['units'], f['std'])}{note}; "
+                         f"where: {f['where'].get('text', '')}; {_change(f)}")  # fmt: skip
+    else:
+        lines.append(f"  no finding: nothing the baseline leaves out shows in these data "
+                     f"(family-wise false-alarm level {100 * s['alpha']:.0f} %)")  # fmt: skip
+    for u in report["unconfirmed"]:
+        lines.append(f"  not confirmed on the held-out part (dropped): {u['physics']} ({_err(u['test_error_before'])} -> "
+                     f"{_err(u['test_error_after'])})")  # fmt: skip
+    for name, why in report["implausible"].items():
+        lines.append(f"  not named: {name}: {why}")
+    fe = fm["error"]
+    lines.append(f"  final model: held-out force error {be['test_force_rel_pct']:.3g} % -> {fe['test_force_rel_pct']:.3g} %"
+                 + (f", output NRMSE {be['test_output_nrmse']:.3g} -> {fe['test_output_nrmse']:.3g}"
+                    if fe["test_output_nrmse"] is not None else f" ({report['simulation_note']})"))  # fmt: skip
+    lines.append(f"  wrote {out}/: " + ", ".join(report["files"]))
+    return "\n".join(lines)
+
+
+__all__ = ["build_report", "drive_section", "format_summary", "write_drive_toml", "write_report"]

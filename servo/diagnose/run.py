@@ -1,0 +1,357 @@
+"""One diagnosis, from a recording to findings: baseline, locate, name, model and prove.
+
+1. **Baseline** (:mod:`servo.diagnose.baseline`): a term set fitted on the training
+   part (the first ``1 - test_fraction`` of the rows) or a fixed model file.
+2. **Locate** (:mod:`servo.diagnose.locate`): the baseline's held-out residual, tested
+   in time, state and frequency.
+3. **Name** (:mod:`servo.diagnose.select`): every eligible vocabulary term scored by
+   blocked cross-validation on the training part; the best that pays is added, until
+   none does.  Quantisation is tested apart (:mod:`servo.diagnose.quantization`).
+4. **Model and prove**: each finding in turn is added to the model fitted on the
+   training part and judged on the *test* part, which no choice has seen: force
+   residual relative error and short-horizon simulated-output NRMSE
+   (:mod:`servo.diagnose.simulate`), before -> after.  A finding that does not lower the
+   test part's force error, or raises its output NRMSE by more than 5 %, is not
+   confirmed: it is dropped from the findings and the model and reported as such.
+   A quantised sensor is tested first, since its finding changes the rows everything
+   else is computed on.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from servo.diagnose import baseline as baseline_mod
+from servo.diagnose import locate
+from servo.diagnose.fit import Fit, fit_model, force_error_pct
+from servo.diagnose.model import Design, Model, Term
+from servo.diagnose.quantization import Lattice, candidate_paths, improvement_test, lattice_test
+from servo.diagnose.select import ALPHA, N_BLOCKS, Grams, Score, Selector, make_blocks
+from servo.diagnose.signals import Signals, distance_since_reversal, make_signals
+from servo.diagnose.simulate import Prediction, Unsimulable, horizon_samples, predict, starts_in
+from servo.diagnose.terms import VOCABULARY
+from servo.errors import ServoError
+from servo.identify.regressors import IdentificationError, RobustSettings
+from servo.recording import Recording
+
+MIN_ROWS_PER_BLOCK = 20
+#: a finding may not raise the held-out output NRMSE by more than this fraction
+OUTPUT_TOLERANCE = 0.05
+
+
+@dataclass
+class Options:
+    """What to diagnose with: ``baseline`` term set (``"J,B,Fc,K,h0"``) or ``model``
+    file; ``test_fraction`` of the rows held out at the end; ``blocks`` of the
+    cross-validation; ``alpha`` the family-wise false-alarm level; ``horizon_s`` of
+    the output simulation (default 10 row spacings); the robust path's ``settings``;
+    at most ``max_findings``; ``force_unit`` for the report."""
+
+    baseline: str | None = None
+    model: str | None = None
+    test_fraction: float = 0.25
+    blocks: int = N_BLOCKS
+    alpha: float = ALPHA
+    horizon_s: float | None = None
+    settings: RobustSettings = field(default_factory=RobustSettings)
+    max_findings: int = 8
+    force_unit: str = "A"
+
+
+@dataclass
+class Finding:
+    """One named physics: its ``term`` (refined on the training part), the ``score``
+    that admitted it, the test ``level`` it passed, the std of its nonlinear
+    parameters; filled by the proof: errors before/after on the test part, where."""
+
+    term: Term
+    score: Score | None
+    level: float
+    theta_std: dict
+    lattice: Lattice | None = None
+    quant_test: tuple | None = None
+    before: dict = field(default_factory=dict)
+    after: dict = field(default_factory=dict)
+    where: dict = field(default_factory=dict)
+    params: dict = field(default_factory=dict)
+    std: dict = field(default_factory=dict)
+    prediction: Prediction | None = None  # quantisation: the baseline's output on the default path
+
+    @property
+    def physics(self) -> str:
+        return self.term.physics
+
+
+@dataclass
+class Diagnosis:
+    """Everything a report and its plots need."""
+
+    rec: Recording
+    opt: Options
+    sig: Signals
+    design: Design
+    baseline: Model
+    baseline_fit: Fit
+    final_fit: Fit
+    findings: list
+    unconfirmed: list
+    rounds: list
+    not_testable: dict
+    implausible: dict  # passed the test, but the refined parameters do not describe the physics
+    residual_before: np.ndarray  # held-out residual of the baseline (m,)
+    residual_after: np.ndarray  # held-out residual of the final model (m,)
+    test_rows: np.ndarray
+    locate: dict
+    state: dict
+    pred_before: Prediction | None  # the baseline's (on the default path, if a quantisation finding moved the rows)
+    pred_after: Prediction | None
+    errors: dict
+    lattice: Lattice
+    simulate_note: str = ""
+
+
+def heldout_residual(design: Design, model: Model, blocks, test_rows: np.ndarray) -> np.ndarray:
+    """Residual rows of ``model`` where each training block is predicted by the fit on
+    the other blocks and everything else by the fit on all training rows."""
+    y, Phi, _ = design.matrix(model)
+    fit = fit_model(design, model)
+    r = fit.residual.copy()
+    grams = Grams.of(Phi, y, blocks)
+    for b, sl in enumerate(blocks.slices):
+        c, _ = grams.fold(b)
+        r[sl] = y[sl] - Phi[sl] @ c
+    return r
+
+
+def check_recording(rec: Recording) -> None:
+    """Refuse what no diagnosis can use, in one line."""
+    if np.ptp(rec.x) == 0:
+        raise IdentificationError("nothing excited: the position x is constant, there is no motion to diagnose")
+    if np.ptp(rec.u) == 0:
+        raise IdentificationError("nothing excited: the input u is constant, there is no input to relate the motion to")
+
+
+def state_variables(sig: Signals) -> dict:
+    """Rows of the state variables residuals are binned by: name -> (values, sign, unit)."""
+    s = np.sign(sig.v_rows)
+    dist = distance_since_reversal(sig.xf, sig.vf, sig.v_threshold)[sig.keep]
+    return {
+        "position": (sig.x_rows, None, "m"),
+        "velocity": (sig.v_rows, None, "m/s"),
+        "direction": (s, None, "-"),
+        "distance_since_reversal": (dist, s, "m"),
+    }
+
+
+def _select(sel: Selector, model: Model, opt: Options):
+    findings, rounds, not_testable, implausible = [], [], {}, {}
+    while len(findings) < opt.max_findings:
+        sel.set_noise(model)
+        cands, why = sel.eligible(model)
+        scores = [sel.score(model, c) for c in cands]
+        testable = [s for s in scores if s.S0 is not None]
+        for s in scores:
+            if s.S0 is None:
+                not_testable[s.physics] = s.note
+        level = opt.alpha / max(len(testable), 1)
+        rounds.append({"level": level, "scores": testable})
+        ok = sorted((s for s in testable if s.passes(level)), key=lambda s: s.delta_ic)
+        added = False
+        for best in ok:
+            term, tstd = sel.refine(model, best.physics, best.thetas)
+            trial = fit_model(sel.d, model.plus(term))
+            why = VOCABULARY[best.physics].implausible(trial.term_params(len(trial.model.terms) - 1))
+            if why:
+                implausible[best.physics] = why
+                continue
+            findings.append(Finding(term, best, level, tstd))
+            model = model.plus(term)
+            added = True
+            break
+        if not added:
+            break
+    return findings, rounds, not_testable, implausible
+
+
+def _sequence(design: Design, base: Model, findings: list) -> list:
+    """Models baseline, +f1, +f1+f2, ... and their fits on the training part."""
+    models = [base]
+    for f in findings:
+        if f.physics != "quantization":
+            models.append(models[-1].plus(f.term))
+    ts = [{} for _ in base.terms] + [f.theta_std for f in findings if f.physics != "quantization"]
+    return [fit_model(design, m, ts[: len(m.terms)]) for m in models]
+
+
+def prepare(rec: Recording, settings: RobustSettings, opt: Options) -> Design:
+    """Signals and the train/test split of ``rec`` on the path of ``settings``; refuses
+    recordings with too few rows where the direction of motion is known."""
+    sig = make_signals(rec, settings)
+    m = sig.m
+    train = np.arange(m) < int(round((1 - opt.test_fraction) * m))
+    design = Design(sig, train)
+    n_train = int(design.train_valid.sum())
+    n_test = int((~train & sig.valid).sum())
+    if sig.valid.mean() < 0.2 or n_train < MIN_ROWS_PER_BLOCK * opt.blocks or n_test < MIN_ROWS_PER_BLOCK:
+        raise IdentificationError(
+            f"too few usable rows: {n_train} training and {n_test} test rows where the direction of motion is "
+            f"known ({100 * sig.valid.mean():.0f} % of {m} rows; elsewhere the speed is within its noise, "
+            f"{sig.v_threshold:.3g} m/s); record more motion or a longer recording"
+        )
+    return design
+
+
+def _quantization(rec: Recording, opt: Options, base: Model, design: Design, H: int):
+    """The lattice test and, if the sensor is quantised, the quantisation-aware path
+    (:mod:`servo.diagnose.quantization`).  Returns ``(finding or None, design to use,
+    lattice, note)``."""
+    sig = design.sig
+    lat = lattice_test(sig.x[design.train_samples])
+    if not lat.found(opt.alpha):
+        return None, design, lat, ""
+    starts_tr = starts_in(design, design.train_rows, H)
+    try:
+        fit0 = fit_model(design, base)
+        p0_tr = predict(design, fit0, starts_tr, H)
+    except Unsimulable:
+        return None, design, lat, "quantised sensor: the baseline cannot be simulated to judge a derivative path"
+    blk = np.array_split(np.arange(starts_tr.size), opt.blocks)
+    e0 = p0_tr.sse()[0]
+    best = None
+    paths = candidate_paths(opt.settings, 1.0 / sig.dt)
+    for s in paths:
+        try:
+            d2 = prepare(rec, s, opt)
+            baseline_mod.check_baseline(d2, base)
+            f2 = fit_model(d2, base)
+            e2 = predict(d2, f2, starts_tr, H).sse()[0]
+        except (ServoError, Unsimulable):
+            continue
+        if best is None or e2.sum() < best[2].sum():
+            best = (d2, f2, e2)
+    if best is None:
+        return None, design, lat, ""
+    d2, f2, e2 = best
+    t, p = improvement_test(np.array([e0[b].sum() for b in blk]), np.array([e2[b].sum() for b in blk]))
+    level = opt.alpha / len(paths)
+    starts_te = starts_in(d2, ~d2.train_rows, H)  # the starts the rest of the proof uses
+    p0_te = predict(design, fit0, starts_te, H)
+    nr0, nr2 = p0_te.nrmse(), predict(d2, f2, starts_te, H).nrmse()
+    s2 = d2.sig.settings
+    q = Finding(Term.make("quantization", {"step": lat.step}), None, level, {}, lat, (t, p), prediction=p0_te)
+    q.params = {"step": lat.step, "offset": lat.offset, "noise_share": min(lat.step**2 / 12 / max(sig.noise_x**2, 1e-300), 1.0),
+                "decimate": float(s2.decimate), "cutoff_hz": s2.cutoff(1.0 / sig.dt)}  # fmt: skip
+    q.before = {"force_rel_pct": force_error_pct(design, fit0, ~design.train_rows & sig.valid), "output_nrmse": nr0}
+    q.after = {"force_rel_pct": force_error_pct(d2, f2, ~d2.train_rows & d2.sig.valid), "output_nrmse": nr2,
+               "rows_differ": True}  # fmt: skip
+    q.where = {"text": f"every sample: positions on a {lat.step:.3g} m lattice ({100 * lat.fraction:.0f} % of samples); "
+                       f"the rows now stop at {0.4 / d2.sig.row_dt:.3g} Hz (decimation by {s2.decimate})"}  # fmt: skip
+    if p < level and nr2 < nr0:
+        return q, d2, lat, ""
+    return None, design, lat, f"quantised sensor (step {lat.step:.3g} m) but a narrower band does not predict better"
+
+
+def _prove(design: Design, base: Model, findings: list, test_rows: np.ndarray, starts: np.ndarray, H: int):
+    """Sequential fits and held-out errors; drops findings that do not lower the test
+    part's force error or that raise its simulated-output NRMSE by more than
+    :data:`OUTPUT_TOLERANCE`.  Returns fits, force errors, NRMSEs, predictions, the
+    unconfirmed findings and a note if the model cannot be simulated."""
+    unconfirmed = []
+    while True:
+        fits = _sequence(design, base, findings)
+        errs = [force_error_pct(design, f, test_rows) for f in fits]
+        preds, note = [], ""
+        for f in fits:
+            try:
+                preds.append(predict(design, f, starts, H))
+            except Unsimulable as exc:
+                preds.append(None)
+                note = str(exc)
+        nr = [p.nrmse() if p is not None else None for p in preds]
+        bad = None
+        for i in range(1, len(fits)):
+            worse_out = nr[i] is not None and nr[i - 1] is not None and nr[i] > nr[i - 1] * (1 + OUTPUT_TOLERANCE)
+            if not errs[i] < errs[i - 1] or worse_out:
+                bad = i
+                break
+        if bad is None:
+            return fits, errs, nr, preds, unconfirmed, note
+        f = findings.pop(bad - 1)
+        unconfirmed.append((f, {"force_rel_pct": errs[bad - 1], "output_nrmse": nr[bad - 1]},
+                            {"force_rel_pct": errs[bad], "output_nrmse": nr[bad]}))  # fmt: skip
+
+
+def diagnose(rec: Recording, opt: Options | None = None) -> Diagnosis:
+    """Diagnose ``rec`` (see module doc).  Raises a one-line
+    :class:`~servo.errors.ServoError` for data that cannot be diagnosed."""
+    opt = opt or Options()
+    if not 0.05 <= opt.test_fraction <= 0.5:
+        raise IdentificationError(f"test fraction {opt.test_fraction:g} must lie between 0.05 and 0.5")
+    if opt.blocks < 4:
+        raise IdentificationError(f"at least 4 cross-validation blocks are needed, got {opt.blocks}")
+    check_recording(rec)
+    base = baseline_mod.from_file(opt.model) if opt.model else baseline_mod.from_terms(opt.baseline)
+    design0 = prepare(rec, opt.settings, opt)
+    baseline_mod.check_baseline(design0, base)
+    H = horizon_samples(design0, opt.horizon_s)
+
+    qfind, design, lattice, qnote = _quantization(rec, opt, base, design0, H)
+    sig = design.sig
+    test_rows = ~design.train_rows & sig.valid
+    blocks = make_blocks(design.train_valid, opt.blocks)
+    sel = Selector(design, blocks, opt.alpha)
+    findings, rounds, not_testable, implausible = _select(sel, base, opt)
+
+    starts_test = starts_in(design, ~design.train_rows, H)
+    fits, errs, nr, preds, unconfirmed, note = _prove(design, base, findings, test_rows, starts_test, H)
+    for i, f in enumerate(findings):
+        f.before = {"force_rel_pct": errs[i], "output_nrmse": nr[i]}
+        f.after = {"force_rel_pct": errs[i + 1], "output_nrmse": nr[i + 1]}
+        k = len(fits[i + 1].model.terms) - 1
+        f.params, f.std = fits[i + 1].term_params(k), fits[i + 1].term_std(k)
+    final = fits[-1]
+
+    # locate, on the baseline's held-out residual
+    r_before = heldout_residual(design, base, blocks, test_rows)
+    r_after = heldout_residual(design, final.model, blocks, test_rows)
+    sel.set_noise(base)
+    tau = sel.tau
+    variables = state_variables(sig)
+    y0 = design.target_raw(Model())
+    r0 = np.where(sig.valid, r_before, 0.0)
+    fs = 1.0 / sig.row_dt
+    loc = {
+        "time": locate.window_test(sig.t_rows, r_before, sig.valid, tau, opt.alpha),
+        "state": locate.state_test(r_before, sig.valid, tau, variables, opt.alpha),
+        "spectrum": locate.spectrum_test(r0, fs, opt.alpha),
+        "coherence": locate.coherence_test(r0, y0, fs, opt.alpha),
+        "xcorr": locate.xcorr_test(r0, y0, sig.row_dt, opt.alpha),
+        "tau": tau,
+    }
+    for i, f in enumerate(findings):
+        f.where = locate.where(fits[i].residual - fits[i + 1].residual, sig.valid, sig.t_rows, variables, fs)
+    if qfind is not None:
+        findings.insert(0, qfind)
+
+    base_err = {"force_rel_pct": errs[0], "output_nrmse": nr[0]}
+    if qfind is not None:
+        base_err = qfind.before
+    errors = {
+        "train_force_rel_pct": {"before": force_error_pct(design, fits[0], design.train_valid),
+                                "after": force_error_pct(design, final, design.train_valid)},
+        "test_force_rel_pct": {"before": base_err["force_rel_pct"], "after": errs[-1]},
+        "test_output_nrmse": {"before": base_err["output_nrmse"], "after": nr[-1]},
+        "horizon_s": H * sig.dt,
+    }  # fmt: skip
+    return Diagnosis(
+        rec=rec, opt=opt, sig=sig, design=design, baseline=base, baseline_fit=fits[0], final_fit=final,
+        findings=findings, unconfirmed=unconfirmed, rounds=rounds, not_testable=not_testable, implausible=implausible,
+        residual_before=r_before, residual_after=r_after, test_rows=test_rows, locate=loc, state=variables,
+        pred_before=qfind.prediction if qfind is not None else preds[0], pred_after=preds[-1], errors=errors,
+        lattice=lattice,
+        simulate_note="; ".join(x for x in (note, qnote) if x),
+    )  # fmt: skip
+
+
+__all__ = ["Diagnosis", "Finding", "Options", "diagnose", "heldout_residual", "prepare"]

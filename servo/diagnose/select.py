@@ -1,0 +1,413 @@
+"""Scoring candidates on held-out data and adding them greedily while they pay.
+
+**Blocked cross-validation in time.**  The training rows are cut into ``K`` contiguous
+blocks (default 10).  For fold ``b`` a model is fitted on the other blocks and predicts
+block ``b``; its held-out sum of squares is ``S_b``.  Everything a fit needs is in the
+per-block Gram matrices ``Z_b'Z_b``, ``Z_b'y_b``, ``y_b'y_b``, so each fold costs a small
+solve, not a pass over the rows.  A candidate's nonlinear parameters (a Stribeck
+velocity, a Dahl length, a mode frequency...) are chosen *inside* each fold on the
+training blocks only (nested selection), so the held-out error of a term tuned over a
+grid is not flattered by the tuning.
+
+**The test.**  For the current model ``S0_b`` and the model with the candidate ``S1_b``,
+``d_b = ln(S0_b/S1_b)`` (scale-free: an effect that lives near reversals improves the
+blocks with many reversals by more in absolute terms, not in relative ones).  A candidate pays when ``mean(d) > 0`` in a one-sided
+t-test with the variance of the mean corrected for the overlap of the folds' training
+sets (Nadeau & Bengio 2003: ``(1/K + 1/(K-1)) * var(d)``; without it the folds'
+improvements are positively correlated and the plain test rejects about twice as
+often as stated), at level ``alpha/N`` with ``N`` the candidates tried in that round
+(Bonferroni: under the null of nothing missing, the chance that any of them passes the
+first round is at most ``alpha``).  It must also lower an information criterion on the
+pooled held-out error, ``n_eff*ln(S1/S0) + k*ln(n_eff) < 0`` (BIC with ``k`` the added
+parameters, linear and nonlinear, and ``n_eff`` the number of training rows divided by
+the residual's integrated autocorrelation time: the rows are filtered, so neighbours
+are not independent).  Of the candidates that pay, the one with the lowest criterion
+is added, its nonlinear parameters refined on all training rows, and the next round
+starts from the augmented model.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+from scipy import optimize, stats
+
+from servo.diagnose.model import Design, Model, Term
+from servo.diagnose.terms import VOCABULARY
+
+ALPHA = 0.05
+N_BLOCKS = 10
+EIG_FLOOR = 1e-11
+#: variants of a screened candidate evaluated together
+SCREEN_CHUNK = 32
+
+
+# ------------------------------------------------------------------------ linear algebra
+def solve(G: np.ndarray, g: np.ndarray) -> np.ndarray:
+    """Least-squares coefficients from a Gram matrix ``G`` (q, q) and ``g = Z'y`` (q,),
+    columns scaled to unit norm and near-null directions dropped (a column the rows
+    cannot tell from the others gets no weight instead of a huge one)."""
+    q = g.shape[0]
+    if q == 0:
+        return np.zeros(0)
+    d = np.sqrt(np.clip(np.diag(G), 0, None))
+    d[d == 0] = 1.0
+    Gs = G / np.outer(d, d)
+    w, V = np.linalg.eigh(Gs)
+    keep = w > EIG_FLOOR * max(w.max(), 1e-300)
+    c = V[:, keep] @ ((V[:, keep].T @ (g / d)) / w[keep])
+    return c / d
+
+
+@dataclass
+class Blocks:
+    """Contiguous blocks of training rows: ``slices[b]`` the row range of block ``b``,
+    ``weights`` (m,) 1 for rows used by fits (training and valid), 0 otherwise."""
+
+    slices: list
+    weights: np.ndarray
+
+    @property
+    def K(self) -> int:
+        return len(self.slices)
+
+
+def make_blocks(train_valid: np.ndarray, K: int = N_BLOCKS) -> Blocks:
+    """``K`` contiguous blocks over the training rows, equal in usable rows."""
+    idx = np.flatnonzero(train_valid)
+    cuts = [idx[int(round(i * idx.size / K))] for i in range(K)] + [idx[-1] + 1]
+    return Blocks([slice(cuts[i], cuts[i + 1]) for i in range(K)], train_valid.astype(float))
+
+
+@dataclass
+class Grams:
+    """Per-block ``Z_b'Z_b`` (K, q, q), ``Z_b'y_b`` (K, q), ``y_b'y_b`` (K,)."""
+
+    G: np.ndarray
+    g: np.ndarray
+    s: np.ndarray
+
+    @classmethod
+    def of(cls, Z: np.ndarray, y: np.ndarray, blocks: Blocks) -> "Grams":
+        K, q = blocks.K, Z.shape[1]
+        G, g, s = np.zeros((K, q, q)), np.zeros((K, q)), np.zeros(K)
+        for b, sl in enumerate(blocks.slices):
+            w = blocks.weights[sl] > 0
+            Zb, yb = Z[sl][w], y[sl][w]
+            G[b], g[b], s[b] = Zb.T @ Zb, Zb.T @ yb, yb @ yb
+        return cls(G, g, s)
+
+    def fold(self, b: int) -> tuple[np.ndarray, float]:
+        """Coefficients fitted without block ``b`` and their training SSE."""
+        Gt, gt, st = self.G.sum(0) - self.G[b], self.g.sum(0) - self.g[b], self.s.sum() - self.s[b]
+        c = solve(Gt, gt)
+        return c, float(st - 2 * c @ gt + c @ Gt @ c)
+
+    def heldout(self, b: int, c: np.ndarray) -> float:
+        return float(self.s[b] - 2 * c @ self.g[b] + c @ self.G[b] @ c)
+
+    def cv(self) -> np.ndarray:
+        """Held-out SSE of every block (K,)."""
+        return np.array([self.heldout(b, self.fold(b)[0]) for b in range(self.s.size)])
+
+
+def screen_stats(C: np.ndarray, r: np.ndarray, blocks: Blocks) -> tuple[np.ndarray, np.ndarray]:
+    """Per block ``C_b r_b`` (K, J, k) and ``C_b C_b'`` (K, J, k, k) of the columns ``C``
+    (J, k, m) of ``J`` variants, over the usable rows (``r`` is zero elsewhere)."""
+    K, J, k = blocks.K, C.shape[0], C.shape[1]
+    a, H = np.zeros((K, J, k)), np.zeros((K, J, k, k))
+    for b, sl in enumerate(blocks.slices):
+        Cb = C[:, :, sl]
+        w = blocks.weights[sl]
+        a[b] = Cb @ r[sl]
+        for i in range(k):
+            Ci = Cb[:, i] * w
+            for j in range(i, k):
+                H[b, :, i, j] = H[b, :, j, i] = np.einsum("jm,jm->j", Ci, Cb[:, j])
+    return a, H
+
+
+def explained(A: np.ndarray, H: np.ndarray) -> np.ndarray:
+    """``A'H^-1 A`` over the leading axes: the residual energy (K, J) that columns with
+    Gram ``H`` (K, J, k, k) and correlation ``A`` (K, J, k) explain."""
+    k = A.shape[-1]
+    tr = np.trace(H, axis1=-2, axis2=-1)[..., None, None]
+    Hr = H + np.eye(k) * (1e-12 * tr + 1e-300)
+    return np.einsum("...k,...k->...", A, np.linalg.solve(Hr, A[..., None])[..., 0])
+
+
+def fit_rows(y: np.ndarray, Phi: np.ndarray, w: np.ndarray) -> np.ndarray:
+    """Coefficients on the rows where ``w`` is true."""
+    Z, yy = Phi[w], y[w]
+    return solve(Z.T @ Z, Z.T @ yy)
+
+
+def integrated_time(r: np.ndarray, max_lag: int = 2000) -> float:
+    """Integrated autocorrelation time of ``r`` (rows), ``1 + 2*sum(rho_k)`` with Sokal's
+    window (stop at the first lag ``M >= 5*tau``); at least 1."""
+    r = r - r.mean()
+    n = r.size
+    L = min(max_lag, n // 4)
+    f = np.fft.rfft(r, 2 * n)
+    acf = np.fft.irfft(f * np.conj(f))[: L + 1]
+    if acf[0] <= 0:
+        return 1.0
+    rho = acf / acf[0]
+    tau = 1.0
+    for k in range(1, L + 1):
+        tau += 2 * rho[k]
+        if k >= 5 * tau:
+            break
+    return float(max(tau, 1.0))
+
+
+# ------------------------------------------------------------------------ scoring
+@dataclass
+class Score:
+    """How a candidate did on held-out blocks against the current model.
+
+    ``S0``/``S1`` (K,) held-out SSE per block without/with it; ``t``, ``p`` the corrected
+    one-sided t-test; ``delta_ic`` the criterion; ``k`` parameters added; ``thetas`` the
+    nonlinear parameters chosen in each fold; ``note`` why it was not testable."""
+
+    physics: str
+    S0: np.ndarray | None = None
+    S1: np.ndarray | None = None
+    t: float = 0.0
+    p: float = 1.0
+    delta_ic: float = np.inf
+    k: int = 0
+    thetas: list = field(default_factory=list)
+    note: str = ""
+
+    @property
+    def improvement_pct(self) -> float:
+        """Pooled held-out SSE reduction, % of the current model's."""
+        if self.S0 is None:
+            return 0.0
+        return float(100 * (1 - self.S1.sum() / self.S0.sum()))
+
+    def passes(self, level: float) -> bool:
+        return self.S0 is not None and self.p < level and self.delta_ic < 0
+
+
+def paired_test(S0: np.ndarray, S1: np.ndarray) -> tuple[float, float]:
+    """One-sided corrected resampled t-test (Nadeau & Bengio 2003) that the held-out
+    SSE drops from ``S0`` to ``S1`` (per block).  Returns ``(t, p)``."""
+    K = S0.size
+    d = np.log(np.maximum(S0, 1e-300) / np.maximum(S1, 1e-300))
+    sd = d.std(ddof=1)
+    if not np.isfinite(sd) or sd == 0.0:
+        return 0.0, 1.0
+    t = d.mean() / (sd * np.sqrt(1.0 / K + 1.0 / (K - 1)))
+    return float(t), float(stats.t.sf(t, K - 1))
+
+
+class Selector:
+    """Greedy forward selection on one recording's rows (see module doc)."""
+
+    def __init__(self, design: Design, blocks: Blocks, alpha: float = ALPHA):
+        self.d = design
+        self.blocks = blocks
+        self.alpha = alpha
+        self.n_eff = float(blocks.weights.sum())
+        self.tau = 1.0
+
+    # ---- the current model ---------------------------------------------------------
+    def current(self, model: Model):
+        y, Phi, names = self.d.matrix(model)
+        w = self.blocks.weights > 0
+        return y, Phi, names, fit_rows(y, Phi, w)
+
+    def set_noise(self, model: Model) -> None:
+        """Effective sample size from the model's training residual."""
+        y, Phi, _, c = self.current(model)
+        w = self.blocks.weights > 0
+        r = np.where(w, y - Phi @ c, 0.0)
+        self.tau = integrated_time(r[w.nonzero()[0][0] : w.nonzero()[0][-1] + 1])
+        self.n_eff = float(w.sum()) / self.tau
+
+    # ---- one candidate ----------------------------------------------------------------
+    def score(self, model: Model, physics: str) -> Score:
+        phys = VOCABULARY[physics]
+        sc = Score(physics)
+        grid = phys.grid(self.d, model)
+        if not grid:
+            sc.note = "not testable on these data (no parameter range the rows can see)"
+            return sc
+        y0, Phi, _, _ = self.current(model)
+        base = Grams.of(Phi, y0, self.blocks)
+        S0 = base.cv()
+        K = self.blocks.K
+        if phys.kind == "input":
+            variants = [(th, *self._input_variant(model, physics, th, Phi)) for th in grid]
+            choice = self._nested(variants)
+        elif phys.screening and len(grid) > 1:
+            choice = self._screened(model, physics, grid, y0, Phi)
+        else:
+            variants = [(th, np.column_stack([Phi, self.d.term_rows(Term.make(physics, th), model)]), y0) for th in grid]
+            choice = self._nested(variants)
+        S1 = np.array([choice[b][1] for b in range(K)])
+        sc.thetas = [choice[b][0] for b in range(K)]
+        sc.S0, sc.S1 = S0, S1
+        sc.t, sc.p = paired_test(S0, S1)
+        sc.k = len(phys.coefs) + len(phys.thetas)
+        ratio = S1.sum() / max(S0.sum(), 1e-300)
+        sc.delta_ic = float(self.n_eff * np.log(max(ratio, 1e-300)) + sc.k * np.log(self.n_eff))
+        return sc
+
+    def _input_variant(self, model, physics, theta, Phi):
+        y, _, _ = self.d.matrix(model, extra=Term.make(physics, theta))
+        return Phi, y
+
+    def _nested(self, variants) -> list:
+        """Per fold: the variant with the lowest training SSE, and its held-out SSE."""
+        grams = [(th, Grams.of(Z, y, self.blocks)) for th, Z, y in variants]
+        out = []
+        for b in range(self.blocks.K):
+            best = None
+            for th, gr in grams:
+                c, sse = gr.fold(b)
+                if best is None or sse < best[0]:
+                    best = (sse, th, gr.heldout(b, c))
+            out.append((best[1], best[2]))
+        return out
+
+    def _screened(self, model, physics, grid, y0, Phi) -> list:
+        """Per fold: scan the grid on the training blocks by how much of the current
+        model's residual the approximate columns explain, then score the chosen
+        variant with its exact columns."""
+        phys = VOCABULARY[physics]
+        w = self.blocks.weights > 0
+        r = np.where(w, y0 - Phi @ fit_rows(y0, Phi, w), 0.0)
+        K = self.blocks.K
+        expl = np.zeros((K, len(grid)))
+        for j0 in range(0, len(grid), SCREEN_CHUNK):
+            C = phys.screen_batch(self.d, grid[j0 : j0 + SCREEN_CHUNK], model)  # (J, k, m)
+            a, H = screen_stats(C, r, self.blocks)
+            At, Ht = a.sum(0)[None] - a, H.sum(0)[None] - H  # fold b: all blocks but b
+            expl[:, j0 : j0 + C.shape[0]] = explained(At, Ht)
+        picks = expl.argmax(axis=1)
+        out, cache = [], {}
+        for b in range(K):
+            j = int(picks[b])
+            if j not in cache:
+                Z = np.column_stack([Phi, self.d.term_rows(Term.make(physics, grid[j]), model)])
+                cache[j] = Grams.of(Z, y0, self.blocks)
+            c, _ = cache[j].fold(b)
+            out.append((grid[j], cache[j].heldout(b, c)))
+        return out
+
+    # ---- refinement on all training rows ----------------------------------------------
+    def train_sse(self, model: Model, term: Term, approximate: bool = False) -> float:
+        """Training SSE of ``model`` plus ``term``; ``approximate``: with the term's
+        fast screening columns (for the local search of a screened term)."""
+        w = self.blocks.weights > 0
+        if approximate:
+            y, Phi, _ = self.d.matrix(model)
+            C = VOCABULARY[term.physics].screen(self.d, term.params, model)
+            Phi = np.column_stack([Phi, C])
+        else:
+            y, Phi, _ = self.d.matrix(model.plus(term))
+        c = fit_rows(y, Phi, w)
+        r = (y - Phi @ c)[w]
+        return float(r @ r)
+
+    def refine(self, model: Model, physics: str, thetas: list) -> tuple[Term, dict]:
+        """The candidate's nonlinear parameters on all training rows: the best of the
+        folds' choices, then a bounded local search (variable projection: the linear
+        coefficients are re-solved at every trial).  Returns the term and the standard
+        deviation of each nonlinear parameter from the curvature of the profile.  A
+        screened term (resonance, cogging) is searched with its fast columns."""
+        phys = VOCABULARY[physics]
+        if not phys.thetas:
+            return Term.make(physics), {}
+        approx = phys.screening
+        uniq = {tuple(sorted(th.items())): th for th in thetas}.values()
+        best = min(uniq, key=lambda th: self.train_sse(model, Term.make(physics, th), approx))
+        bounds = phys.bounds(self.d, model)
+        names = list(phys.thetas)
+        logs = [bounds[n][2] for n in names]
+
+        def to_theta(z):
+            return {n: float(np.exp(v) if lg else v) for n, v, lg in zip(names, z, logs)}
+
+        def f(z):
+            th = to_theta(np.atleast_1d(z))
+            for n in names:
+                lo, hi, _ = bounds[n]
+                if not lo <= th[n] <= hi:
+                    return np.inf
+            return self.train_sse(model, Term.make(physics, th), approx)
+
+        z0 = np.array([np.log(best[n]) if lg else best[n] for n, lg in zip(names, logs)])
+        if len(names) == 1:
+            lo, hi, lg = bounds[names[0]]
+            span = self._bracket(phys, best, names[0], lo, hi, lg)
+            res = optimize.minimize_scalar(f, bounds=span, method="bounded", options={"xatol": 1e-4 * (span[1] - span[0])})
+            z = np.array([res.x]) if res.fun <= f(z0) else z0
+        else:
+            res = optimize.minimize(f, z0, method="Nelder-Mead", options={"maxfev": 60, "xatol": 1e-3, "fatol": 1e-9})
+            z = res.x if res.fun <= f(z0) else z0
+        if approx:  # polish with the exact columns, from the approximate optimum
+            def fx(zz):
+                th = to_theta(np.atleast_1d(zz))
+                if any(not bounds[n][0] <= th[n] <= bounds[n][1] for n in names):
+                    return np.inf
+                return self.train_sse(model, Term.make(physics, th))
+
+            steps = np.array([0.02 if lg else 1e-3 * max(abs(v), 1e-12) for v, lg in zip(z, logs)])
+            simplex = np.vstack([z] + [z + np.diag(steps)[i] for i in range(z.size)])
+            res = optimize.minimize(fx, z, method="Nelder-Mead",
+                                    options={"initial_simplex": simplex, "maxfev": 15 * z.size, "xatol": 1e-4})  # fmt: skip
+            if res.fun <= fx(z):
+                z = np.atleast_1d(res.x)
+            f = fx
+        theta = to_theta(z)
+        std = self._theta_std(f, z, names, logs, theta)
+        return Term.make(physics, theta), std
+
+    def _bracket(self, phys, best, name, lo, hi, lg):
+        """Search interval around the best grid point: a factor 1.6 for scale
+        parameters, one sample for a delay, 15 % for a level."""
+        v = best[name]
+        if lg:
+            return (np.log(max(lo, v / 1.6)), np.log(min(hi, v * 1.6)))
+        width = self.d.sig.dt if phys.name == "time_delay" else 0.15 * abs(v)
+        return (max(lo, v - width), min(hi, v + width))
+
+    def _theta_std(self, f, z, names, logs, theta) -> dict:
+        """Std of each nonlinear parameter: ``var = 2*s2*tau/f''`` from a central second
+        difference of the profile SSE ``f`` (``s2`` the residual variance per row)."""
+        w = self.blocks.weights > 0
+        f0 = f(z)
+        s2 = f0 / max(w.sum() - 1, 1)
+        out = {}
+        for i, (n, lg) in enumerate(zip(names, logs)):
+            h = 1e-2 if lg else max(abs(z[i]) * 1e-2, 1e-3 * self.d.sig.dt)
+            e = np.zeros_like(z)
+            e[i] = h
+            curv = (f(z + e) - 2 * f0 + f(z - e)) / h**2
+            if not np.isfinite(curv) or curv <= 0:
+                out[n] = float("inf")
+                continue
+            sd = np.sqrt(2 * s2 * self.tau / curv)
+            out[n] = float(theta[n] * sd if lg else sd)
+        return out
+
+    # ---- the greedy loop ----------------------------------------------------------------
+    def eligible(self, model: Model, exclude=()) -> tuple[list, dict]:
+        ok, why = [], {}
+        for name, phys in VOCABULARY.items():
+            if name in exclude:
+                continue
+            reason = phys.eligible(model)
+            if reason is None:
+                ok.append(name)
+            else:
+                why[name] = reason
+        return ok, why
+
+
+__all__ = ["ALPHA", "Blocks", "Grams", "N_BLOCKS", "Score", "Selector", "fit_rows", "integrated_time",
+           "make_blocks", "paired_test", "screen_stats", "solve"]  # fmt: skip

@@ -1,0 +1,437 @@
+"""The vocabulary of physics a diagnosis can name: one small object per term.
+
+Each term is parametric, with a physical name, and contributes to the force balance
+``u_eff = sum coef * column`` (see :mod:`servo.diagnose.model`) in one of three ways:
+
+* ``column`` terms add regressor columns, linear in their coefficients ``coefs`` for
+  fixed nonlinear parameters ``thetas`` (a Stribeck velocity, a Dahl length, a mode's
+  frequency and damping, a cogging period).  The columns are built at full rate from the
+  filtered motion and passed through the rows' parallel filter.
+* ``input`` terms transform the recorded input before it reaches the arm (a saturation
+  level, a delay); they change the target, not the columns.
+* the ``sensor`` term (quantisation) changes neither: see :mod:`servo.diagnose.quantization`.
+
+Forces are in the recording's force unit ``F`` (A of VCM current, or N), positions in m.
+For each term: ``rows(design, theta, u_eff)`` the exact rows (m, k); ``grid(design,
+model)`` the nonlinear parameters a diagnosis tries (``[{}]`` for a linear term);
+``screen(design, theta, model)`` a fast approximation of the rows used to scan large
+grids; ``bounds`` for the final refinement; ``physical``/``from_physical`` between the
+internal ``(theta, coef)`` and the reported parameters.
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from scipy import signal
+
+from kernels.hysteresis import dahl_trace
+
+#: every physics name a finding can carry, in the order the docs list them
+NAMES = (
+    "inertia", "viscous_friction", "coulomb_friction", "stiffness", "offset", "asymmetric_friction",
+    "stribeck_friction", "hysteresis", "resonance", "time_delay", "input_saturation",
+    "position_dependent_gain", "cogging", "quantization",
+)  # fmt: skip
+
+
+class Physics:
+    """Base: a linear term with one column and no nonlinear parameter."""
+
+    name = ""
+    kind = "column"
+    coefs: tuple = ()
+    thetas: tuple = ()
+    units: dict = {}
+    doc = ""
+    requires: tuple = ()
+    uses_input = False
+    screening = False  # large grids scanned with fast approximate rows
+
+    def full(self, d, theta: dict, u_eff: np.ndarray) -> np.ndarray:
+        """Full-rate columns (n, k)."""
+        raise NotImplementedError
+
+    def rows(self, d, theta: dict, u_eff: np.ndarray) -> np.ndarray:
+        F = np.atleast_2d(self.full(d, theta, u_eff).T).T
+        return np.column_stack([d.sig.rows(np.ascontiguousarray(F[:, j])) for j in range(F.shape[1])])
+
+    def screen(self, d, theta: dict, model) -> np.ndarray:
+        return d.term_rows(_term(self.name, theta), model)
+
+    def screen_batch(self, d, thetas: list, model) -> np.ndarray:
+        """Approximate rows of several variants at once, (J, k, m)."""
+        return np.stack([np.atleast_2d(self.screen(d, th, model).T) for th in thetas], axis=0)
+
+    def grid(self, d, model) -> list:
+        return [{}]
+
+    def bounds(self, d, model) -> dict:
+        """Refinement bounds per theta: name -> (lo, hi, log_scale)."""
+        return {}
+
+    def eligible(self, model) -> str | None:
+        """None when the term may be tried on top of ``model``, else why not."""
+        if model.has_free(self.name) or (model.has(self.name) and self.thetas):
+            return "already in the model"
+        for r in self.requires:
+            if not model.has(r):
+                return f"needs {r} in the model first"
+        return None
+
+    def physical(self, theta: dict, coef) -> dict:
+        """Reported parameters (name -> value)."""
+        return {**dict(zip(self.coefs, map(float, coef))), **{k: float(v) for k, v in theta.items()}}
+
+    def from_physical(self, p: dict) -> tuple[dict, tuple]:
+        return {k: p[k] for k in self.thetas}, tuple(p[k] for k in self.coefs)
+
+    def note(self, params: dict) -> str:
+        """A remark when a fitted parameter has a sign the physics does not expect."""
+        for k, v in params.items():
+            if k in self.POSITIVE and v < 0:
+                return f"{k} < 0: {self.POSITIVE[k]}"
+        return ""
+
+    POSITIVE: dict = {}
+
+    def implausible(self, params: dict) -> str:
+        """Why fitted parameters (:meth:`physical`) do not describe this physics ("" if
+        they do): then the term is not named, whatever the test said."""
+        return ""
+
+    def unit(self, name: str, force_unit: str) -> str:
+        return self.units.get(name, "-").replace("F", force_unit)
+
+
+def _term(name, theta):
+    from servo.diagnose.model import Term
+
+    return Term.make(name, theta)
+
+
+def _geom(lo: float, hi: float, per_decade: float) -> np.ndarray:
+    if not (hi > lo > 0):
+        return np.zeros(0)
+    k = max(2, int(math.ceil(math.log10(hi / lo) * per_decade)) + 1)
+    return np.geomspace(lo, hi, k)
+
+
+def _valid_speed(d) -> np.ndarray:
+    s = d.sig
+    m = d.train_valid if getattr(d, "train_valid", None) is not None else s.valid
+    return np.abs(s.v_rows[m])
+
+
+# ------------------------------------------------------------------ rigid-body terms
+class Inertia(Physics):
+    name, coefs, units = "inertia", ("J",), {"J": "F*s^2/m"}
+    doc = "inertia J*x''"
+
+    def full(self, d, theta, u_eff):
+        return d.sig.af
+
+
+class Viscous(Physics):
+    name, coefs, units = "viscous_friction", ("B",), {"B": "F*s/m"}
+    doc = "viscous friction B*x'"
+    POSITIVE = {"B": "the force grows against the motion: negative damping, not friction"}
+
+    def full(self, d, theta, u_eff):
+        return d.sig.vf
+
+
+class Coulomb(Physics):
+    name, coefs, units = "coulomb_friction", ("Fc",), {"Fc": "F"}
+    doc = "Coulomb friction Fc*sgn(x')"
+    POSITIVE = {"Fc": "a force pushing along the motion: not friction"}
+
+    def full(self, d, theta, u_eff):
+        return np.sign(d.sig.vf)
+
+
+class Stiffness(Physics):
+    name, coefs, units = "stiffness", ("K",), {"K": "F/m"}
+    doc = "stiffness K*x (flex-cable bias, pivot's average slope)"
+
+    def full(self, d, theta, u_eff):
+        return d.sig.xf
+
+
+class Offset(Physics):
+    name, coefs, units = "offset", ("h0",), {"h0": "F"}
+    doc = "constant force h0"
+
+    def full(self, d, theta, u_eff):
+        return np.ones(d.sig.n)  # through the rows' filter too: its DC gain is 0.989, not 1
+
+
+# ------------------------------------------------------------------ friction refinements
+class Asymmetric(Physics):
+    name, coefs, units = "asymmetric_friction", ("dB",), {"dB": "F*s/m", "b_asymmetry": "-"}
+    doc = ("direction-dependent friction: B(+-) = B +- dB.  A direction-dependent Coulomb level "
+           "Fc(+-) = Fc +- dFc adds dFc to every sliding row: it is an offset while the arm slides "
+           "and is reported in the offset")  # fmt: skip
+    requires = ("viscous_friction", "coulomb_friction", "offset")
+
+    def full(self, d, theta, u_eff):
+        return np.abs(d.sig.vf)
+
+
+class Stribeck(Physics):
+    name, coefs, thetas = "stribeck_friction", ("dFs",), ("stribeck_velocity",)
+    units = {"dFs": "F", "stribeck_velocity": "m/s"}
+    doc = "Stribeck friction (Fs - Fc)*exp(-(x'/vs)^2)*sgn(x'): higher friction at low speed"
+    requires = ("coulomb_friction",)
+
+    def implausible(self, params: dict) -> str:
+        if params["dFs"] < 0:
+            return (f"the best fit has dFs = {params['dFs']:.3g} < 0: friction lower at low speed than sliding, a "
+                    "smooth (pre-sliding-like) rise, the opposite of a Stribeck peak")  # fmt: skip
+        return ""
+
+    def full(self, d, theta, u_eff):
+        v = d.sig.vf
+        return np.sign(v) * np.exp(-((v / theta["stribeck_velocity"]) ** 2))
+
+    def _range(self, d):
+        v = _valid_speed(d)
+        return max(2.0 * d.sig.v_threshold, float(np.quantile(v, 0.02))), float(np.quantile(v, 0.75))
+
+    def grid(self, d, model):
+        return [{"stribeck_velocity": float(v)} for v in _geom(*self._range(d), 5)]
+
+    def bounds(self, d, model):
+        return {"stribeck_velocity": (*self._range(d), True)}
+
+
+class Hysteresis(Physics):
+    name, coefs, thetas = "hysteresis", ("Ha",), ("dahl_length",)
+    units = {"Ha": "F", "dahl_length": "m", "sigma": "F/m"}
+    doc = ("Dahl hysteresis (paper eq. 6-7): a hidden force with turnaround memory, slope sigma at a "
+           "reversal, asymptote +-Ha, Dahl length Ha/sigma")  # fmt: skip
+    requires = ("coulomb_friction",)
+
+    def implausible(self, params: dict) -> str:
+        if params["Ha"] < 0:
+            return f"the best fit has Ha = {params['Ha']:.3g} < 0: a force released after a reversal, not a Dahl friction"
+        return ""
+
+    def full(self, d, theta, u_eff):
+        s = d.sig
+        out = np.empty(s.n)
+        lam = theta["dahl_length"]
+        dahl_trace(s.xf, s.vf, s.v_threshold, 1.0 / lam, 1.0, float(theta.get("alpha", 1.0)), 0.0, out)
+        return out
+
+    def _range(self, d):
+        s = d.sig
+        span = float(np.ptp(s.xf))
+        return max(10.0 * s.noise_x, 1e-6 * span), 0.1 * span
+
+    def grid(self, d, model):
+        return [{"dahl_length": float(v)} for v in _geom(*self._range(d), 3)]
+
+    def bounds(self, d, model):
+        return {"dahl_length": (*self._range(d), True)}
+
+    def physical(self, theta, coef):
+        p = super().physical(theta, coef)
+        p["sigma"] = p["Ha"] / theta["dahl_length"]
+        return p
+
+
+# ------------------------------------------------------------------ structure
+class Resonance(Physics):
+    name, coefs, thetas = "resonance", ("gain",), ("frequency_hz", "zeta")
+    units = {"gain": "-", "frequency_hz": "Hz", "zeta": "-"}
+    doc = ("a lightly damped mode in the measured position, x_meas = x + gain*q with "
+           "q'' + 2*zeta*w*q' + w^2*q = u/J: in the force balance, -gain*s^2/(s^2 + 2*zeta*w*s + w^2) u")  # fmt: skip
+    uses_input = True
+    screening = True
+    ZETAS = (0.005, 0.02, 0.06)
+    ZETA_MAX = 0.1  # a lightly damped mode
+    MAX_MODES = 4
+
+    def eligible(self, model):
+        n = sum(t.physics == self.name for t in model.terms)
+        return None if n < self.MAX_MODES else f"{n} modes already in the model"
+
+    @staticmethod
+    def biquad(f: float, zeta: float, fs: float):
+        """``s^2/(s^2 + 2*zeta*w*s + w^2)`` by the bilinear transform prewarped at ``f``."""
+        w = 2 * math.pi * f
+        k = w / math.tan(w / (2 * fs))
+        a0 = k * k + 2 * zeta * w * k + w * w
+        b = np.array([k * k, -2 * k * k, k * k]) / a0
+        a = np.array([1.0, (2 * w * w - 2 * k * k) / a0, (k * k - 2 * zeta * w * k + w * w) / a0])
+        return b, a
+
+    def full(self, d, theta, u_eff):
+        s = d.sig
+        b, a = self.biquad(theta["frequency_hz"], theta["zeta"], 1.0 / s.dt)
+        return -signal.lfilter(b, a, s.force(u_eff))
+
+    def screen(self, d, theta, model):
+        y = d.target_raw(model)
+        b, a = self.biquad(theta["frequency_hz"], theta["zeta"], 1.0 / d.sig.row_dt)
+        return -signal.lfilter(b, a, y)[:, None]
+
+    def _range(self, d):
+        s = d.sig
+        T = s.row_dt * max(int(np.count_nonzero(d.train_rows)), 1)
+        return max(20.0 / T, 1.0 / (200 * s.row_dt)), 0.35 / s.row_dt
+
+    def grid(self, d, model):
+        lo, hi = self._range(d)
+        out = []
+        for z in self.ZETAS:
+            n = max(2, int(math.ceil(math.log(hi / lo) / math.log(1 + z))) + 1)
+            out += [{"frequency_hz": float(f), "zeta": z} for f in np.geomspace(lo, hi, n)]
+        return out
+
+    def bounds(self, d, model):
+        lo, hi = self._range(d)
+        return {"frequency_hz": (lo, hi, True), "zeta": (0.001, self.ZETA_MAX, True)}
+
+    def implausible(self, params: dict) -> str:
+        if params["zeta"] >= 0.95 * self.ZETA_MAX:
+            return (f"the best mode sits at the damping bound (zeta {params['zeta']:.3g}): what the data show is not a "
+                    "lightly damped mode (a delay or a filter acts like a heavily damped one)")  # fmt: skip
+        return ""
+
+
+class TimeDelay(Physics):
+    name, kind, thetas, units = "time_delay", "input", ("delay_s",), {"delay_s": "s"}
+    doc = "the input reaches the arm delay_s later than recorded (negative: the log lags the motion)"
+
+    @staticmethod
+    def transform(u, theta, dt):
+        k = np.arange(u.size, dtype=float)
+        return np.interp(k - theta["delay_s"] / dt, k, u)
+
+    def _range(self, d):
+        q = d.sig.settings.decimate
+        return -q * d.sig.dt, 2 * q * d.sig.dt
+
+    def grid(self, d, model):
+        """Quarter samples up to two samples either way, whole samples beyond."""
+        q = d.sig.settings.decimate
+        steps = sorted({j / 4 for j in range(-8, 9)} | set(range(-q, 2 * q + 1)) - {0})
+        return [{"delay_s": j * d.sig.dt} for j in steps]
+
+    def bounds(self, d, model):
+        return {"delay_s": (*self._range(d), False)}
+
+
+class Saturation(Physics):
+    name, kind, thetas, units = "input_saturation", "input", ("level",), {"level": "F"}
+    doc = "the input is clipped at +-level before it reaches the arm (amplifier current limit)"
+    QUANTILES = (0.9, 0.95, 0.97, 0.98, 0.99, 0.995, 0.998)
+    MIN_CLIPPED = 10  # samples
+
+    @staticmethod
+    def transform(u, theta, dt):
+        return np.clip(u, -theta["level"], theta["level"])
+
+    def _levels(self, d):
+        au = np.abs(d.sig.u[d.train_samples])
+        lv = np.unique(np.quantile(au, self.QUANTILES))
+        return [float(L) for L in lv if np.count_nonzero(au > L) >= self.MIN_CLIPPED and L > 0]
+
+    def grid(self, d, model):
+        return [{"level": L} for L in self._levels(d)]
+
+    def bounds(self, d, model):
+        lv = self._levels(d)
+        au = np.abs(d.sig.u[d.train_samples])
+        return {"level": (lv[0] if lv else 0.0, float(np.quantile(au, 0.999)), False)}
+
+
+class PositionGain(Physics):
+    name, coefs = "position_dependent_gain", ("kf_linear", "kf_quadratic")
+    units = {"kf_linear": "1/m", "kf_quadratic": "1/m^2"}
+    doc = "force constant varying over the stroke: the arm gets kf(x)*u, kf = 1 + kf_linear*x + kf_quadratic*x^2"
+    uses_input = True
+
+    def full(self, d, theta, u_eff):
+        ua = d.sig.force(u_eff)
+        x = d.sig.xf
+        return np.column_stack([-x * ua, -x * x * ua])
+
+
+class Cogging(Physics):
+    name, coefs, thetas = "cogging", ("a_sin", "a_cos"), ("period",)
+    units = {"a_sin": "F", "a_cos": "F", "period": "m", "amplitude": "F", "phase": "rad"}
+    doc = "a force periodic in position: amplitude*sin(2*pi*x/period + phase)"
+    screening = True
+    MAX_GRID = 3000
+
+    def full(self, d, theta, u_eff):
+        w = 2 * math.pi * d.sig.xf / theta["period"]
+        return np.column_stack([np.sin(w), np.cos(w)])
+
+    def screen(self, d, theta, model):
+        w = 2 * math.pi * d.sig.x_rows / theta["period"]
+        return np.column_stack([np.sin(w), np.cos(w)])
+
+    def screen_batch(self, d, thetas, model):
+        """sin/cos of ``2*pi*x/period`` for a chunk of the (uniform in 1/period) grid,
+        (J, 2, m), by complex rotation instead of one sine per variant."""
+        k = np.array([1.0 / th["period"] for th in thetas])
+        x = d.sig.x_rows
+        if k.size > 2 and np.allclose(np.diff(k), k[1] - k[0], rtol=1e-9, atol=0):
+            z = np.empty((k.size, x.size), complex)
+            z[0] = np.exp(2j * math.pi * x * k[0])
+            step = np.exp(2j * math.pi * x * (k[1] - k[0]))
+            for j in range(1, k.size):
+                np.multiply(z[j - 1], step, out=z[j])
+        else:
+            z = np.exp(2j * math.pi * k[:, None] * x[None, :])
+        return np.stack([z.imag, z.real], axis=1)
+
+    def _k_range(self, d):
+        s = d.sig
+        span = float(np.ptp(s.x_rows[d.train_rows]))
+        v25 = float(np.quantile(_valid_speed(d), 0.25))
+        k_hi = min(0.35 / s.row_dt / max(v25, 1e-300), 1.0 / (20.0 * max(s.noise_x, 1e-300)))
+        return 2.0 / span, k_hi, span
+
+    def grid(self, d, model):
+        k_lo, k_hi, span = self._k_range(d)
+        if k_hi <= k_lo:
+            return []
+        n = int(min(self.MAX_GRID, math.ceil((k_hi - k_lo) * 3 * span) + 1))
+        return [{"period": float(1.0 / k)} for k in np.linspace(k_lo, k_hi, n)]
+
+    def bounds(self, d, model):
+        k_lo, k_hi, _ = self._k_range(d)
+        return {"period": (1.0 / k_hi, 1.0 / k_lo, True)}
+
+    def physical(self, theta, coef):
+        a, b = map(float, coef)
+        return {"amplitude": math.hypot(a, b), "period": float(theta["period"]), "phase": math.atan2(b, a),
+                "a_sin": a, "a_cos": b}  # fmt: skip
+
+    def from_physical(self, p):
+        A, ph = p["amplitude"], p.get("phase", 0.0)
+        return {"period": p["period"]}, (A * math.cos(ph), A * math.sin(ph))
+
+
+class Quantization(Physics):
+    name, kind, thetas, units = "quantization", "sensor", ("step",), {"step": "m", "offset": "m"}
+    doc = "position sensor quantised to a lattice of step `step` (an encoder's count)"
+
+    def eligible(self, model):
+        return "a sensor effect: tested on its own (servo.diagnose.quantization)"
+
+
+VOCABULARY = {
+    c.name: c()
+    for c in (Inertia, Viscous, Coulomb, Stiffness, Offset, Asymmetric, Stribeck, Hysteresis, Resonance, TimeDelay,
+              Saturation, PositionGain, Cogging, Quantization)  # fmt: skip
+}
+#: the baseline terms of eq. (3) and the vocabulary term each is
+BASELINE_TERMS = {"J": "inertia", "B": "viscous_friction", "Fc": "coulomb_friction", "K": "stiffness", "h0": "offset"}
+
+__all__ = ["BASELINE_TERMS", "NAMES", "VOCABULARY", "Physics"]
