@@ -21,3 +21,18 @@ def config_from_args(args: argparse.Namespace, **sections: dict) -> Config:
     for name, values in sections.items():
         data.setdefault(name, {}).update({k: v for k, v in values.items() if v is not None})
     return from_dict(data)
+
+
+def add_recording_options(p: argparse.ArgumentParser, optional: bool = False) -> None:
+    """The positional RECORDING (CSV, NPZ or .mat) and its --columns/--scale mapping."""
+    help_ = "CSV, NPZ or .mat recording with columns t,u,x[,v] (map other names with --columns/--scale)"
+    p.add_argument("recording", nargs="?" if optional else None, help=help_ + (" (omit with --simulate)" if optional else ""))
+    p.add_argument("--columns", metavar="ROLE=NAME,...", help="map t,u,x,v to names in the file, e.g. u=vir,x=qm")
+    p.add_argument("--scale", metavar="ROLE=FACTOR,...", help="scale columns by a number or a scalar variable, e.g. u=gtau")
+
+
+def recording_from_args(args: argparse.Namespace):
+    """Load and validate the recording of :func:`add_recording_options`."""
+    from servo.recording import load_recording, parse_mapping
+
+    return load_recording(args.recording, parse_mapping(args.columns, "--columns"), parse_mapping(args.scale, "--scale"))

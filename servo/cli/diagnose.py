@@ -5,6 +5,7 @@ import argparse
 import time
 from pathlib import Path
 
+from servo.cli.common import add_recording_options, recording_from_args
 from servo.errors import ConfigError
 
 
@@ -17,9 +18,7 @@ def register(sub) -> None:
         "from a vocabulary of candidate terms (blocked cross-validation, family-wise false-alarm level); fit it "
         "and prove the improvement on held-out data.  Writes report.json, final_model.toml and PNGs into --out.",
     )
-    p.add_argument("recording", help="CSV, NPZ or .mat recording (t, u, x columns; map with --columns/--scale)")
-    p.add_argument("--columns", metavar="ROLE=NAME,...", help="map t,u,x to names in the file, e.g. u=vir,x=qm")
-    p.add_argument("--scale", metavar="ROLE=FACTOR,...", help="scale columns by a number or a scalar variable, e.g. u=gtau")
+    add_recording_options(p)
     g = p.add_mutually_exclusive_group()
     g.add_argument("--baseline", metavar="TERMS", help="terms of eq. 3 fitted on the training part (default J,B,Fc,K,h0)")
     g.add_argument("--model", metavar="FILE", help="a fixed model: servo config TOML, identify summary.json or diagnose report.json")
@@ -39,13 +38,12 @@ def handle(args: argparse.Namespace) -> int:
     from servo.diagnose.report import build_report, format_summary, write_drive_toml, write_report
     from servo.diagnose.run import Options, diagnose
     from servo.identify.regressors import RobustSettings
-    from servo.recording import load_recording, parse_mapping
 
     if not 0.0 < args.alpha < 0.5:
         raise ConfigError(f"--alpha {args.alpha!r}: expected a level between 0 and 0.5")
     if args.horizon is not None and not args.horizon > 0:
         raise ConfigError(f"--horizon {args.horizon!r}: expected a positive number of seconds")
-    rec = load_recording(args.recording, parse_mapping(args.columns, "--columns"), parse_mapping(args.scale, "--scale"))
+    rec = recording_from_args(args)
     opt = Options(baseline=args.baseline, model=args.model, test_fraction=args.test_fraction, blocks=args.blocks,
                   alpha=args.alpha, horizon_s=args.horizon, force_unit=args.force_unit,
                   settings=RobustSettings(cutoff_hz=args.cutoff_hz, decimate=args.decimate))  # fmt: skip

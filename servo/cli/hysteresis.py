@@ -6,7 +6,7 @@ import argparse
 import time
 from pathlib import Path
 
-from servo.cli.common import add_config_options, config_from_args
+from servo.cli.common import add_config_options, add_recording_options, config_from_args, recording_from_args
 from servo.errors import ConfigError
 
 
@@ -19,9 +19,7 @@ def register(sub) -> None:
         "current under the PI holding loop (Fig. 2-3) and a large-range loop whose average slope is the bearing "
         "stiffness (eq. 11, Fig. 4). Writes summary.json, CSVs and PNGs.",
     )
-    p.add_argument("recording", nargs="?", help="CSV, NPZ or .mat recording with t,u,x,v (omit with --simulate)")
-    p.add_argument("--columns", metavar="ROLE=NAME,...", help="map t,u,x,v to names in the file")
-    p.add_argument("--scale", metavar="ROLE=FACTOR,...", help="scale columns by a number or a scalar variable")
+    add_recording_options(p, optional=True)
     p.add_argument("--deadband", type=float, default=None,
                    help="velocity deadband for the direction, m/s (default: controller.direction_deadband)")  # fmt: skip
     p.add_argument("--fix-alpha", type=float, metavar="ALPHA", help="hold alpha at this value instead of fitting it")
@@ -40,7 +38,6 @@ def register(sub) -> None:
 def handle(args: argparse.Namespace) -> int:
     from servo.experiments.hysteresis import HysteresisExperiment
     from servo.experiments.hysteresis_report import format_summary, run_hysteresis_recording, run_hysteresis_simulated
-    from servo.recording import load_recording, parse_mapping
 
     cfg = config_from_args(args)
     out = Path(args.out) if args.out else Path("servo-out") / time.strftime("hysteresis-%Y%m%d-%H%M%S")
@@ -58,7 +55,7 @@ def handle(args: argparse.Namespace) -> int:
     else:
         if not args.recording:
             raise ConfigError("give a RECORDING (CSV, NPZ or .mat with t,u,x,v) or --simulate")
-        rec = load_recording(args.recording, parse_mapping(args.columns, "--columns"), parse_mapping(args.scale, "--scale"))
+        rec = recording_from_args(args)
         deadband = cfg.controller.direction_deadband if args.deadband is None else args.deadband
         summary = run_hysteresis_recording(rec, out, deadband, args.fix_alpha is None,
                                            1.0 if args.fix_alpha is None else args.fix_alpha, args.slope)  # fmt: skip

@@ -7,7 +7,7 @@ import json
 import time
 from pathlib import Path
 
-from servo.cli.common import add_config_options, config_from_args
+from servo.cli.common import add_config_options, add_recording_options, config_from_args, recording_from_args
 from servo.errors import ConfigError
 
 
@@ -20,9 +20,7 @@ def register(sub) -> None:
         "deviations, condition number and relative error; or, with --simulate, from the simulated drive's "
         "square-wave experiment. Writes summary.json, CSVs and PNGs (estimated vs measured acceleration, force fit).",
     )
-    p.add_argument("recording", nargs="?", help="CSV, NPZ or .mat recording (omit with --simulate)")
-    p.add_argument("--columns", metavar="ROLE=NAME,...", help="map t,u,x,v to names in the file, e.g. u=vir,x=qm")
-    p.add_argument("--scale", metavar="ROLE=FACTOR,...", help="scale columns by a number or a scalar variable, e.g. u=gtau")
+    add_recording_options(p, optional=True)
     p.add_argument("--path", choices=("robust", "paper", "both"), default=None,
                    help="derivatives: robust (Butterworth + central differences + parallel decimation), paper "
                    "(measured velocity, backward-difference acceleration), or both (default: both when the "
@@ -62,7 +60,7 @@ def _trim(text: str) -> tuple[int, int]:
 def handle(args: argparse.Namespace) -> int:
     from servo.identify.regressors import RobustSettings, parse_terms
     from servo.identify.report import format_summary, run_identify
-    from servo.recording import load_recording, parse_mapping, save_recording_csv
+    from servo.recording import save_recording_csv
     from servo.runlog import atomic_write
 
     terms = parse_terms(args.terms, args.off)
@@ -97,7 +95,7 @@ def handle(args: argparse.Namespace) -> int:
     else:
         if not args.recording:
             raise ConfigError("give a RECORDING (CSV, NPZ or .mat) or --simulate")
-        rec = load_recording(args.recording, parse_mapping(args.columns, "--columns"), parse_mapping(args.scale, "--scale"))
+        rec = recording_from_args(args)
     paths = {"robust": ("robust",), "paper": ("paper",), "both": ("robust", "paper")}[
         args.path or ("both" if rec.v is not None else "robust")
     ]
