@@ -206,15 +206,7 @@ class SerialDriver(Driver):
                 self._vals = vals
                 self._k_frame += self.b
                 return
-        try:
-            kind, _, msg = P.parse(body)
-        except P.Malformed as exc:
-            self.stats["malformed"] += 1
-            raise DriverError(f"link: malformed frame from the board at tick {self._k_frame}: {exc}") from None
-        if kind == P.FAULT:
-            self.stats["board_faults"] += 1
-            self.board_fault = msg
-            raise DriverError(f"link: board fault, {msg.describe()}; the board is at zero current")
+        kind, msg = self._parse(body)
         if kind == P.SAMPLES:
             raise DriverError(f"link: SAMPLES frame for tick {msg.tick0} with {len(msg.values) // 3} samples, "
                               f"expected tick {self._k_frame} with {self.b}")  # fmt: skip
@@ -296,15 +288,19 @@ class SerialDriver(Driver):
     def _next_message(self, deadline_ns: int, what: str):
         """The next frame in sequence, parsed; a FAULT raises."""
         _, body = self._next_body(deadline_ns, what)
+        return self._parse(body)
+
+    def _parse(self, body: bytes):
+        """``(kind, message)`` of a frame body; a malformed frame or a FAULT raises."""
         try:
             kind, _, msg = P.parse(body)
         except P.Malformed as exc:
             self.stats["malformed"] += 1
-            raise DriverError(f"link: malformed frame from the board: {exc}") from None
+            raise DriverError(f"link: malformed frame from the board at tick {self._k_frame}: {exc}") from None
         if kind == P.FAULT:
             self.stats["board_faults"] += 1
             self.board_fault = msg
-            raise DriverError(f"link: board fault, {msg.describe()}")
+            raise DriverError(f"link: board fault, {msg.describe()}; the board is at zero current")
         return kind, msg
 
     def _frames_until(self, deadline_ns: int):
