@@ -1,20 +1,32 @@
-"""Benchmark: ``servo diagnose`` of a one-million-sample recording in under a minute.
+"""Benchmark: ``servo diagnose`` of a one-million-sample recording.
 
 The recording is a concealed-effect recording of the simulated drive (a Dahl pivot of
 0.2 mA with a 3 um Dahl length under the long-stroke scenario), 20 s at 50 kHz.  The
 benchmark times the whole diagnosis (rows, baseline, every candidate of the vocabulary
 over blocked cross-validation until none pays, quantisation test, the proof on the
 held-out part with short-horizon simulations, locate tests), not the plots or the files.
-Run with ``python -m pytest bench/test_diagnose.py``.
+
+What is asserted is a ratio, not seconds: the diagnosis against a reference workload of
+the same kind timed just before and just after it in the same run (zero-phase filtering
+and decimation of the recording's columns, where the diagnosis spends most of its time).  A neighbour that slows the machine slows both.  The
+seconds are recorded (``bench/results/latest.json``) and, measured on a quiet machine,
+in ``bench/README.md``.  Run with ``python -m pytest bench/test_diagnose.py -s``.
 """
+import time
+
 import numpy as np
 import pytest
+from scipy import signal
 
 from servo.diagnose.concealed import Scenario, concealed_recording
 from servo.diagnose.run import diagnose
 
-BUDGET_S = 60.0
 SAMPLES = 1_000_000
+REPEATS = 8
+"""Timed repetitions of the reference before and after the diagnosis (median of all)."""
+RATIO_MAX = 270.0
+"""Diagnosis / reference: measured 138-180 idle and with one or two busy cores (the
+diagnosis took 10.2-16.6 s); the bound is 1.5x the worst."""
 
 
 @pytest.fixture(scope="module")
@@ -24,13 +36,29 @@ def million():
     return rec
 
 
-def test_diagnose_one_million_samples_under_a_minute(benchmark, million, record):
+def reference_s(rec) -> float:
+    """Seconds of the reference workload on ``rec``: four full-rate columns decimated by 10
+    with a zero-phase Chebyshev filter (single-threaded, like most of the diagnosis: a
+    threaded BLAS call would slow down under load far more than the diagnosis does)."""
+    t0 = time.perf_counter()
+    for c in (rec.u, rec.x, rec.u, rec.x):
+        signal.decimate(np.asarray(c, float), 10, ftype="iir", zero_phase=True)
+    return time.perf_counter() - t0
+
+
+def test_diagnose_one_million_samples(benchmark, million, record):
+    reference_s(million)  # warm
+    before = [reference_s(million) for _ in range(REPEATS)]
     D = benchmark.pedantic(diagnose, args=(million,), rounds=1, iterations=1)
+    after = [reference_s(million) for _ in range(REPEATS)]
     seconds = benchmark.stats.stats.max
-    record.check("diagnose_1M_samples", seconds=seconds, budget_s=BUDGET_S, samples=SAMPLES,
-                 findings=[f.physics for f in D.findings])  # fmt: skip
-    print(f"\ndiagnose: {SAMPLES} samples in {seconds:.1f} s (budget {BUDGET_S:.0f} s); findings "
-          f"{[f.physics for f in D.findings]}")  # fmt: skip
-    assert seconds < BUDGET_S
+    ref = float(np.median(before + after))
+    before, after = float(np.median(before)), float(np.median(after))
+    ratio = seconds / ref
+    record.check("diagnose_1M_samples", seconds=seconds, reference_s=ref, ratio=ratio,
+                 ratio_max=RATIO_MAX, samples=SAMPLES, findings=[f.physics for f in D.findings])  # fmt: skip
+    print(f"\ndiagnose: {SAMPLES} samples in {seconds:.1f} s; reference {ref:.3f} s (medians {before:.3f} before, {after:.3f} after); "
+          f"ratio {ratio:.1f} (bound {RATIO_MAX:g}); findings {[f.physics for f in D.findings]}")  # fmt: skip
+    assert ratio < RATIO_MAX
     assert [f.physics for f in D.findings] == ["hysteresis"]
     assert np.isfinite(D.errors["test_output_nrmse"]["after"])

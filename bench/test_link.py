@@ -8,7 +8,11 @@ over a pseudo-terminal through the device emulator.
 * ``test_round_trip_over_a_pty``: one lockstep tick through ``servo emulate`` in its own
   process over a pty (host read + write, board step, both directions through the
   kernel).  Reference measured in the same run: the bare pty echo round trip of a
-  64-byte message between two Python processes.
+  64-byte message between two Python processes.  Both ends of both round trips are
+  pinned to one core.
+
+Every asserted ratio is the median of 101 adjacent pairs of short blocks of equal
+duration (:func:`bench.timing.paired_blocks`), so it holds on a loaded machine.
 
 The real-time figure (highest sample rate with zero missed deadlines) is measured by
 ``bench/link_rate.py``, not here: it takes minutes and a quiet machine.
@@ -20,8 +24,6 @@ import re
 import select
 import subprocess
 import sys
-import time
-import timeit
 from contextlib import contextmanager
 
 import pytest
@@ -34,7 +36,11 @@ from hil.serialdriver import SerialDriver
 from servo.config import Config, to_toml
 from servo.simdriver import SimDriver
 
+from bench.timing import paired_blocks
+
 FRAMES = 2000  # frames per benchmark round
+PAIRS = 101
+"""Adjacent (link, reference) pairs timed for each asserted ratio."""
 
 
 class ReplayPort:
@@ -57,22 +63,26 @@ class ReplayPort:
         pass
 
 
-def sim_tick_us(cfg) -> float:
-    """Reference: SimDriver read + write per tick, us (best of 5)."""
+def sim_ticks(cfg):
+    """Reference: a function running ``n`` SimDriver read + write ticks (plant step included)."""
     s = SimDriver(cfg)
     s.configure()
     s.activate()
+    read, write = s.read, s.write
 
-    def tick():
-        s.read()
-        s.write(0.002)
+    def ticks(n: int) -> None:
+        for _ in range(n):
+            read()
+            write(0.002)
 
-    return min(timeit.repeat(tick, number=2000, repeat=5)) / 2000 * 1e6
+    return ticks
 
 
 @pytest.mark.parametrize("b", [1, 8])
 def test_host_cost_per_frame(benchmark, b):
-    cfg = Config().replace(link={"command_latency_ticks": b, "batch": b})
+    """The host's link cost per frame against SimDriver ticks, in adjacent pairs; the
+    median of the per-pair ratios is asserted."""
+    cfg = Config().replace(run={"duration_s": 60.0}, link={"command_latency_ticks": b, "batch": b})
     board = Board(cfg)
     with start_in_thread(board) as url:
         drv = SerialDriver(cfg, url)
@@ -90,44 +100,64 @@ def test_host_cost_per_frame(benchmark, b):
             read()
             write(0.002)
 
-    benchmark.pedantic(frame, rounds=20, iterations=FRAMES, warmup_rounds=1)
-    per_frame_us = benchmark.stats.stats.median * 1e6
-    ref = sim_tick_us(cfg)
-    ratio = per_frame_us / b / ref
-    benchmark.extra_info.update(per_frame_us=per_frame_us, per_tick_us=per_frame_us / b, sim_tick_us=ref,
+    def frames(n: int) -> None:
+        for _ in range(n):
+            read()
+            write(0.002)
+
+    sim = sim_ticks(cfg)
+    benchmark.pedantic(frame, rounds=5, iterations=FRAMES, warmup_rounds=1)  # the figure pytest-benchmark shows
+    pairs = paired_blocks(frames, sim, pairs=PAIRS, quantum_a=b)
+    per_tick_us, ref, ratio = pairs.a_ns / 1e3, pairs.b_ns / 1e3, pairs.ratio  # per tick of the link / per simulated tick
+    benchmark.extra_info.update(per_frame_us=per_tick_us * b, per_tick_us=per_tick_us, sim_tick_us=ref,
                                 ratio_to_sim_tick=ratio)  # fmt: skip
-    print(f"\nb={b}: host link cost {per_frame_us:.2f} us/frame, {per_frame_us / b:.2f} us/tick; "
-          f"SimDriver tick {ref:.2f} us; ratio {ratio:.2f}")
+    print(f"\nb={b}: host link cost {per_tick_us * b:.2f} us/frame, {per_tick_us:.2f} us/tick; "
+          f"SimDriver tick {ref:.2f} us; median ratio of {PAIRS} adjacent pairs {ratio:.2f}")
     # budget (measured 1.5 and 0.5 on the 2-core development machine): the link costs the
     # host at most 2.5 simulated-drive ticks per tick unbatched, less than one batched
     assert ratio < (2.5 if b == 1 else 1.0)
     port = drv._port
-    assert port.i >= 20 * FRAMES and port.written == len(encode_frame(P.commands(0, 0, [0.0] * b))) * port.i  # all answered
+    assert port.i >= PAIRS and port.written == len(encode_frame(P.commands(0, 0, [0.0] * b))) * port.i  # all answered
 
 
-def pty_echo_round_trip_us(n=2000) -> float:
-    """Reference: a 64-byte message to a Python echo process over a raw pty and back."""
+@contextmanager
+def one_core():
+    """This process pinned to one core (restored after); yields the core.  The round-trip
+    benchmark pins its peers there too: where the two ends of a round trip run (one core,
+    or two) sets its cost more than anything else, so both figures of a pair must be
+    taken with the same placement."""
+    old = os.sched_getaffinity(0)
+    core = min(old)
+    os.sched_setaffinity(0, {core})
+    try:
+        yield core
+    finally:
+        os.sched_setaffinity(0, old)
+
+
+@contextmanager
+def pty_echo(core: int):
+    """Reference: a Python echo process on a raw pty, pinned to ``core``.  Yields
+    ``round_trips(n)``, which sends a 64-byte message and waits for it back, ``n`` times."""
     import tty
 
     master, slave = os.openpty()
     tty.setraw(slave)
     echo = subprocess.Popen([sys.executable, "-c", "import os\nwhile True:\n d=os.read(0,4096)\n if not d: break\n os.write(1,d)"],
-                            stdin=slave, stdout=slave)  # fmt: skip
-    try:
-        msg = b"x" * 63 + b"\0"
-        for _ in range(100):
-            os.write(master, msg)
-            got = b""
-            while len(got) < 64:
-                got += os.read(master, 4096)
-        t = time.perf_counter()
+                            stdin=slave, stdout=slave, preexec_fn=lambda: os.sched_setaffinity(0, {core}))  # fmt: skip
+    msg = b"x" * 63 + b"\0"
+
+    def round_trips(n: int) -> None:
         for _ in range(n):
             os.write(master, msg)
-            got = b""
-            while len(got) < 64:
+            got = 0
+            while got < 64:
                 select.select([master], [], [])
-                got += os.read(master, 4096)
-        return (time.perf_counter() - t) / n * 1e6
+                got += len(os.read(master, 4096))
+
+    try:
+        round_trips(100)
+        yield round_trips
     finally:
         echo.kill()
         echo.wait()
@@ -136,10 +166,10 @@ def pty_echo_round_trip_us(n=2000) -> float:
 
 
 @contextmanager
-def emulator_process(cfg, tmp_path):
+def emulator_process(cfg, tmp_path, core: int):
     f = tmp_path / "cfg.toml"
     f.write_text(to_toml(cfg))
-    proc = subprocess.Popen([sys.executable, "-m", "servo", "emulate", "--pty", "--config", str(f)],
+    proc = subprocess.Popen([sys.executable, "-m", "servo", "emulate", "--pty", "--config", str(f), "--cpu", str(core)],
                             stdout=subprocess.PIPE, text=True)  # fmt: skip
     try:
         ready, _, _ = select.select([proc.stdout], [], [], 60)
@@ -153,27 +183,34 @@ def emulator_process(cfg, tmp_path):
 
 @pytest.mark.parametrize("d,b", [(0, 1), (8, 8)])
 def test_round_trip_over_a_pty(benchmark, d, b, tmp_path):
+    """The link's lockstep tick against the bare pty echo, in adjacent pairs (alternating
+    which goes first); the median of the per-pair ratios is asserted.  A neighbour that
+    slows the machine slows both blocks of a pair, so the ratio holds under load where
+    the two figures taken apart do not (one busy core moved the echo alone 22 -> 50 us)."""
     cfg = Config().replace(run={"duration_s": 10.0}, link={"command_latency_ticks": d, "batch": b, "watchdog_s": 5.0})
-    with emulator_process(cfg, tmp_path) as url:
+    with one_core() as core, emulator_process(cfg, tmp_path, core) as url, pty_echo(core) as echo:
         drv = SerialDriver(cfg, url)
         drv.configure()
         drv.activate()
         read, write = drv.read, drv.write
 
-        def tick():
-            read()
-            write(0.002)
+        def ticks(n: int) -> None:
+            for _ in range(n):
+                read()
+                write(0.002)
 
         try:
-            benchmark.pedantic(tick, rounds=10, iterations=400, warmup_rounds=1)
+            benchmark.pedantic(ticks, args=(16 * b,), rounds=5, iterations=1, warmup_rounds=1)  # pytest-benchmark's figure
+            pairs = paired_blocks(ticks, echo, pairs=PAIRS, quantum_a=b)
         finally:
             drv.close()
-    per_tick_us = benchmark.stats.stats.median * 1e6
-    ref = pty_echo_round_trip_us()
-    benchmark.extra_info.update(per_tick_us=per_tick_us, pty_echo_us=ref, ratio_to_pty_echo=per_tick_us / ref)
+    per_tick_us, echo_us, ratio = pairs.a_ns / 1e3, pairs.b_ns / 1e3, pairs.ratio  # per tick / per echo round trip
+    benchmark.extra_info.update(per_tick_us=per_tick_us, pty_echo_us=echo_us, ratio_to_pty_echo=ratio)
     print(f"\nd={d} b={b}: lockstep tick through the emulator over a pty {per_tick_us:.1f} us; "
-          f"bare pty echo round trip {ref:.1f} us; ratio {per_tick_us / ref:.2f}")
+          f"bare pty echo round trip {echo_us:.1f} us; median ratio of {PAIRS} adjacent pairs {ratio:.2f}")
     assert drv.board_stats is not None and drv.board_stats["faults"] == 0
-    # budget (measured 1.9 and 0.3): an unbatched tick costs at most 4 bare round trips
-    # (the rest is the two Python ends); batching amortises the round trip
-    assert per_tick_us / ref < (4.0 if b == 1 else 1.0)
+    # budget: both ends pinned to one core, the median pair ratio measured 3.3-3.7 and
+    # 0.66-0.79, idle and with one or two busy cores (bench/README.md); an unbatched tick
+    # costs at most 5.5 bare round trips (the rest is the two Python ends), a batched one
+    # at most 1.2: the bounds sit ~1.5x above the worst loaded figure
+    assert ratio < (5.5 if b == 1 else 1.2)

@@ -8,6 +8,10 @@
   many short pairs; the median of the per-pair ratios.  Each pair runs under the same
   machine conditions, so a ratio stays meaningful on a loaded host where absolute times
   move by 2x.
+* :func:`paired_blocks`: the same for per-call costs of very different sizes: each side
+  runs a block of calls sized so that both blocks take the same short time (~250 us,
+  far below a scheduler time slice), so a preemption is as likely to land in one block
+  as in the other and rarely lands in either.
 """
 from __future__ import annotations
 
@@ -59,3 +63,32 @@ def paired(a, b, pairs: int = 101) -> Paired:
             t0 = clock(); b(); t1 = clock(); a(); t2 = clock()  # noqa: E702
             tb[i], ta[i] = t1 - t0, t2 - t1
     return Paired(float(np.median(ta)), float(np.median(tb)), float(np.median(ta / tb)))
+
+
+def paired_blocks(a, b, pairs: int = 101, block_ns: float = 250e3, quantum_a: int = 1,
+                  quantum_b: int = 1) -> Paired:  # fmt: skip
+    """Per-call medians (ns) of ``a(n)`` and ``b(n)`` (each runs ``n`` calls) and the
+    median of the per-pair ratios of their per-call times, from ``pairs`` adjacent pairs
+    of blocks calibrated to take ``block_ns`` each.  ``quantum_*``: block sizes are
+    multiples of this (e.g. the batch of a link, so every block ends on a frame)."""
+
+    def size(fn, quantum: int) -> int:
+        n, t = quantum, 0
+        while True:  # grow until one block is measurable, then scale to the target
+            t0 = time.perf_counter_ns()
+            fn(n)
+            t = time.perf_counter_ns() - t0
+            if t >= block_ns / 4 or n >= 1 << 20:
+                break
+            n *= 4
+        probes = [t]
+        for _ in range(4):
+            t0 = time.perf_counter_ns()
+            fn(n)
+            probes.append(time.perf_counter_ns() - t0)
+        per_call = float(np.median(probes)) / n
+        return max(quantum, int(round(block_ns / per_call / quantum)) * quantum)
+
+    na, nb = size(a, quantum_a), size(b, quantum_b)
+    r = paired(lambda: a(na), lambda: b(nb), pairs)
+    return Paired(r.a_ns / na, r.b_ns / nb, r.ratio * nb / na)
