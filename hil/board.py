@@ -11,6 +11,19 @@ Sessions::
     any fault (corrupt or out-of-sequence frame, watchdog, missed deadline, bad command)
       --> FAULTED: zero current, FAULT + STATS sent; only HELLO (or STOP) is answered.
 
+The safe state (zero current) holds in every state but two, and those two are bounded:
+
+* IDLE, HELLO, FAULTED: zero current.
+* READY: the holding current the drive starts with (reported in READY, so that the
+  controller takes over bumplessly), for at most ``max(ready_timeout_s, watchdog)``
+  without a frame from the host; then a WATCHDOG fault.  STOP and a closed connection
+  end it at once.
+* ACTIVE: the host's commands, for at most the watchdog time without a COMMANDS frame.
+
+While a session is READY or ACTIVE a HELLO is refused (ignored, counted in
+:attr:`Board.refused_hellos`, logged): the board belongs to the host that configured it
+until that host's STOP, a fault, or its watchdog.
+
 The drive is a :class:`~servo.simdriver.SimDriver` built afresh at every CONFIG from
 the emulator's config (same seed, same disturbance array), with *no* latency of its own:
 the board applies the command of sample ``k`` at tick ``k + d`` itself, and the command
@@ -42,6 +55,9 @@ RING = 2048
 """Command ring size (ticks); > MAX_LATENCY + 2*MAX_BATCH."""
 OUT_LIMIT = 1 << 18
 """Bytes of unsent output beyond which the host is taken as not reading (OVERFLOW)."""
+READY_TIMEOUT_S = 2.0
+"""Longest time (s) a READY board holds its drive without hearing from the host (or the
+session's watchdog, if longer): the host prepares its run between READY and START."""
 
 
 class Board:
@@ -52,7 +68,7 @@ class Board:
     """
 
     def __init__(self, cfg: Config, lockstep: bool = True, name: str = "servo emulator",
-                 log: Callable[[str], None] | None = None):  # fmt: skip
+                 log: Callable[[str], None] | None = None, ready_timeout_s: float = READY_TIMEOUT_S):  # fmt: skip
         self.cfg = cfg
         self.lockstep = lockstep
         self.name = name
@@ -74,6 +90,9 @@ class Board:
         self._queued = ()
         self.sim: SimDriver | None = None
         self.last_fault: P.Fault | None = None
+        self.refused_hellos = 0
+        self._ready_timeout_ns = int(ready_timeout_s * 1e9)
+        self._ready_ns = 0  # when READY was sent, or the host's last frame since
         self.tx_seq = 0
         self.rx_seq = 0
         self._ring_tick = [-1] * RING
@@ -112,21 +131,40 @@ class Board:
 
     def disconnect(self, now_ns: int) -> None:
         """The transport lost the host (TCP closed): safe state, session over."""
-        if self.state == ACTIVE:
+        if self.state in (READY, ACTIVE):
             self.stats["faults"] += 1
             self._safe()
-            self.log(f"session {self.session}: host disconnected at tick {self.k}; drive at zero current")
+            where = f"at tick {self.k}" if self.state == ACTIVE else "before START"
+            self.log(f"session {self.session}: host disconnected {where}; drive at zero current")
         self._end_session()
         self.state = IDLE
         self.out.clear()
         self.decoder.reset()
 
     # ------------------------------------------------------------------ time
+    def watchdog_due_ns(self) -> int | None:
+        """When :meth:`check_watchdog` must run next (ns, the clock of ``now_ns``), or None
+        while the drive is at zero current."""
+        if self.state == ACTIVE:
+            return self._last_cmd_ns + self._watchdog_ns
+        if self.state == READY:
+            return self._ready_ns + max(self._ready_timeout_ns, self._watchdog_ns)
+        return None
+
     def check_watchdog(self, now_ns: int) -> None:
-        if self.state == ACTIVE and now_ns - self._last_cmd_ns > self._watchdog_ns:
-            self.stats["watchdog_trips"] += 1
+        """Fault if the host has been silent too long while the drive is energised: no
+        COMMANDS frame for the watchdog time while ACTIVE, no frame at all for the ready
+        timeout while READY."""
+        due = self.watchdog_due_ns()
+        if due is None or now_ns <= due:
+            return
+        self.stats["watchdog_trips"] += 1
+        if self.state == ACTIVE:
             ms = (now_ns - self._last_cmd_ns) / 1e6
             self._fault(P.FAULT_WATCHDOG, f"no command for {ms:.1f} ms (watchdog {self._watchdog_ns / 1e6:g} ms)")
+        else:
+            s = (now_ns - self._ready_ns) / 1e9
+            self._fault(P.FAULT_WATCHDOG, f"no START or STOP for {s:.1f} s after READY: the host is gone")
 
     def advance(self, now_ns: int) -> None:
         """Lockstep: step as far as the received commands allow, sending each sample."""
@@ -259,6 +297,8 @@ class Board:
         if kind == P.HELLO:
             self._on_hello(seq, msg)
             return
+        if self.state == READY:
+            self._ready_ns = now_ns  # the host is there
         if self.state in (IDLE, FAULTED):
             if kind == P.STOP and self.state == FAULTED:
                 self._send(P.stats(self.tx_seq, self.stats))
@@ -272,7 +312,7 @@ class Board:
         if kind == P.COMMANDS and self.state == ACTIVE:
             self._on_commands(msg, now_ns)
         elif kind == P.CONFIG and self.state in (HELLO, READY):
-            self._on_config(msg)
+            self._on_config(msg, now_ns)
         elif kind == P.START and self.state == READY:
             self._on_start(now_ns)
         elif kind == P.STOP:
@@ -281,9 +321,13 @@ class Board:
             self._fault(P.FAULT_PROTOCOL, f"{P.TYPE_NAMES.get(kind, hex(kind))} is not expected while {self.state}")
 
     def _on_hello(self, seq: int, msg: P.Hello) -> None:
-        if self.state == ACTIVE:
-            self._safe()
-            self.log(f"session {self.session}: a new HELLO while active; drive at zero current")
+        if self.state in (READY, ACTIVE):
+            self.refused_hellos += 1
+            self.log(f"session {self.session}: a HELLO (nonce {msg.nonce:#010x}) refused: a session is "
+                     f"{'running' if self.state == ACTIVE else 'configured'}; it ends with its host's STOP, "
+                     "a fault or its watchdog")  # fmt: skip
+            return
+        self._safe()
         self._end_session()
         self.out.clear()
         self.session += 1
@@ -316,7 +360,7 @@ class Board:
             return f"the host expects {m.sample_rate_hz:g} Hz, the board samples at {self.rate:g} Hz"
         return None
 
-    def _on_config(self, m: P.ConfigMsg) -> None:
+    def _on_config(self, m: P.ConfigMsg, now_ns: int) -> None:
         problem = self._config_problem(m)
         if problem:
             self._fault(P.FAULT_CONFIG, problem)
@@ -335,6 +379,7 @@ class Board:
         self._u_start = self._u_last = sim.plant.u_hold
         x, v = sim.read()
         self.state = READY
+        self._ready_ns = now_ns
         self._send(P.ready(self.tx_seq, P.Ready(m, x, v, sim.applied_current)))
 
     def _on_start(self, now_ns: int) -> None:
@@ -375,8 +420,11 @@ class Board:
             self.advance(now_ns)
 
     def _on_stop(self) -> None:
-        if self.state == ACTIVE:
-            self._safe()
+        was = self.state
+        self._safe()
+        if was == READY:
+            self.log(f"session {self.session}: stopped by the host before START; drive at zero current")
+        if was == ACTIVE:
             first = [t for t in self.missed_at if t >= 0]
             self.log(f"session {self.session}: stopped by the host after {self.k} ticks; drive at zero current; "
                      + ", ".join(f"{k} {v}" for k, v in self.stats.items() if v and k != "ticks")

@@ -158,8 +158,9 @@ def serve(board: Board, transport, realtime: bool = False, stop: threading.Event
                 transport.send(board.out)
                 continue
             timeout = poll_s
-            if board.state == ACTIVE:
-                timeout = min(poll_s, max(0.0, (board._last_cmd_ns + board._watchdog_ns - clock()) / 1e9))
+            due = board.watchdog_due_ns()
+            if due is not None:
+                timeout = min(poll_s, max(0.0, (due - clock()) / 1e9))
             fd = transport.fileno()
             ready, _, _ = select.select([fd], [fd] if board.out else [], [], timeout)
             now = clock()

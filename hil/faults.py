@@ -122,7 +122,7 @@ class FaultySerial(serial.SerialBase):
         self.tx = FrameFaults({k[:-3]: v for k, v in opts.items() if k.endswith("_tx") and k != "pause_tx"})
         self._ready = bytearray()
         self._vanished = False
-        self._inner = serial.serial_for_url(inner_url, baudrate=self._baudrate, timeout=0,
+        self._inner = serial.serial_for_url(inner_url, baudrate=self._baudrate, timeout=0, exclusive=self._exclusive,
                                             write_timeout=self._write_timeout)  # fmt: skip
         self.is_open = True
 

@@ -4,7 +4,9 @@ Any URL ``serial.serial_for_url`` knows works: a device path (``/dev/ttyUSB0``, 
 pseudo-terminal such as ``/dev/pts/5``), ``socket://host:port``, ``loop://``, and
 ``faulty://...`` (:mod:`hil.faults`, registered here through pyserial's
 ``protocol_handler_packages``).  The port is opened non-blocking (``timeout=0``): the
-driver waits with ``select`` on :meth:`fileno` where the port has one.
+driver waits with ``select`` on :meth:`fileno` where the port has one.  It is opened
+exclusively (pyserial's ``exclusive=True``: an advisory ``flock`` on a device or a
+pseudo-terminal), so a second host on the same board is refused at open.
 """
 from __future__ import annotations
 
@@ -24,10 +26,13 @@ def open_port(url: str, baudrate: int, write_timeout_s: float):
     """Open ``url``; returns ``(port, notes)``, ``notes`` saying what low-latency mode the
     OS granted.  Raises :class:`DriverError` (one line) if it cannot be opened."""
     try:
-        port = serial.serial_for_url(url, baudrate=baudrate, timeout=0, write_timeout=write_timeout_s)
+        port = serial.serial_for_url(url, baudrate=baudrate, timeout=0, write_timeout=write_timeout_s, exclusive=True)
     except ValueError as exc:
         raise DriverError(f"link: bad port URL {url!r}: {exc}") from None
     except (serial.SerialException, OSError) as exc:
+        if "exclusively lock" in str(exc):
+            raise DriverError(f"link: {url} is in use by another program (its exclusive lock was refused); "
+                              "one host per board") from None  # fmt: skip
         raise DriverError(f"link: cannot open {url}: {exc}") from None
     return port, low_latency(port)
 

@@ -13,7 +13,9 @@ Lifecycle (see :mod:`servo.driver`):
   the frame is complete.  The board applies it at tick k+d.
 * ``deactivate``: STOP (zero current); waits briefly for the board's STATS.  Never
   raises: on a dead link the board's watchdog does the rest.
-* ``close``: closes the port.
+* ``close``: STOP if the session begun by HELLO is not stopped yet (a host that fails or
+  quits between HELLO and START leaves no board holding its current), then closes the
+  port.  ``configure`` failing after HELLO closes the same way.
 
 Strict link: a corrupt, malformed, skipped, repeated or stale frame, a FAULT from the
 board, silence for ``link.timeout_s``, or the port vanishing raises
@@ -65,6 +67,7 @@ class SerialDriver(Driver):
         self.notes: list[str] = []
         self._port = None
         self._dead = False
+        self._session = False  # HELLO sent and no STOP since
         self._dec = FrameDecoder(mark_errors=True)
         self._frames: deque = deque()
         self._tx_seq = 0
@@ -91,6 +94,7 @@ class SerialDriver(Driver):
         except (serial.SerialException, OSError):
             pass
         nonce = int.from_bytes(os.urandom(4), "little")
+        self._session = True  # from here on, every exit path sends STOP
         self._send(P.hello(0, nonce), lead=True)
         info, seq = self._await_hello_answer(nonce)
         self.board_info = info
@@ -132,12 +136,17 @@ class SerialDriver(Driver):
 
     def _on_activate(self) -> None:
         self._ri, self._answered, self._k_frame, self._ci, self._cmd_tick = self.b, True, 0, 0, 0
+        self._session = True
         self._send(P.start(self._tx_seq))
 
     def _on_deactivate(self) -> None:
+        self._stop_session()
+
+    def _stop_session(self) -> None:
         """STOP, then collect the board's STATS for a moment.  Best effort, never raises."""
-        if self._dead or self._port is None:
+        if not self._session or self._dead or self._port is None:
             return
+        self._session = False
         try:
             self._send(P.stop(self._tx_seq))
             deadline = time.perf_counter_ns() + int(min(self.timeout_s, STOP_WAIT_S) * 1e9)
@@ -155,6 +164,7 @@ class SerialDriver(Driver):
             return
 
     def _on_close(self) -> None:
+        self._stop_session()  # a session configured but never activated (or a failed handshake)
         if self._port is not None:
             try:
                 self._port.close()
@@ -334,7 +344,7 @@ class SerialDriver(Driver):
         if self._dead:
             raise DriverError(f"link: the port {self.url} vanished during the handshake")
         raise DriverError(f"link: no answer to HELLO from {self.url} within {self._handshake_s:g} s: "
-                          "is a board or `servo emulate` there?")  # fmt: skip
+                          "is a board or `servo emulate` there, and not busy with another host's session?")  # fmt: skip
 
     # ---------------------------------------------------------------- reporting
     def report(self) -> dict:

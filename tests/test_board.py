@@ -205,18 +205,85 @@ def test_stop_answers_stats_and_a_new_config_starts_the_drive_afresh():
     assert board.state == ACTIVE and again[0].values == host.first.values  # same initial state and noise
 
 
-def test_bytes_outside_a_session_are_ignored_and_hello_restarts_a_running_board():
+def test_bytes_outside_a_session_are_ignored_and_a_hello_is_refused_while_a_session_holds_the_board():
     board = Board(CFG)
     board.feed(b"\x13\x37 line noise \x00" + encode_frame(P.commands(0, 0, (1.0,))), 0)
     assert board.state == IDLE and not board.out and board.decoder.errors == 1
     host = Host(board)
-    host.start()
+    host.start(watchdog_ms=5)
+    host.command(0, 0.01, now=1 * MS)
     host.recv()
-    assert board.state == ACTIVE
-    host.seq = 0
-    host.send(lambda s: P.hello(s, 9))
+    assert board.state == ACTIVE and board.applied_current == 0.01
+    other = Host(board)
+    other.send(lambda s: P.hello(s, 9), now=2 * MS)  # a second host, while the first one runs
+    assert board.state == ACTIVE and board.applied_current == 0.01 and board.refused_hellos == 1
+    assert not board.out  # nothing sent: the running host's stream is not disturbed
+    board.check_watchdog(7 * MS)  # the first host falls silent: its watchdog ends the session
+    assert board.state == FAULTED and board.applied_current == 0.0
+    host.recv()
+    other.seq = 0
+    other.send(lambda s: P.hello(s, 9), now=8 * MS)
     assert board.state == HELLO and board.applied_current == 0.0
-    assert host.recv()[0].nonce == 9
+    assert other.recv()[0].nonce == 9
+
+
+def _ready(watchdog_ms=5, ready_timeout_s=0.5):
+    board = Board(CFG, ready_timeout_s=ready_timeout_s)
+    host = Host(board)
+    host.send(lambda s: P.hello(s, 1))
+    host.send(lambda s: P.config(s, P.ConfigMsg(1, 1, 0, watchdog_ms * 1000, 0, board.rate)))
+    assert board.state == READY and host.recv()[-1].i == board.applied_current
+    return board, host
+
+
+def test_a_ready_board_holds_its_drive_only_until_the_ready_timeout():
+    board, host = _ready(watchdog_ms=5, ready_timeout_s=0.5)
+    u_hold = board.applied_current
+    assert u_hold != 0.0  # READY holds the drive with the holding current (bumpless start)
+    assert board.watchdog_due_ns() == 500 * MS
+    board.check_watchdog(500 * MS)
+    assert board.state == READY and board.applied_current == u_hold
+    board.check_watchdog(500 * MS + 1)  # the host never started nor stopped: it is gone
+    assert board.state == FAULTED and board.applied_current == 0.0 and board.watchdog_due_ns() is None
+    fault, stats = host.recv()
+    assert fault.code == P.FAULT_WATCHDOG and "after READY" in fault.text
+    assert stats.counters["watchdog_trips"] == 1
+
+
+def test_the_ready_timeout_is_at_least_the_sessions_watchdog_and_restarts_on_any_host_frame():
+    board, host = _ready(watchdog_ms=2000, ready_timeout_s=0.5)
+    assert board.watchdog_due_ns() == 2000 * MS
+    board, host = _ready(watchdog_ms=5, ready_timeout_s=0.5)
+    host.send(lambda s: P.config(s, P.ConfigMsg(1, 1, 0, 5000, 0, board.rate)), now=400 * MS)  # reconfigured
+    assert board.state == READY and board.watchdog_due_ns() == 900 * MS
+
+
+@pytest.mark.parametrize("how", ["stop", "disconnect"])
+def test_stop_or_a_lost_host_in_ready_is_the_safe_state(how):
+    board, host = _ready()
+    assert board.applied_current != 0.0
+    if how == "stop":
+        host.send(P.stop)
+        assert board.state == HELLO and isinstance(host.recv()[-1], P.Stats)
+    else:
+        board.disconnect(0)
+        assert board.state == IDLE and board.stats["faults"] == 1
+    assert board.applied_current == 0.0 and board.watchdog_due_ns() is None
+
+
+def test_safe_state_in_every_board_state():
+    """Zero current in IDLE, HELLO and FAULTED; READY and ACTIVE have a deadline."""
+    board = Board(CFG)
+    host = Host(board)
+    assert board.state == IDLE and board.applied_current == 0.0 and board.watchdog_due_ns() is None
+    host.send(lambda s: P.hello(s, 1))
+    assert board.state == HELLO and board.applied_current == 0.0 and board.watchdog_due_ns() is None
+    host.send(lambda s: P.config(s, P.ConfigMsg(1, 1, 0, 1000, 0, board.rate)))
+    assert board.state == READY and board.watchdog_due_ns() is not None
+    host.send(P.start)
+    assert board.state == ACTIVE and board.watchdog_due_ns() is not None
+    host.send(P.stop)
+    assert board.state == HELLO and board.applied_current == 0.0 and board.watchdog_due_ns() is None
 
 
 def test_a_closed_connection_is_the_safe_state():

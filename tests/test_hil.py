@@ -305,3 +305,62 @@ def test_emulate_rejects_bad_options_in_one_line(cli):
     assert rc == 2 and cap.err.strip() == "servo: error: emulate: --sessions must be >= 1"
     rc, cap = cli("emulate", "--set", "link.batch=4")  # d = 0 < batch - 1
     assert rc == 2 and "link.command_latency_ticks must be >= link.batch - 1" in cap.err
+
+
+# ---------------------------------------------------------------- safe state in every board state (issue 9)
+
+
+def _wait_session_line(proc, needle: str, timeout: float = 10.0) -> str:
+    """Read the emulator's stdout until a line containing ``needle`` (or fail)."""
+    end = time.monotonic() + timeout
+    seen = []
+    while time.monotonic() < end:
+        ready, _, _ = select.select([proc.stdout], [], [], max(0.0, end - time.monotonic()))
+        if not ready:
+            break
+        line = proc.stdout.readline()
+        if not line:
+            break
+        seen.append(line)
+        if needle in line:
+            return line
+    raise AssertionError(f"no emulator line with {needle!r}; saw {seen}")
+
+
+@pytest.mark.parametrize("case", ["out_under_a_file", "ready_arrives_corrupt"])
+def test_a_host_that_quits_between_config_and_start_leaves_the_board_at_zero_current(case, tmp_path):
+    """The red-team reproductions: ``servo run --port`` exits after the handshake (an output
+    folder it cannot create) or during it (READY corrupt).  The host's STOP puts the
+    board's drive at zero current at once; it does not wait for a timeout."""
+    cfg_file = tmp_path / "cfg.toml"
+    cfg_file.write_text(to_toml(FAULT_CFG))
+    blocker = tmp_path / "a-file"
+    blocker.write_text("")
+    with emulator("--pty", "--config", str(cfg_file)) as (emu, url):
+        port = url if case == "out_under_a_file" else f"faulty://{url}?corrupt_rx=2"
+        r = subprocess.run(servo_cmd("run", "--config", str(cfg_file), "--port", port, "--out", str(blocker / "out")),
+                           capture_output=True, text=True, timeout=60)  # fmt: skip
+        assert r.returncode != 0 and r.stderr.count("\n") == 1 and r.stderr.startswith("servo: error:"), r.stderr
+        line = _wait_session_line(emu, "stopped by the host before START", timeout=5)
+        assert "drive at zero current" in line
+
+
+def test_a_second_host_is_refused_while_the_first_holds_the_board(lockstep_emulator, tmp_path):
+    url, _ = lockstep_emulator
+    first = SerialDriver(CFG, url)
+    first.configure()
+    try:
+        second = SerialDriver(CFG, url)
+        with pytest.raises(DriverError, match=r"in use by another program .* one host per board"):
+            second.configure()
+        assert second.state is DriverState.CLOSED
+        first.activate()  # the first session is undisturbed
+        for _ in range(50):
+            first.read()
+            first.write(2e-3)
+    finally:
+        first.close()
+    assert first.board_stats is not None and first.board_stats["ticks"] >= 50 and first.board_stats["faults"] == 0
+    again = SerialDriver(CFG, url)  # after the first host's STOP and close, the board is free
+    again.configure()
+    again.close()
