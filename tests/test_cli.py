@@ -67,3 +67,18 @@ def test_bad_input_is_one_line_and_a_nonzero_exit(args, needle, tmp_path):
     assert r.stderr.count("\n") == 1 and r.stderr.startswith("servo: error:"), r.stderr
     assert needle in r.stderr
     assert not (tmp_path / "o").exists()  # nothing written on bad input
+
+
+@pytest.mark.parametrize("command", [["run", "--duration", "0.01"], ["identify", "--simulate"],
+                                     ["hysteresis", "--simulate"]])  # fmt: skip
+@pytest.mark.parametrize("where", ["under_a_file", "on_a_file"])
+def test_an_output_path_the_os_refuses_is_one_line_naming_it_and_exit_2(command, where, tmp_path):
+    """The user's environment, not a bug: no 'internal error', no exit 70 (issue 9.3)."""
+    blocker = tmp_path / "a-file"
+    blocker.write_text("keep me")
+    out = blocker / "out" if where == "under_a_file" else blocker
+    r = servo(*command, "--out", str(out))
+    assert r.returncode == 2, r.stderr
+    assert r.stderr.count("\n") == 1 and r.stderr.startswith("servo: error: "), r.stderr
+    assert str(blocker) in r.stderr and ("Not a directory" in r.stderr or "File exists" in r.stderr), r.stderr
+    assert blocker.read_text() == "keep me"

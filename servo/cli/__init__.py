@@ -2,9 +2,11 @@
 
 Each subcommand lives in its own module here with ``register(subparsers)``; the module
 names are listed in :data:`COMMANDS`.  Every user-facing failure is one line on stderr
-and a non-zero exit: ``servo: error: ...`` (exit 2; 3 for drive/link failures), Ctrl-C or
-SIGTERM ``servo: interrupted`` (exit 130), and a bug ``servo: internal error: ...``
-(exit 70; ``SERVO_DEBUG=1`` shows the traceback).
+and a non-zero exit: ``servo: error: ...`` (exit 2; 3 for drive/link failures; an
+operating-system error such as an output path under a file, a read-only or full disk is
+``servo: error: PATH: CAUSE``, exit 2), Ctrl-C or SIGTERM ``servo: interrupted`` (exit
+130), and a bug ``servo: internal error: ...`` (exit 70; ``SERVO_DEBUG=1`` shows the
+traceback).
 """
 from __future__ import annotations
 
@@ -56,6 +58,15 @@ def build_parser() -> Parser:
     return parser
 
 
+def os_error_line(exc: OSError) -> str:
+    """One line naming the path and the cause of an operating-system error."""
+    cause = exc.strerror or str(exc) or type(exc).__name__
+    if exc.filename is None:
+        return cause
+    path = f"{exc.filename} -> {exc.filename2}" if exc.filename2 else f"{exc.filename}"
+    return f"{path}: {cause}"
+
+
 def _sigterm(signum, frame):
     raise KeyboardInterrupt
 
@@ -77,6 +88,9 @@ def main(argv: list[str] | None = None) -> int:
         return 130
     except BrokenPipeError:
         return 0
+    except OSError as exc:  # the user's environment (a path, a full or read-only disk), not a bug
+        print(f"servo: error: {os_error_line(exc)}", file=sys.stderr)
+        return 2
     except Exception as exc:  # a bug: still one line unless asked for more
         if os.environ.get("SERVO_DEBUG"):
             raise
