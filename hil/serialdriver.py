@@ -331,11 +331,14 @@ class SerialDriver(Driver):
 
     def _await_hello_answer(self, nonce: int) -> tuple[P.Info, int]:
         deadline = time.perf_counter_ns() + int(self._handshake_s * 1e9)
+        corrupt0 = self._dec.crc_errors + self._dec.framing_errors + self._dec.oversize
+        malformed = 0
         for body in self._frames_until(deadline):
             try:
                 kind, seq, msg = P.parse(body)
             except P.Malformed:
                 self.stats["ignored"] += 1
+                malformed += 1
                 continue
             if kind == P.INFO and msg.nonce == nonce:
                 self.stats["rx_frames"] += 1
@@ -343,6 +346,11 @@ class SerialDriver(Driver):
             self.stats["ignored"] += 1
         if self._dead:
             raise DriverError(f"link: the port {self.url} vanished during the handshake")
+        corrupt = self._dec.crc_errors + self._dec.framing_errors + self._dec.oversize - corrupt0
+        if corrupt or malformed:
+            raise DriverError(f"link: no valid answer to HELLO from {self.url} within {self._handshake_s:g} s: "
+                              f"{corrupt} corrupt and {malformed} malformed frame(s) came instead (line noise, "
+                              "a wrong baud rate, or not this protocol)")  # fmt: skip
         raise DriverError(f"link: no answer to HELLO from {self.url} within {self._handshake_s:g} s: "
                           "is a board or `servo emulate` there, and not busy with another host's session?")  # fmt: skip
 

@@ -364,3 +364,26 @@ def test_a_second_host_is_refused_while_the_first_holds_the_board(lockstep_emula
     again = SerialDriver(CFG, url)  # after the first host's STOP and close, the board is free
     again.configure()
     again.close()
+
+
+def test_a_corrupt_answer_to_hello_is_reported_as_corrupt_not_as_silence():
+    board = Board(FAULT_CFG)
+    with start_in_thread(board) as url:
+        drv = SerialDriver(FAULT_CFG, f"faulty://{url}?corrupt_rx=1")  # INFO, the board's first frame
+        with pytest.raises(DriverError, match=r"no valid answer to HELLO .* 1 corrupt and 0 malformed frame") as err:
+            drv.configure()
+    assert "\n" not in str(err.value) and drv.state is DriverState.CLOSED
+
+
+def test_an_emulator_interrupted_mid_session_says_which_session(lockstep_emulator, tmp_path):
+    cfg_file = tmp_path / "cfg.toml"
+    cfg_file.write_text(to_toml(CFG))
+    with emulator("--pty", "--config", str(cfg_file)) as (emu, url):
+        drv = SerialDriver(CFG, url)
+        drv.configure()
+        drv.activate()
+        drv.read()
+        emu.send_signal(signal.SIGINT)
+        line = _wait_session_line(emu, "stopped after", timeout=10)
+        drv.close()
+    assert "stopped after 1 session(s), session 1 interrupted in state active; drive at zero current" in line

@@ -65,7 +65,9 @@ def handle(args: argparse.Namespace) -> int:
                 say(note)
             serve(board, transport, realtime=args.realtime, sessions=args.sessions)
     except KeyboardInterrupt:
-        say(f"stopped after {board.sessions_ended} session(s); drive at zero current")
+        open_ = board.session - board.sessions_ended  # a session stopped by this interrupt
+        during = f", session {board.session} interrupted in state {board.state}" if open_ else ""
+        say(f"stopped after {board.session} session(s){during}; drive at zero current")
         return 0
     finally:
         transport.close()
