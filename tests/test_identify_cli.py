@@ -83,3 +83,30 @@ def test_hysteresis_command_on_its_own_recording(tmp_path, capsys):
     capsys.readouterr()
     assert main(["hysteresis", str(out / "recording_small.csv"), "--columns", "v=nope", "--out", str(tmp_path / "x")]) == 2
     assert "has no column 'nope'" in capsys.readouterr().err
+
+
+@pytest.fixture(scope="module")
+def square_wave_csv(tmp_path_factory):
+    """A recording of large square-wave motion (the identify experiment): no pre-sliding loop."""
+    out = tmp_path_factory.mktemp("sq")
+    r = servo("identify", "--simulate", "--duration", "0.4", "--out", str(out))
+    assert r.returncode == 0, r.stderr
+    return out / "recording.csv"
+
+
+@pytest.mark.parametrize(
+    "args,needle",
+    [
+        (["hysteresis", "{rec}"], "the Dahl fit cannot be trusted: sigma, Ha, alpha, c not identifiable"),
+        (["hysteresis", "{rec}", "--deadband", "-1"], "direction deadband must be a speed >= 0 m/s"),
+        (["identify", "{rec}", "--force-lag", "1e9"], "force lag 1e+09 s is more than 10% of the recording"),
+    ],
+)
+def test_a_result_that_cannot_be_trusted_is_an_error_not_a_success(square_wave_csv, args, needle, tmp_path):
+    """Issue 9.5: these were reported as results (+- inf, 'Infinity' in summary.json, a
+    relative error of 0.0000 %, a negative deadband accepted)."""
+    out = tmp_path / "o"
+    r = servo(*[a.format(rec=square_wave_csv) for a in args], "--out", str(out))
+    assert r.returncode == 2, r.stdout + r.stderr
+    assert r.stderr.count("\n") == 1 and r.stderr.startswith("servo: error:") and needle in r.stderr, r.stderr
+    assert not out.exists()

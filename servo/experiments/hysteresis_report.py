@@ -30,7 +30,13 @@ def run_hysteresis_recording(rec: Recording, out: Path, deadband: float, fit_alp
     """Fit the Dahl model to the whole recording (and, if ``slope``, the average slope)."""
     if rec.v is None:
         raise IdentificationError("the Dahl fit needs the velocity direction: map a velocity column with --columns v=NAME")
+    if not (np.isfinite(deadband) and deadband >= 0.0):
+        raise IdentificationError(f"the direction deadband must be a speed >= 0 m/s, got {deadband:g}")
     fit = fit_dahl(rec.x, rec.v, rec.u, deadband=deadband, fit_alpha=fit_alpha, alpha=alpha)
+    problems = fit.problems()
+    if problems:  # nothing written: a result that cannot be trusted is not reported as one
+        raise IdentificationError(f"hysteresis: the Dahl fit cannot be trusted: {'; '.join(problems)}. Does the "
+                                  "recording hold back-and-forth motion within the pivot's pre-sliding range?")  # fmt: skip
     avg = average_slope(rec.t, rec.x, rec.v, rec.u, rec.dt) if slope else None
     out.mkdir(parents=True, exist_ok=True)
     _write_fit(out, rec.t, rec.x, rec.v, rec.u, fit)

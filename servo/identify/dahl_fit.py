@@ -30,6 +30,11 @@ NAMES = ("sigma", "Ha", "alpha", "c")
 UNITS = {"sigma": "A/m", "Ha": "A", "alpha": "-", "c": "A"}
 
 
+MAX_TRUSTED_ERROR_PCT = 50.0
+"""A Dahl fit that leaves more of the loop's variation unexplained is not reported as a
+result (:meth:`DahlFit.problems`); the simulated drive's fits leave a few percent."""
+
+
 @dataclass(frozen=True)
 class DahlFit:
     """Fitted Dahl parameters.
@@ -55,6 +60,18 @@ class DahlFit:
     @property
     def dahl_length(self) -> float:
         return self.params["Ha"] / self.params["sigma"]
+
+    def problems(self) -> list[str]:
+        """Why this fit cannot be trusted, one phrase each (empty: no reason found):
+        parameters whose uncertainty is not finite (not identifiable from these data), or
+        a model that explains less than half of the loop's variation."""
+        out = []
+        bad = [k for k, v in self.std.items() if not np.isfinite(v)]
+        if bad:
+            out.append(f"{', '.join(bad)} not identifiable from these data (infinite uncertainty)")
+        if not self.rel_error_pct <= MAX_TRUSTED_ERROR_PCT:
+            out.append(f"the Dahl model leaves {self.rel_error_pct:.1f} % of the loop's variation unexplained")
+        return out
 
     def as_dict(self) -> dict:
         return {
