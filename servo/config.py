@@ -54,7 +54,7 @@ class DriveConfig:
     """The simulated VCM drive (PHYSICS.md section 5).  Forces are in amperes of VCM current
     (force constant 1 N/A at the stroke centre), positions in metres at the head."""
 
-    J: float = P(1.0e-3, "A*s^2/m", "normalised inertia (equivalent mass)", 0.0, None, lo_open=True)
+    J: float = P(1.0e-3, "A*s^2/m", "normalised inertia (equivalent mass)", 1e-9, 1e3)
     B: float = P(2.0e-3, "A*s/m", "viscous friction", 0.0)
     sigma: float = P(320.0, "A/m", "Dahl pre-sliding stiffness (slope at a turnaround)", 0.0, None, lo_open=True)
     Ha: float = P(1.0e-3, "A", "Dahl asymptote = pivot sliding friction level", 0.0, None, lo_open=True)
@@ -215,6 +215,8 @@ def _check_number(key: str, value: Any, m: dict, kind: type) -> Any:
         raise ConfigError(f"config: {key} must be an integer, got {value!r}")
     if not math.isfinite(value):
         raise ConfigError(f"config: {key} must be finite, got {value!r}")
+    if abs(value) > MAGNITUDE_MAX and (m["lo"] is None or m["hi"] is None):
+        raise ConfigError(f"config: {key} = {value!r} is beyond any physical value ({_range_text(m)}, {m['unit']})")
     lo, hi = m["lo"], m["hi"]
     if lo is not None and (value < lo or (m["lo_open"] and value == lo)):
         raise ConfigError(f"config: {key} = {value!r} is out of range ({_range_text(m)}, {m['unit']})")
@@ -223,13 +225,19 @@ def _check_number(key: str, value: Any, m: dict, kind: type) -> Any:
     return kind(value)
 
 
-def _range_text(m: dict) -> str:
-    parts = []
-    if m["lo"] is not None:
-        parts.append(f"{'>' if m['lo_open'] else '>='} {m['lo']:g}")
-    if m["hi"] is not None:
-        parts.append(f"{'<' if m['hi_open'] else '<='} {m['hi']:g}")
-    return " and ".join(parts) if parts else "any"
+MAGNITUDE_MAX = 1e12
+"""Bound on the magnitude of a number field whose range has no explicit bound on that
+side: no servo quantity in SI units comes near it, and values near 1e300 overflow the
+plant's matrix exponentials and the fits (warnings, NaN results)."""
+
+
+def _range_text(m: dict, number: bool = True) -> str:
+    """The valid range of a field, in words (``any`` for a flag)."""
+    if not number:
+        return "true / false"
+    lo = f"{'>' if m['lo_open'] else '>='} {m['lo']:g}" if m["lo"] is not None else f">= {-MAGNITUDE_MAX:g}"
+    hi = f"{'<' if m['hi_open'] else '<='} {m['hi']:g}" if m["hi"] is not None else f"<= {MAGNITUDE_MAX:g}"
+    return f"{lo} and {hi}"
 
 
 def _unknown(kind: str, name: str, known) -> ConfigError:
@@ -334,7 +342,7 @@ def to_toml(cfg: Config | None = None, comments: bool = True) -> str:
         for f in fields(cls):
             m = f.metadata
             if comments:
-                rng = f"one of {', '.join(m['choices'])}" if m["choices"] else _range_text(m)
+                rng = f"one of {', '.join(m['choices'])}" if m["choices"] else _range_text(m, f.type != "bool")
                 out.append(f"# {m['doc']} [{m['unit']}] ({rng})")
             out.append(f"{f.name} = {_toml_value(getattr(section, f.name))}")
         out.append("")
@@ -357,7 +365,7 @@ def to_markdown() -> str:
         default = cls()
         for f in fields(cls):
             m = f.metadata
-            rng = " / ".join(m["choices"]) if m["choices"] else _range_text(m)
+            rng = " / ".join(m["choices"]) if m["choices"] else _range_text(m, f.type != "bool")
             out.append(
                 f"| `{f.name}` | `{_toml_value(getattr(default, f.name))}` | {m['unit']} | {rng} | {m['doc']} |"
             )

@@ -97,8 +97,13 @@ def _read_table(path: Path) -> dict[str, np.ndarray]:
     raise RecordingError(f"recording: {path}: unknown format {suffix!r} (use .csv, .npz or .mat)")
 
 
+MAGNITUDE_MAX = 1e12
+"""Largest magnitude of a recorded value in SI units (s, A or N, m, m/s): beyond it a
+column is not a servo signal, and the fits' arithmetic overflows (numpy warnings, NaN)."""
+
+
 def _read_csv(path: Path) -> dict[str, np.ndarray]:
-    with open(path, newline="", encoding="utf-8") as fh:
+    with open(path, newline="", encoding="utf-8-sig") as fh:  # -sig: a byte-order mark is not part of the header
         reader = csv.reader(fh)
         try:
             header = [h.strip() for h in next(reader)]
@@ -175,6 +180,10 @@ def load_recording(path: str | Path, columns: dict[str, str] | None = None, scal
         bad = np.flatnonzero(~np.isfinite(a))
         if bad.size:
             raise RecordingError(f"recording: {path.name}: {role} is NaN or infinite at sample {bad[0]} ({bad.size} samples)")
+        big = np.flatnonzero(np.abs(a) > MAGNITUDE_MAX)
+        if big.size:
+            raise RecordingError(f"recording: {path.name}: {role} = {a[big[0]]:.3g} at sample {big[0]} is beyond any "
+                                 f"physical value (|{role}| <= {MAGNITUDE_MAX:g} in SI units): a wrong column or scale?")  # fmt: skip
     dt = np.diff(arrays["t"])
     back = np.flatnonzero(dt <= 0)
     if back.size:

@@ -42,7 +42,7 @@ def test_docs_config_md_is_current():
         ({"drive": {"sigmaa": 1.0}}, "unknown key 'drive.sigmaa' (did you mean 'sigma'?)"),
         ({"driev": {}}, "unknown section 'driev' (did you mean 'drive'?)"),
         ({"drive": {"sigma": "high"}}, "drive.sigma must be a number"),
-        ({"drive": {"sigma": -1.0}}, "drive.sigma = -1.0 is out of range (> 0, A/m)"),
+        ({"drive": {"sigma": -1.0}}, "drive.sigma = -1.0 is out of range (> 0 and <= 1e+12, A/m)"),
         ({"drive": {"alpha": 11.0}}, "drive.alpha = 11.0 is out of range"),
         ({"run": {"seed": 1.5}}, "run.seed must be an integer"),
         ({"run": {"fast_path": 1}}, "run.fast_path must be true or false"),
@@ -79,3 +79,13 @@ def test_replace_validates():
     with pytest.raises(ConfigError):
         Config().replace(drive={"J": 0.0})
     assert to_dict(Config().replace(run={"seed": 9}))["run"]["seed"] == 9
+
+
+@pytest.mark.parametrize("key,value", [("drive.K", 1e300), ("compensator.h0", -1e200), ("drive.J", 1e-300),
+                                       ("drive.B", 1e13)])  # fmt: skip
+def test_values_beyond_any_physical_magnitude_are_refused(key, value):
+    """Issue 9.5/9.6: inside the old ranges ('> 0', 'any'), these drove the plant to NaN
+    with exit 0, or leaked overflow warnings."""
+    section, name = key.split(".")
+    with pytest.raises(ConfigError, match=rf"config: {key} = .* (is beyond any physical value|is out of range)"):
+        from_dict({section: {name: value}})

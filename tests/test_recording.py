@@ -72,3 +72,31 @@ def test_bad_files(tmp_path):
         load_recording(write_csv(tmp_path / "f.csv", ["t", "u", "x"], good_rows()[:, :3]), scale={"u": "gtau"})
     with pytest.raises(RecordingError, match="expected NAME=VALUE"):
         parse_mapping("u=vir,x", "--columns")
+
+
+def test_a_byte_order_mark_is_not_part_of_the_first_column_name(tmp_path):
+    """Issue 9.8: 'no column 't' (it has: ..., \\ufefft)' for a CSV saved by a spreadsheet."""
+    from servo.recording import load_recording
+
+    t = np.arange(200) * 1e-3
+    body = "t,u,x\n" + "".join(f"{a:.17g},{np.sin(a):.17g},{np.cos(a):.17g}\n" for a in t)
+    p = tmp_path / "bom.csv"
+    p.write_bytes(b"\xef\xbb\xbf" + body.encode())
+    rec = load_recording(p)
+    np.testing.assert_array_equal(rec.t, t)
+
+
+@pytest.mark.parametrize("role", ["t", "u", "x"])
+def test_values_beyond_any_physical_magnitude_are_one_error_line(role, tmp_path):
+    """Issue 9.6: values near 1e300 went through to the fits (warnings, exit 70)."""
+    from servo.errors import RecordingError
+    from servo.recording import load_recording
+
+    t = np.arange(200) * 1e-3
+    cols = {"t": t, "u": np.sin(t), "x": np.cos(t)}
+    cols[role] = cols[role] * 1e300 if role != "t" else t * 1e300
+    p = tmp_path / "big.npz"
+    np.savez(p, **cols)
+    with pytest.raises(RecordingError, match=rf"{role} = .* is beyond any physical value") as err:
+        load_recording(p)
+    assert "\n" not in str(err.value)
