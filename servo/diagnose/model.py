@@ -83,6 +83,10 @@ class Model:
         return [t for t in self.terms if VOCABULARY[t.physics].kind == "column"]
 
 
+#: full-rate effective inputs a :class:`Design` keeps (each is ``8*n`` bytes)
+U_CACHE = 2
+
+
 class Design:
     """Rows of models on one recording's :class:`Signals`, with a column cache."""
 
@@ -95,6 +99,8 @@ class Design:
         last = sig.keep[np.flatnonzero(self.train_rows)[-1]] if self.train_rows.any() else 0
         self.train_samples = np.arange(sig.n) <= last
         self._rows: dict = {}
+        #: full-rate effective inputs, the most recent :data:`U_CACHE` only: a search over
+        #: a delay or a saturation level makes one per variant, and their rows are cached
         self._u: dict = {}
 
     # ---- the input -----------------------------------------------------------------
@@ -109,14 +115,20 @@ class Design:
 
         terms = model.input_terms() + ([extra] if extra is not None else [])
         key = tuple(sorted((t.physics, t.theta) for t in terms))
-        if key not in self._u:
-            u = self.sig.u
-            for name in ("input_saturation", "time_delay"):
-                for t in terms:
-                    if t.physics == name:
-                        u = VOCABULARY[name].transform(u, t.params, self.sig.dt)
-            self._u[key] = u
-        return self._u[key]
+        if not key:
+            return self.sig.u
+        if key in self._u:
+            self._u[key] = self._u.pop(key)  # most recent last
+            return self._u[key]
+        u = self.sig.u
+        for name in ("input_saturation", "time_delay"):
+            for t in terms:
+                if t.physics == name:
+                    u = VOCABULARY[name].transform(u, t.params, self.sig.dt)
+        while len(self._u) >= U_CACHE:
+            del self._u[next(iter(self._u))]
+        self._u[key] = u
+        return u
 
     def cached_rows(self, key, make) -> np.ndarray:
         """Rows for ``key``, computed once by ``make()`` (a (m,) or (m, k) array)."""

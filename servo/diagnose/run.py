@@ -36,6 +36,13 @@ from servo.identify.regressors import IdentificationError, RobustSettings
 from servo.recording import Recording
 
 MIN_ROWS_PER_BLOCK = 20
+#: memory a diagnosis needs (:func:`memory_estimate`): bytes per full-rate sample (the
+#: filtered motion, two effective inputs, the filters' temporaries, a second path's
+#: signals after a quantisation finding) and per row (the cached candidate columns and
+#: a chunk of screened variants); measured 310-340 B per sample in all at decimation by 10
+#: (``python -m servo.diagnose.memprobe``), estimated with a margin
+BYTES_PER_SAMPLE = 160
+BYTES_PER_ROW = 2400
 #: a finding may not raise the held-out output NRMSE by more than this fraction
 OUTPUT_TOLERANCE = 0.05
 
@@ -122,6 +129,37 @@ def heldout_residual(design: Design, model: Model, blocks, test_rows: np.ndarray
         c, _ = grams.fold(b)
         r[sl] = y[sl] - Phi[sl] @ c
     return r
+
+
+def memory_estimate(n: int, opt: Options) -> float:
+    """Bytes a diagnosis of ``n`` samples adds to the process (the recording excluded):
+    linear in the samples and in the rows (``n/decimate``)."""
+    q = max(int(opt.settings.decimate), 1)
+    return float(BYTES_PER_SAMPLE * n + BYTES_PER_ROW * (n / q))
+
+
+def available_memory() -> float | None:
+    """``MemAvailable`` of ``/proc/meminfo`` in bytes; None where it cannot be read."""
+    try:
+        with open("/proc/meminfo") as f:
+            for line in f:
+                if line.startswith("MemAvailable:"):
+                    return float(line.split()[1]) * 1024
+    except (OSError, ValueError, IndexError):
+        return None
+    return None
+
+
+def check_memory(n: int, opt: Options) -> None:
+    """Refuse, in one line and before anything large is allocated, a recording whose
+    diagnosis needs more memory than is available."""
+    need = memory_estimate(n, opt)
+    avail = available_memory()
+    if avail is not None and need > avail:
+        raise IdentificationError(
+            f"diagnose: this recording of {n} samples needs about {need / 1e9:.2g} GB, {avail / 1e9:.2g} GB are "
+            "available; diagnose a shorter part of it (cut the recording file) or free memory"
+        )
 
 
 def check_recording(rec: Recording) -> None:
@@ -291,6 +329,7 @@ def diagnose(rec: Recording, opt: Options | None = None) -> Diagnosis:
     if opt.blocks < 4:
         raise IdentificationError(f"at least 4 cross-validation blocks are needed, got {opt.blocks}")
     check_recording(rec)
+    check_memory(rec.n, opt)
     base = baseline_mod.from_file(opt.model) if opt.model else baseline_mod.from_terms(opt.baseline)
     design0 = prepare(rec, opt.settings, opt)
     baseline_mod.check_baseline(design0, base)
@@ -354,4 +393,5 @@ def diagnose(rec: Recording, opt: Options | None = None) -> Diagnosis:
     )  # fmt: skip
 
 
-__all__ = ["Diagnosis", "Finding", "Options", "diagnose", "heldout_residual", "prepare"]
+__all__ = ["Diagnosis", "Finding", "Options", "available_memory", "check_memory", "diagnose", "heldout_residual",
+           "memory_estimate", "prepare"]

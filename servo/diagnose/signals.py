@@ -112,9 +112,14 @@ class Signals:
 
     def rows(self, z: np.ndarray) -> np.ndarray:
         """The rows of a full-rate signal ``z`` (n,): trimmed, parallel-filtered and
-        decimated exactly as the regressor columns and the force."""
+        decimated exactly as the regressor columns and the force.
+
+        The result is a compact copy: the decimation returns every ``q``-th sample of
+        the filtered full-rate column as a view, which would keep all ``n`` samples
+        alive for as long as the rows are cached (the diagnosis caches hundreds)."""
         s = self.settings
-        return matlab_decimate(z[s.trim_start : self.n - s.trim_end], s.decimate, s.decimate_order, s.decimate_ripple_db)
+        r = matlab_decimate(z[s.trim_start : self.n - s.trim_end], s.decimate, s.decimate_order, s.decimate_ripple_db)
+        return np.array(r, copy=True, order="C") if r.base is not None else r
 
     def force(self, u_eff: np.ndarray | None = None) -> np.ndarray:
         """The force at full rate as the rows see it (n,): aligned with the acceleration

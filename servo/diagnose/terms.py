@@ -381,13 +381,17 @@ class Cogging(Physics):
         k = np.array([1.0 / th["period"] for th in thetas])
         x = d.sig.x_rows
         if k.size > 2 and np.allclose(np.diff(k), k[1] - k[0], rtol=1e-9, atol=0):
-            z = np.empty((k.size, x.size), complex)
-            z[0] = np.exp(2j * math.pi * x * k[0])
+            # one complex row at a time, written straight into the output (a (J, m)
+            # complex block besides it doubled the memory of a chunk)
+            out = np.empty((k.size, 2, x.size))
+            z = np.exp(2j * math.pi * x * k[0])
             step = np.exp(2j * math.pi * x * (k[1] - k[0]))
-            for j in range(1, k.size):
-                np.multiply(z[j - 1], step, out=z[j])
-        else:
-            z = np.exp(2j * math.pi * k[:, None] * x[None, :])
+            for j in range(k.size):
+                if j:
+                    np.multiply(z, step, out=z)
+                out[j, 0], out[j, 1] = z.imag, z.real
+            return out
+        z = np.exp(2j * math.pi * k[:, None] * x[None, :])
         return np.stack([z.imag, z.real], axis=1)
 
     def _k_range(self, d):
