@@ -51,8 +51,8 @@ REALTIME_ONLY = ("overrun_policy", "max_overruns", "cpu", "fifo", "lock_memory",
 
 
 def realtime_options(args: argparse.Namespace):
-    """The :class:`~servo.realtime.RealtimeOptions` of the command line, or None."""
-    from servo.realtime import RealtimeOptions
+    """The :class:`~servo.run.realtime.RealtimeOptions` of the command line, or None."""
+    from servo.run.realtime import RealtimeOptions
 
     given = [n for n in REALTIME_ONLY if getattr(args, n) is not None and getattr(args, n) is not False]
     if args.port is not None and (args.realtime or given):
@@ -76,7 +76,7 @@ def realtime_options(args: argparse.Namespace):
 
 
 def handle(args: argparse.Namespace) -> int:
-    from servo.runjob import default_out_dir, format_summary, run_job
+    from servo.run.job import default_out_dir, format_summary, run_job
 
     realtime = realtime_options(args)
     cfg = config_from_args(args, run={"duration_s": args.duration, "seed": args.seed})
@@ -95,8 +95,8 @@ def _run_on_port(cfg, out: Path, args: argparse.Namespace) -> dict:
     driver is configured (handshake, version and rate checks) before anything is written,
     so a bad URL or an absent board leaves no output folder."""
     from hil.serialdriver import SerialDriver
-    from servo.pacing import realtime_section
-    from servo.runjob import run_job
+    from servo.run.job import run_job
+    from servo.runtime.pacing import realtime_section
 
     if args.fast or (args.fast is None and cfg.run.fast_path):
         raise UsageError("servo run: --port runs tick by tick through the link; drop --fast (run.fast_path)")

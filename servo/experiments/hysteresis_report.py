@@ -17,8 +17,8 @@ from servo.experiments.hysteresis import HysteresisExperiment, average_slope, ru
 from servo.experiments.hysteresis_plots import plot_large_loop, plot_small_loop
 from servo.identify.dahl_fit import DahlFit, fit_dahl
 from servo.identify.regressors import IdentificationError
-from servo.recording import Recording, save_recording_csv
-from servo.runlog import atomic_write, write_csv
+from servo.io.recording import Recording, save_recording_csv
+from servo.io.runlog import atomic_write, write_csv
 
 
 def _write_fit(out: Path, t, x, v, u, fit: DahlFit) -> None:

@@ -22,7 +22,7 @@ from typing import Callable, Protocol, Sequence
 
 import numpy as np
 
-from servo.driver import Driver
+from servo.runtime.driver import Driver
 
 
 @dataclass
@@ -59,7 +59,7 @@ class ControllerLike(Protocol):
 
 
 class Pacer(Protocol):
-    """Ties ticks to the wall clock (:class:`servo.pacing.Pacer`): ``start()`` right
+    """Ties ticks to the wall clock (:class:`servo.runtime.pacing.Pacer`): ``start()`` right
     before the first tick, ``wait(k)`` before tick ``k``."""
 
     def start(self) -> None: ...

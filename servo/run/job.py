@@ -8,7 +8,7 @@ into one output folder:
 * ``summary.json``: tracking error RMS per segment, per-step overshoot and settling,
   compute time per sample, ticks, overruns, the cold start (process start to first tick);
 * ``tracking.png``, ``steps.png``, ``current.png`` (and ``timing.png`` tick by tick;
-  ``lateness.png`` when paced in real time, see :mod:`servo.realtime`);
+  ``lateness.png`` when paced in real time, see :mod:`servo.run.realtime`);
 * ``config.toml``: the effective configuration (rerun it for the same bits).
 """
 from __future__ import annotations
@@ -22,19 +22,19 @@ from typing import Callable
 import numpy as np
 
 from kernels.loop import LOG_COLUMNS
-from servo import runplots
 from servo.config import Config, to_toml
-from servo.controller import Controller
-from servo.driver import Driver
 from servo.errors import ConfigError
-from servo.metrics import rms, step_metrics, tick_timing
-from servo.pacing import OverrunFault, realtime_section
-from servo.realtime import REALTIME_LOG_BLOCK, RealtimeOptions, grant_line, lateness_line, make_pacer, plot_lateness, report
-from servo.runlog import RunLog, atomic_write
-from servo.runner import LoopResult, log_rows, run_closed_loop
-from servo.scenario import Inputs, scenario_inputs, segments
-from servo.simdriver import SimDriver
-from servo.startup import process_age_s
+from servo.io.runlog import RunLog, atomic_write
+from servo.run import plots
+from servo.run.metrics import rms, step_metrics, tick_timing
+from servo.run.realtime import REALTIME_LOG_BLOCK, RealtimeOptions, grant_line, lateness_line, make_pacer, plot_lateness, report
+from servo.run.startup import process_age_s
+from servo.runtime.controller import Controller
+from servo.runtime.driver import Driver
+from servo.runtime.loop import LoopResult, log_rows, run_closed_loop
+from servo.runtime.pacing import OverrunFault, realtime_section
+from servo.runtime.scenario import Inputs, scenario_inputs, segments
+from servo.runtime.simdriver import SimDriver
 
 LABELS = {"on": ("compensated",), "off": ("uncompensated",), "compare": ("compensated", "uncompensated")}
 COL = {c: i for i, c in enumerate(LOG_COLUMNS)}
@@ -52,7 +52,7 @@ def run_simulated(cfg: Config, out_dir: Path, compensated: bool, fast: bool,
     recorded in ``result.link``.  ``realtime``: pace the ticks on the wall clock (tick path,
     simulated drive); the result then carries the pacing report and the lateness of every
     tick.  A run against a plant in real time (paced, or a board) journals its log in
-    blocks of :data:`~servo.realtime.REALTIME_LOG_BLOCK` rows, so that no write stalls a
+    blocks of :data:`~servo.run.realtime.REALTIME_LOG_BLOCK` rows, so that no write stalls a
     tick for long."""
     label = "compensated" if compensated else "uncompensated"
     inputs = scenario_inputs(cfg)
@@ -132,7 +132,7 @@ def run_job(cfg: Config, out_dir: Path, compensation: str = "compare", fast: boo
             age = process_age_s()
             startup = None if age is None else age - (time.perf_counter() - results[label].started)
         runs[label] = summarise(cfg, logs[label], results[label])
-    runplots.plot_run(cfg, logs, results, out_dir)
+    plots.plot_run(cfg, logs, results, out_dir)
     if realtime is not None:
         plot_lateness(cfg, {k: r.lateness_ns for k, r in results.items()}, out_dir / "lateness.png")
     path = "fast (all compiled)" if fast else "tick by tick through the driver interface"
