@@ -14,7 +14,7 @@ from servo.diagnose.fit import Fit
 from servo.diagnose.job import Diagnosis, Finding
 from servo.diagnose.terms import VOCABULARY
 from servo.errors import ConfigError
-from servo.io.runlog import atomic_write
+from servo.io.atomic import atomic_write
 
 SCHEMA = 1
 

@@ -24,7 +24,8 @@ import numpy as np
 from kernels.loop import LOG_COLUMNS
 from servo.config import Config, to_toml
 from servo.errors import ConfigError
-from servo.io.runlog import RunLog, atomic_write
+from servo.io.atomic import atomic_write
+from servo.io.runlog import RunLog
 from servo.run import plots
 from servo.run.metrics import rms, step_metrics, tick_timing
 from servo.run.realtime import REALTIME_LOG_BLOCK, RealtimeOptions, grant_line, lateness_line, make_pacer, plot_lateness, report
