@@ -28,9 +28,9 @@ from servo.config import Config
 from servo.io.runlog import RunLog
 from servo.runtime.controller import Controller
 from servo.runtime.driver import Driver, DriverState
-from servo.runtime.pacing import gc_paused
+from servo.runtime.pacing import Pacer, gc_paused
 from servo.runtime.scenario import Inputs
-from servo.runtime.scheduler import Pacer, Scheduler, Task
+from servo.runtime.scheduler import Scheduler, Task
 from servo.runtime.simdriver import NOISE_BLOCK, SimDriver
 
 
