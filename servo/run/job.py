@@ -49,12 +49,13 @@ def run_simulated(cfg: Config, out_dir: Path, compensated: bool, fast: bool,
                   make_driver: Callable[[Config, Inputs], Driver] | None = None,
                   realtime: RealtimeOptions | None = None) -> tuple[np.ndarray, LoopResult]:  # fmt: skip
     """One closed-loop run against a fresh driver (default: the simulated drive); returns
-    (log rows, result).  A driver with a ``report()`` method (the serial link) has it
-    recorded in ``result.link``.  ``realtime``: pace the ticks on the wall clock (tick path,
-    simulated drive); the result then carries the pacing report and the lateness of every
-    tick.  A run against a plant in real time (paced, or a board) journals its log in
-    blocks of :data:`~servo.run.realtime.REALTIME_LOG_BLOCK` rows, so that no write stalls a
-    tick for long."""
+    (log rows, result).  What the driver reports (:meth:`Driver.report`: the serial link's
+    frames and counters; None for the simulated drive) is recorded in ``result.link``.
+    ``realtime``: pace the ticks on the wall clock (tick path, simulated drive); the result
+    then carries the pacing report and the lateness of every tick.  A run against a plant
+    in real time (paced, or a board) journals its log in blocks of
+    :data:`~servo.run.realtime.REALTIME_LOG_BLOCK` rows, so that no write stalls a tick for
+    long."""
     label = "compensated" if compensated else "uncompensated"
     inputs = scenario_inputs(cfg)
     meta = {"label": label, "fast_path": fast, "sample_rate_hz": cfg.run.sample_rate_hz, "seed": cfg.run.seed,
@@ -66,7 +67,7 @@ def run_simulated(cfg: Config, out_dir: Path, compensated: bool, fast: bool,
     with driver, RunLog(out_dir, f"log_{label}", LOG_COLUMNS, log_rows(cfg), meta, block) as log:
         with section as grant:  # only around configure and the loop: the log is finalised outside
             result = run_closed_loop(cfg, driver, Controller(cfg, compensation=compensated), inputs, log, fast=fast, pacer=pacer)
-    result.link = driver.report() if hasattr(driver, "report") else None
+    result.link = driver.report()
     if realtime:
         result.realtime = report(pacer, realtime, grant)
         result.lateness_ns = pacer.lateness_ns
