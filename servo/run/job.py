@@ -23,12 +23,11 @@ import numpy as np
 
 from kernels.loop import LOG_COLUMNS
 from servo.config import Config, to_toml
-from servo.errors import ConfigError
 from servo.io.atomic import atomic_write
 from servo.io.runlog import RunLog
 from servo.run import plots
 from servo.run.metrics import rms, step_metrics, tick_timing
-from servo.run.realtime import REALTIME_LOG_BLOCK, RealtimeOptions, grant_line, lateness_line, make_pacer, plot_lateness, report
+from servo.run.realtime import REALTIME_LOG_BLOCK, RealtimeOptions, check_realtime, grant_line, lateness_line, make_pacer, plot_lateness, report
 from servo.run.startup import process_age_s
 from servo.runtime.controller import Controller
 from servo.runtime.driver import Driver
@@ -111,12 +110,8 @@ def run_job(cfg: Config, out_dir: Path, compensation: str = "compare", fast: boo
     the fast path as well, or pacing a board, which is its own clock, is an error).  On a
     real-time overrun fault the drive is at zero current and the log of the interrupted
     run is kept."""
+    check_realtime(realtime is not None, fast, make_driver is not None)
     if realtime is not None:
-        if fast:
-            raise ConfigError("--realtime paces the tick path; the all-compiled fast path (--fast) runs blocks "
-                              "of ticks per call and cannot be paced")  # fmt: skip
-        if make_driver is not None:
-            raise ConfigError("--realtime paces the simulated drive; a board is the clock master and paces the loop")
         realtime.check()
         fast = False
     fast = cfg.run.fast_path if fast is None else fast

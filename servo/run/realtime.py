@@ -59,6 +59,23 @@ class RealtimeOptions:
         return self
 
 
+def check_realtime(realtime: bool, fast: bool | None, on_board: bool, option: str = "--realtime") -> None:
+    """The rules of a paced run, in one place (``servo run``'s options and
+    :func:`~servo.run.job.run_job` both call it): pacing is of the simulated drive (a board
+    is its own clock), on the tick path (the fast path cannot be paced).  ``realtime``:
+    pacing is asked for, by ``option`` (for the message); ``fast``: the fast path is asked
+    for explicitly (None: the config decides, and pacing overrides it); ``on_board``: the
+    loop runs against a board.  Raises :class:`~servo.errors.ConfigError` (one line)."""
+    if not realtime:
+        return
+    if on_board:
+        raise ConfigError(f"{option} is for pacing the simulated drive; with --port the board is the clock master "
+                          "and paces the loop")  # fmt: skip
+    if fast:
+        raise ConfigError(f"{option} paces the tick path; the all-compiled fast path (--fast) runs blocks of ticks "
+                          "per call and cannot be paced")  # fmt: skip
+
+
 def make_pacer(cfg: Config, opts: RealtimeOptions) -> Pacer:
     """A pacer for ``cfg.n_ticks`` ticks at the config's sample period."""
     return Pacer(cfg.dt, cfg.n_ticks, spin_s=opts.spin_s, policy=opts.policy, max_consecutive=opts.max_overruns)
