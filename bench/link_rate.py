@@ -30,12 +30,12 @@ from pathlib import Path
 from hil.serialdriver import SerialDriver
 from kernels.loop import LOG_COLUMNS
 from servo.config import Config, to_toml
-from servo.controller import Controller
 from servo.errors import DriverError
-from servo.pacing import realtime_section
-from servo.runlog import RunLog
-from servo.runner import log_rows, run_closed_loop
-from servo.scenario import scenario_inputs
+from servo.io.runlog import RunLog
+from servo.runtime.controller import Controller
+from servo.runtime.loop import log_rows, run_closed_loop
+from servo.runtime.pacing import realtime_section
+from servo.runtime.scenario import scenario_inputs
 
 
 def one_rate(rate: float, d: int, b: int, seconds: float, cpus: tuple[int, int] | None, fifo: int | None,

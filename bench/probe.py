@@ -1,6 +1,6 @@
 """``python -m bench.probe``: what a fresh process pays before and at its first tick.
 
-Imports the kernels and ``servo.runjob`` (timed), runs 2000 ticks of the tick path on
+Imports the kernels and ``servo.run.job`` (timed), runs 2000 ticks of the tick path on
 the default drive, then lists every Numba dispatcher of ``kernels`` that compiled instead
 of loading from the on-disk cache, or that gained a specialization beyond its explicit
 signatures (i.e. compiled inside the loop).  Prints one JSON object.
@@ -18,7 +18,7 @@ def main() -> int:
     import kernels  # noqa: F401  (compiles or loads every kernel)
 
     t1 = time.perf_counter()
-    import servo.runjob  # noqa: F401
+    import servo.run.job  # noqa: F401
 
     t2 = time.perf_counter()
     import numpy as np
@@ -26,11 +26,11 @@ def main() -> int:
 
     from kernels.loop import LOG_COLUMNS
     from servo.config import Config
-    from servo.controller import Controller
-    from servo.runlog import RunLog
-    from servo.runner import log_rows, run_closed_loop
-    from servo.scenario import scenario_inputs
-    from servo.simdriver import SimDriver
+    from servo.io.runlog import RunLog
+    from servo.runtime.controller import Controller
+    from servo.runtime.loop import log_rows, run_closed_loop
+    from servo.runtime.scenario import scenario_inputs
+    from servo.runtime.simdriver import SimDriver
 
     cfg = Config().replace(run={"duration_s": 0.04})
     inputs = scenario_inputs(cfg)

@@ -19,7 +19,7 @@ import pytest
 from scipy import signal
 
 from servo.diagnose.concealed import Scenario, concealed_recording
-from servo.diagnose.run import diagnose
+from servo.diagnose.job import diagnose
 
 SAMPLES = 1_000_000
 REPEATS = 8

@@ -34,7 +34,7 @@ from hil.emulator import start_in_thread
 from hil.framing import encode_frame
 from hil.serialdriver import SerialDriver
 from servo.config import Config, to_toml
-from servo.simdriver import SimDriver
+from servo.runtime.simdriver import SimDriver
 
 from bench.timing import paired_blocks
 

@@ -1,7 +1,7 @@
 """The two ways a run executes, per sample: tick by tick through the scheduler and the
 driver interface (the path real-time runs use), and the all-compiled fast path.
 
-Both run the ``servo run`` scenario through :func:`servo.runner.run_closed_loop`, with its
+Both run the ``servo run`` scenario through :func:`servo.runtime.loop.run_closed_loop`, with its
 standard tasks (excitation, estimator, log) and a run log on disk, as a user runs them.
 """
 import numpy as np
@@ -9,11 +9,11 @@ import numpy as np
 from bench.budgets import BUDGETS
 from bench.timing import per_sample_ns
 from kernels.loop import LOG_COLUMNS
-from servo.controller import Controller
-from servo.runlog import RunLog
-from servo.runner import log_rows, run_closed_loop
-from servo.scenario import scenario_inputs
-from servo.simdriver import SimDriver
+from servo.io.runlog import RunLog
+from servo.runtime.controller import Controller
+from servo.runtime.loop import log_rows, run_closed_loop
+from servo.runtime.scenario import scenario_inputs
+from servo.runtime.simdriver import SimDriver
 
 ROUNDS = 9
 

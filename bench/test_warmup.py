@@ -60,7 +60,7 @@ def test_no_kernel_compiles_after_the_first_import(probes, record):
 
 
 def test_first_tick_after_configure(cfg, probes, servo_runs, record):
-    """The first tick of a fresh process, through the runner (probe) and through
+    """The first tick of a fresh process, through the closed loop (probe) and through
     ``servo run``: median within 10 periods (nothing compiles, draws noise or collects
     garbage in it)."""
     probe_us = float(np.median([p["first_tick_us"] for p in probes]))

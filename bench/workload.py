@@ -16,8 +16,8 @@ import numpy as np
 from bench.loops import M
 from kernels.compensator import direction
 from servo.config import Config
-from servo.controller import Controller
-from servo.drive import SimPlant, build_plant
+from servo.runtime.controller import Controller
+from servo.runtime.simplant import SimPlant, build_plant
 
 
 def config() -> Config:

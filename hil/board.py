@@ -46,9 +46,9 @@ from typing import Callable
 from hil import protocol as P
 from hil.framing import FrameDecoder, encode_frame
 from servo.config import Config
-from servo.driver import DriverState
-from servo.scenario import scenario_inputs
-from servo.simdriver import SimDriver
+from servo.runtime.driver import DriverState
+from servo.runtime.scenario import scenario_inputs
+from servo.runtime.simdriver import SimDriver
 
 IDLE, HELLO, READY, ACTIVE, FAULTED = "idle", "hello", "ready", "active", "faulted"
 RING = 2048

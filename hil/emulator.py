@@ -30,7 +30,7 @@ import tty
 from contextlib import contextmanager
 
 from hil.board import ACTIVE, OUT_LIMIT, Board
-from servo.pacing import Pacer
+from servo.runtime.pacing import Pacer
 
 PACER_CHUNK = 1 << 16
 """Ticks per :class:`Pacer` (its lateness array); the next one continues the same deadlines."""

@@ -35,8 +35,8 @@ from hil import protocol as P
 from hil.framing import FrameDecoder, encode_frame
 from hil.port import open_port, waiter
 from servo.config import Config
-from servo.driver import Driver, DriverInfo, DriverState
 from servo.errors import DriverError
+from servo.runtime.driver import Driver, DriverInfo, DriverState
 
 HOST_COUNTERS = ("rx_frames", "tx_frames", "rx_bytes", "tx_bytes", "crc_errors", "framing_errors", "malformed",
                  "seq_dropped", "seq_repeated", "seq_reordered", "timeouts", "board_faults", "ignored")  # fmt: skip

@@ -1,6 +1,6 @@
 """The all-compiled fast path: controller and simulated drive in one Numba loop.
 
-It performs exactly the operations of the tick-by-tick path (``servo.scheduler``), in the
+It performs exactly the operations of the tick-by-tick path (``servo.runtime.scheduler``), in the
 same order and through the same kernels, so both give the same bits:
 
     tick k:  plant_measure -> [controller_start on the first tick]

@@ -16,7 +16,7 @@ Forces are normalised to amperes (force constant 1 at the stroke centre)::
   a periodic (cogging) force; hard stops at ``+-stroke``.
 * Flexible modes ``q_i'' + 2*zeta_i*w_i*q_i' + w_i**2*q_i = u/J`` add ``g_i*q_i`` to the
   measured position; they are linear and advanced with their exact zero-order-hold
-  discretisation (matrices from :mod:`servo.drive`), once per constant-input interval.
+  discretisation (matrices from :mod:`servo.runtime.simplant`), once per constant-input interval.
 
 Sticking: at rest (``v == 0``) the arm stays put while the net force is within the
 breakaway level (exactly zero motion, no creep); when the velocity reverses inside a

@@ -6,7 +6,7 @@ from pathlib import Path
 import numpy as np
 from kernels.plant import plant_measure, plant_step
 from servo.config import Config
-from servo.drive import build_plant
+from servo.runtime.simplant import build_plant
 
 SHARED = Path(__file__).resolve().parents[1].parent / "shared"
 EMPS_MAT = SHARED / "data" / "emps" / "DATA_EMPS.mat"

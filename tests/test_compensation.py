@@ -4,8 +4,8 @@ import pytest
 
 from kernels.controller import controller_start, controller_tick
 from kernels.plant import plant_measure, plant_step
-from servo.controller import Controller
-from servo.drive import build_plant
+from servo.runtime.controller import Controller
+from servo.runtime.simplant import build_plant
 from tests.helpers import NO_MODES, quiet_config
 
 

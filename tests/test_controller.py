@@ -8,7 +8,7 @@ from kernels.compensator import FAST, SLOW, compensate, direction, regime_switch
 from kernels.controller import controller_tick
 from kernels.holding import holding_pi, holding_pi_bumpless
 from servo.config import Config
-from servo.controller import Controller
+from servo.runtime.controller import Controller
 
 B, FC, K, H0 = 2e-3, 1e-3, 0.1, 2e-3
 

@@ -7,8 +7,8 @@ import pytest
 
 from servo.cli import main
 from servo.diagnose.concealed import concealed_recording
-from servo.diagnose.run import Options, diagnose
-from servo.recording import load_recording, save_recording_csv
+from servo.diagnose.job import Options, diagnose
+from servo.io.recording import load_recording, save_recording_csv
 from tests.helpers import EMPS_MAT
 
 EMPS = ["--columns", "u=vir,x=qm", "--scale", "u=gtau", "--force-unit", "N"]

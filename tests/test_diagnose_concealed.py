@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 
 from servo.diagnose.concealed import EFFECTS, concealed_recording
-from servo.diagnose.run import Options, diagnose
+from servo.diagnose.job import Options, diagnose
 
 #: per effect: the parameter to check, its expected value from the truth, and the tolerance
 EXPECT = {

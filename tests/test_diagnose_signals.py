@@ -7,7 +7,7 @@ from kernels.plant import PLANT_PARAMS, PLANT_STATE, plant_measure, plant_step
 from kernels.predict import multistep
 from servo.diagnose.signals import align, derivative, distance_since_reversal, make_signals, second_difference
 from servo.identify import RobustSettings, robust_regression
-from servo.recording import Recording
+from servo.io.recording import Recording
 
 
 def zoh_double_integrator(n=20000, dt=1e-3, J=2.0, seed=0):
@@ -102,7 +102,7 @@ def test_too_short_a_recording_is_refused():
 def test_multistep_reproduces_the_plant_from_exact_states():
     """Predictions from the plant's own states equal the plant's trajectory."""
     from servo.config import Config
-    from servo.drive import build_plant
+    from servo.runtime.simplant import build_plant
 
     cfg = Config().replace(drive=dict(mode_hz=[], mode_zeta=[], mode_gain=[], input_delay_s=0.0, Fc=1e-3, Fs=1e-3,
                                       position_noise=0.0, position_quantum=0.0))  # fmt: skip

@@ -27,13 +27,13 @@ from hil.emulator import start_in_thread
 from hil.serialdriver import SerialDriver
 from kernels.loop import LOG_COLUMNS
 from servo.config import Config, to_toml
-from servo.controller import Controller
-from servo.driver import DriverState
 from servo.errors import DriverError
-from servo.runlog import RunLog
-from servo.runner import log_rows, run_closed_loop
-from servo.scenario import scenario_inputs
-from servo.simdriver import SimDriver
+from servo.io.runlog import RunLog
+from servo.runtime.controller import Controller
+from servo.runtime.driver import DriverState
+from servo.runtime.loop import log_rows, run_closed_loop
+from servo.runtime.scenario import scenario_inputs
+from servo.runtime.simdriver import SimDriver
 
 # 0.2 s at 50 kHz: 10 000 ticks, across a noise block; every scenario segment in it
 CFG = Config().replace(run={"duration_s": 0.2},

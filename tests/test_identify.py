@@ -9,7 +9,7 @@ from servo.identify import (
     IdentificationError, RobustSettings, identify, least_squares, paper_regression, parse_terms,
     robust_regression,
 )  # fmt: skip
-from servo.recording import Recording, load_recording
+from servo.io.recording import Recording, load_recording
 from tests.helpers import EMPS_MAT
 
 TRUE = {"J": 1.0e-3, "B": 2.0e-3, "Fc": 1.0e-3, "K": 0.1, "h0": 2.0e-3}

@@ -12,13 +12,13 @@ import pytest
 
 from kernels.loop import LOG_COLUMNS
 from servo.config import Config
-from servo.controller import Controller
-from servo.driver import DriverState
-from servo.pacing import OverrunFault, Pacer, realtime_section
-from servo.runlog import RunLog
-from servo.runner import log_rows, run_closed_loop
-from servo.scenario import scenario_inputs
-from servo.simdriver import SimDriver
+from servo.io.runlog import RunLog
+from servo.runtime.controller import Controller
+from servo.runtime.driver import DriverState
+from servo.runtime.loop import log_rows, run_closed_loop
+from servo.runtime.pacing import OverrunFault, Pacer, realtime_section
+from servo.runtime.scenario import scenario_inputs
+from servo.runtime.simdriver import SimDriver
 
 
 def test_absolute_deadlines_do_not_drift():

@@ -7,8 +7,8 @@ from scipy.integrate import solve_ivp
 from scipy.optimize import brentq
 
 from kernels.plant import plant_measure
-from servo.drive import build_plant, split_delay
-from servo.simdriver import SimDriver
+from servo.runtime.simdriver import SimDriver
+from servo.runtime.simplant import build_plant, split_delay
 from tests.helpers import NO_MODES, quiet_config, simulate_open_loop
 
 

@@ -3,7 +3,7 @@ import numpy as np
 import pytest
 
 from servo.errors import RecordingError
-from servo.recording import load_recording, parse_mapping, save_recording_csv
+from servo.io.recording import load_recording, parse_mapping, save_recording_csv
 from tests.helpers import EMPS_MAT
 
 

@@ -7,7 +7,7 @@ import time
 
 import numpy as np
 
-from servo.runlog import RunLog, read_journal
+from servo.io.runlog import RunLog, read_journal
 
 
 def test_blocks_reach_the_journal_during_the_run_and_finalise_atomically(tmp_path):

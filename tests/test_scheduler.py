@@ -6,13 +6,13 @@ import pytest
 
 from kernels.loop import LOG_COLUMNS
 from servo.config import Config
-from servo.controller import Controller
-from servo.driver import Driver, DriverInfo
-from servo.runlog import RunLog
-from servo.runner import log_rows, run_closed_loop
-from servo.scenario import scenario_inputs
-from servo.scheduler import Scheduler, Task
-from servo.simdriver import NOISE_BLOCK, SimDriver
+from servo.io.runlog import RunLog
+from servo.runtime.controller import Controller
+from servo.runtime.driver import Driver, DriverInfo
+from servo.runtime.loop import log_rows, run_closed_loop
+from servo.runtime.scenario import scenario_inputs
+from servo.runtime.scheduler import Scheduler, Task
+from servo.runtime.simdriver import NOISE_BLOCK, SimDriver
 
 
 class RecordingDriver(Driver):

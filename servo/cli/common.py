@@ -33,6 +33,6 @@ def add_recording_options(p: argparse.ArgumentParser, optional: bool = False) ->
 
 def recording_from_args(args: argparse.Namespace):
     """Load and validate the recording of :func:`add_recording_options`."""
-    from servo.recording import load_recording, parse_mapping
+    from servo.io.recording import load_recording, parse_mapping
 
     return load_recording(args.recording, parse_mapping(args.columns, "--columns"), parse_mapping(args.scale, "--scale"))

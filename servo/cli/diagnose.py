@@ -35,8 +35,8 @@ def register(sub) -> None:
 
 
 def handle(args: argparse.Namespace) -> int:
+    from servo.diagnose.job import Options, diagnose
     from servo.diagnose.report import build_report, format_summary, write_drive_toml, write_report
-    from servo.diagnose.run import Options, diagnose
     from servo.identify.regressors import RobustSettings
 
     if not 0.0 < args.alpha < 0.5:

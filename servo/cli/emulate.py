@@ -41,7 +41,7 @@ def handle(args: argparse.Namespace) -> int:
 
     from hil.board import Board
     from hil.emulator import open_transport, serve
-    from servo.pacing import realtime_section
+    from servo.runtime.pacing import realtime_section
 
     if args.sessions is not None and args.sessions < 1:
         raise ServoError("emulate: --sessions must be >= 1")

@@ -60,8 +60,8 @@ def _trim(text: str) -> tuple[int, int]:
 def handle(args: argparse.Namespace) -> int:
     from servo.identify.regressors import RobustSettings, parse_terms
     from servo.identify.report import format_summary, run_identify
-    from servo.recording import save_recording_csv
-    from servo.runlog import atomic_write
+    from servo.io.atomic import atomic_write
+    from servo.io.recording import save_recording_csv
 
     terms = parse_terms(args.terms, args.off)
     start, end = _trim(args.trim)

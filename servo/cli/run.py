@@ -6,6 +6,7 @@ from pathlib import Path
 
 from servo.cli import UsageError
 from servo.cli.common import add_config_options, config_from_args
+from servo.errors import ConfigError
 
 
 def register(sub) -> None:
@@ -51,21 +52,19 @@ REALTIME_ONLY = ("overrun_policy", "max_overruns", "cpu", "fifo", "lock_memory",
 
 
 def realtime_options(args: argparse.Namespace):
-    """The :class:`~servo.realtime.RealtimeOptions` of the command line, or None."""
-    from servo.realtime import RealtimeOptions
+    """The :class:`~servo.run.realtime.RealtimeOptions` of the command line, or None."""
+    from servo.run.realtime import RealtimeOptions, check_realtime
 
     given = [n for n in REALTIME_ONLY if getattr(args, n) is not None and getattr(args, n) is not False]
-    if args.port is not None and (args.realtime or given):
-        option = "--realtime" if args.realtime else f"--{given[0].replace('_', '-')}"
-        raise UsageError(f"servo run: {option} is for pacing the simulated drive; with --port the board is the "
-                         "clock master and paces the loop")  # fmt: skip
-    if not args.realtime:
-        if given:
-            raise UsageError(f"servo run: --{given[0].replace('_', '-')} needs --realtime")
+    if not (args.realtime or given):
         return None
-    if args.fast:
-        raise UsageError("servo run: --realtime paces the tick path; the all-compiled fast path (--fast) runs "
-                         "blocks of ticks per call and cannot be paced")  # fmt: skip
+    option = "--realtime" if args.realtime else f"--{given[0].replace('_', '-')}"
+    if not args.realtime and args.port is None:
+        raise UsageError(f"servo run: {option} needs --realtime")
+    try:
+        check_realtime(True, args.fast, args.port is not None, option)
+    except ConfigError as exc:
+        raise UsageError(f"servo run: {exc}") from None
     d = RealtimeOptions()
     return RealtimeOptions(
         policy=args.overrun_policy or d.policy,
@@ -76,7 +75,7 @@ def realtime_options(args: argparse.Namespace):
 
 
 def handle(args: argparse.Namespace) -> int:
-    from servo.runjob import default_out_dir, format_summary, run_job
+    from servo.run.job import default_out_dir, format_summary, run_job
 
     realtime = realtime_options(args)
     cfg = config_from_args(args, run={"duration_s": args.duration, "seed": args.seed})
@@ -95,8 +94,8 @@ def _run_on_port(cfg, out: Path, args: argparse.Namespace) -> dict:
     driver is configured (handshake, version and rate checks) before anything is written,
     so a bad URL or an absent board leaves no output folder."""
     from hil.serialdriver import SerialDriver
-    from servo.pacing import realtime_section
-    from servo.runjob import run_job
+    from servo.run.job import run_job
+    from servo.runtime.pacing import realtime_section
 
     if args.fast or (args.fast is None and cfg.run.fast_path):
         raise UsageError("servo run: --port runs tick by tick through the link; drop --fast (run.fast_path)")

@@ -26,7 +26,7 @@ from scipy import signal
 
 from servo.config import Config
 from servo.experiments.sim import simulate
-from servo.recording import Recording
+from servo.io.recording import Recording
 
 RATE_HZ = 50_000.0
 NULL_DRIVE = dict(

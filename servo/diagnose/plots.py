@@ -6,8 +6,8 @@ from pathlib import Path
 
 import numpy as np
 
-from servo.diagnose.run import Diagnosis
-from servo.plotting import plt, save_figure
+from servo.diagnose.job import Diagnosis
+from servo.io.plotting import plt, save_figure
 
 
 def _scale(fu: str):

@@ -11,10 +11,10 @@ import numpy as np
 
 from servo.config import from_dict, to_toml
 from servo.diagnose.fit import Fit
-from servo.diagnose.run import Diagnosis, Finding
+from servo.diagnose.job import Diagnosis, Finding
 from servo.diagnose.terms import VOCABULARY
 from servo.errors import ConfigError
-from servo.runlog import atomic_write
+from servo.io.atomic import atomic_write
 
 SCHEMA = 1
 

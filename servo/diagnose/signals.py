@@ -40,7 +40,7 @@ import numpy as np
 from scipy import signal
 
 from servo.identify.regressors import IdentificationError, RobustSettings, matlab_decimate, regressor
-from servo.recording import Recording
+from servo.io.recording import Recording
 
 #: ``|x'|`` below this many noise standard deviations: the direction is uncertain.
 DIRECTION_Z = 3.0

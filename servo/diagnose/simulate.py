@@ -32,7 +32,7 @@ from kernels.predict import mode_trace, multistep
 from servo.diagnose.fit import Fit
 from servo.diagnose.model import Design
 from servo.diagnose.terms import VOCABULARY
-from servo.drive import mode_matrices
+from servo.runtime.simplant import mode_matrices
 
 #: default horizon, in row spacings (decimation factor samples each)
 HORIZON_ROWS = 10

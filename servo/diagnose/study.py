@@ -22,7 +22,7 @@ from pathlib import Path
 import numpy as np
 
 from servo.diagnose.concealed import EFFECTS, concealed_recording
-from servo.diagnose.run import Options, diagnose
+from servo.diagnose.job import Options, diagnose
 
 DETECT = 0.95
 

@@ -6,7 +6,7 @@ from pathlib import Path
 import numpy as np
 
 from servo.experiments.bode import Sweep
-from servo.plotting import plt, save_figure
+from servo.io.plotting import plt, save_figure
 
 
 def plot_bode(sweeps: list[Sweep], path: Path, title: str, band: float | None = None) -> Path:

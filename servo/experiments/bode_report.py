@@ -20,7 +20,8 @@ from servo.config import Config
 from servo.experiments.bode import SweepSettings, check_holding_loop, sweep
 from servo.experiments.bode_analysis import band_max, linearity, loop_delay, resonance, second_drive
 from servo.experiments.bode_plots import plot_bode
-from servo.runlog import atomic_write, write_csv
+from servo.io.atomic import atomic_write
+from servo.io.runlog import write_csv
 
 
 def run_sweeps(cfg: Config, s: SweepSettings, drives: dict, progress: bool = True) -> dict:

@@ -8,7 +8,7 @@ import numpy as np
 
 from servo.identify.dahl_fit import DahlFit
 from servo.identify.least_squares import LSResult
-from servo.plotting import plt, save_figure
+from servo.io.plotting import plt, save_figure
 
 
 def plot_small_loop(t, x, u, fit: DahlFit, path: Path, title: str = "") -> Path:

@@ -17,8 +17,9 @@ from servo.experiments.hysteresis import HysteresisExperiment, average_slope, ru
 from servo.experiments.hysteresis_plots import plot_large_loop, plot_small_loop
 from servo.identify.dahl_fit import DahlFit, fit_dahl
 from servo.identify.regressors import IdentificationError
-from servo.recording import Recording, save_recording_csv
-from servo.runlog import atomic_write, write_csv
+from servo.io.atomic import atomic_write
+from servo.io.recording import Recording, save_recording_csv
+from servo.io.runlog import write_csv
 
 
 def _write_fit(out: Path, t, x, v, u, fit: DahlFit) -> None:

@@ -19,8 +19,8 @@ from servo.experiments.hysteresis_report import run_hysteresis_simulated
 from servo.experiments.square_wave import SquareWave, force_lag, nominal, representable, run_square_wave
 from servo.identify.regressors import TERMS, RobustSettings
 from servo.identify.report import run_identify
-from servo.recording import save_recording_csv
-from servo.runlog import atomic_write
+from servo.io.atomic import atomic_write
+from servo.io.recording import save_recording_csv
 
 
 def _say(msg: str) -> None:

@@ -2,7 +2,7 @@
 
 Experiments run many short simulations (a Bode sweep runs one per frequency and level);
 they need the log as arrays, not as files.  :class:`MemoryLog` has the interface
-:func:`servo.runner.run_closed_loop` uses (``data``, ``rows``, ``maybe_flush``,
+:func:`servo.runtime.loop.run_closed_loop` uses (``data``, ``rows``, ``maybe_flush``,
 ``flush``) and keeps everything in memory.
 """
 from __future__ import annotations
@@ -11,10 +11,10 @@ import numpy as np
 
 from kernels.loop import LOG_COLUMNS
 from servo.config import Config
-from servo.controller import Controller
-from servo.runner import log_rows, run_closed_loop
-from servo.scenario import Inputs
-from servo.simdriver import SimDriver
+from servo.runtime.controller import Controller
+from servo.runtime.loop import log_rows, run_closed_loop
+from servo.runtime.scenario import Inputs
+from servo.runtime.simdriver import SimDriver
 
 
 class MemoryLog:

@@ -33,7 +33,7 @@ from servo.experiments.holding import holding_gains
 from servo.experiments.sim import simulate
 from servo.identify.least_squares import least_squares
 from servo.identify.regressors import TERMS, RobustSettings, paper_regression, robust_regression
-from servo.recording import Recording
+from servo.io.recording import Recording
 
 
 @dataclass(frozen=True)

@@ -7,7 +7,7 @@ Least squares on eq. (4)::
     reg = robust_regression(rec.t, rec.x, rec.u, rec.dt, terms=("J", "B", "Fc", "h0"))
     fit = least_squares(reg)          # fit["J"], fit.std, fit.cond, fit.rel_error_pct
 
-:func:`identify` does the same from a :class:`~servo.recording.Recording` and a path name;
+:func:`identify` does the same from a :class:`~servo.io.recording.Recording` and a path name;
 :func:`fit_dahl` fits eq. (6-7) to a current-vs-position loop.
 Every function takes arrays and a sample period and returns a frozen dataclass; problems
 the data cannot solve raise :class:`IdentificationError` (a
@@ -19,7 +19,7 @@ from servo.identify.regressors import (
     COLUMN, TERMS, UNITS, IdentificationError, Regression, RobustSettings, lag_force, matlab_decimate,
     paper_regression, parse_terms, regressor, robust_regression, units,
 )  # fmt: skip
-from servo.identify.run import Identification, identify
+from servo.identify.job import Identification, identify
 
 __all__ = [
     "COLUMN", "TERMS", "UNITS", "DahlFit", "Identification", "IdentificationError", "LSResult", "Regression",

@@ -6,8 +6,8 @@ from pathlib import Path
 
 import numpy as np
 
-from servo.identify.run import Identification
-from servo.plotting import plt, save_figure
+from servo.identify.job import Identification
+from servo.io.plotting import plt, save_figure
 
 
 def estimated_acceleration(ident: Identification) -> np.ndarray:

@@ -13,11 +13,12 @@ from pathlib import Path
 
 import numpy as np
 
+from servo.identify.job import Identification, identify
 from servo.identify.plots import estimated_acceleration, plot_acceleration, plot_force_fit
 from servo.identify.regressors import RobustSettings, units
-from servo.identify.run import Identification, identify
-from servo.recording import Recording
-from servo.runlog import atomic_write, write_csv
+from servo.io.atomic import atomic_write
+from servo.io.recording import Recording
+from servo.io.runlog import write_csv
 
 
 def write_identification(ident: Identification, out: Path, force_unit: str = "A", title: str = "") -> list[str]:

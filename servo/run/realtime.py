@@ -1,7 +1,7 @@
 """Real-time runs (``servo run --realtime``): options, the paced section, the report.
 
 A real-time run steps the tick path (read -> controller -> write -> tasks) with a
-:class:`~servo.pacing.Pacer`: tick ``k`` starts at ``t0 + k*period`` on the wall clock,
+:class:`~servo.runtime.pacing.Pacer`: tick ``k`` starts at ``t0 + k*period`` on the wall clock,
 waited for by sleeping, then spinning the last ``spin_s``.  The fast path cannot be
 paced (it runs a block of ticks per compiled call), so ``--realtime`` implies the tick
 path.  Pacing changes *when* a tick runs, never what it computes: the log of a paced run
@@ -23,7 +23,7 @@ import numpy as np
 
 from servo.config import Config
 from servo.errors import ConfigError
-from servo.pacing import Pacer, RealtimeGrant
+from servo.runtime.pacing import Pacer, RealtimeGrant
 
 #: Rows per run-log journal write in a paced run: 512 rows (48 KB) cost ~25 us, a tick or
 #: two of lateness, where the default 8192 rows cost ~0.8 ms, some forty ticks.
@@ -57,6 +57,23 @@ class RealtimeOptions:
         if not 0.0 <= self.spin_s <= 1.0:
             raise ConfigError(f"realtime: --spin-us must be within 0..1e6, got {self.spin_s * 1e6:g}")
         return self
+
+
+def check_realtime(realtime: bool, fast: bool | None, on_board: bool, option: str = "--realtime") -> None:
+    """The rules of a paced run, in one place (``servo run``'s options and
+    :func:`~servo.run.job.run_job` both call it): pacing is of the simulated drive (a board
+    is its own clock), on the tick path (the fast path cannot be paced).  ``realtime``:
+    pacing is asked for, by ``option`` (for the message); ``fast``: the fast path is asked
+    for explicitly (None: the config decides, and pacing overrides it); ``on_board``: the
+    loop runs against a board.  Raises :class:`~servo.errors.ConfigError` (one line)."""
+    if not realtime:
+        return
+    if on_board:
+        raise ConfigError(f"{option} is for pacing the simulated drive; with --port the board is the clock master "
+                          "and paces the loop")  # fmt: skip
+    if fast:
+        raise ConfigError(f"{option} paces the tick path; the all-compiled fast path (--fast) runs blocks of ticks "
+                          "per call and cannot be paced")  # fmt: skip
 
 
 def make_pacer(cfg: Config, opts: RealtimeOptions) -> Pacer:
@@ -103,7 +120,7 @@ def plot_lateness(cfg: Config, lateness_ns: dict[str, np.ndarray], path: Path) -
     """Histogram PNG of the lateness of every tick (us, log-log; lateness below 10 ns,
     including 0, is counted in the first bin), one curve per run, with the period and
     each run's p99.9 marked."""
-    from servo.plotting import plt, save_figure
+    from servo.io.plotting import plt, save_figure
 
     fig, ax = plt.subplots(figsize=(8, 4.2))
     period = cfg.dt * 1e6

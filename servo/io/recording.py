@@ -203,7 +203,7 @@ def load_recording(path: str | Path, columns: dict[str, str] | None = None, scal
 
 def save_recording_csv(path: str | Path, rec: Recording) -> None:
     """Write ``rec`` as a CSV recording (header ``t,u,x[,v]``, ``%.17g``), atomically."""
-    from servo.runlog import write_csv
+    from servo.io.runlog import write_csv
 
     cols = ["t", "u", "x"] + (["v"] if rec.v is not None else [])
     data = np.column_stack([getattr(rec, c) for c in cols])

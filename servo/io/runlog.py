@@ -14,23 +14,11 @@ CSV: a header row of column names, then one row per sample, ``%.17g`` (exact rou
 from __future__ import annotations
 
 import json
-import os
 from pathlib import Path
 
 import numpy as np
 
-
-def atomic_write(path: Path, write) -> None:
-    """Call ``write(tmp_path)`` then rename ``tmp_path`` onto ``path``; never leaves a
-    half-written ``path`` (the temporary is removed if ``write`` fails)."""
-    path = Path(path)
-    tmp = path.with_name(f".{path.name}.tmp")
-    try:
-        write(tmp)
-        os.replace(tmp, path)
-    finally:
-        if tmp.exists():
-            tmp.unlink()
+from servo.io.atomic import atomic_write
 
 
 def write_npz(path: Path, columns, data: np.ndarray, meta: dict) -> None:

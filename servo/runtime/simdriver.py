@@ -18,8 +18,8 @@ import numpy as np
 from kernels.delay import shift_in
 from kernels.plant import plant_measure, plant_step
 from servo.config import Config
-from servo.drive import SimPlant, build_plant
-from servo.driver import Driver, DriverInfo
+from servo.runtime.driver import Driver, DriverInfo
+from servo.runtime.simplant import SimPlant, build_plant
 
 NOISE_BLOCK = 1024  # ticks; drawing a block takes ~25 us, small enough not to upset a paced tick
 

@@ -14,6 +14,8 @@ Modelled on ros2_control's hardware interface::
   link's latency.  A non-finite command is refused: the drive goes to its safe state.
 * ``deactivate`` puts the drive in its **safe state: zero current**.
 * ``close`` releases the device (deactivating first if needed).
+* ``report`` returns what the run summary records about the drive or its link (a dict,
+  or None when there is nothing to report: the default).
 
 The base class owns the state machine; subclasses implement the ``_on_*`` hooks.  The safe
 state cannot be skipped: ``close`` deactivates, the context manager closes on every exit
@@ -142,3 +144,8 @@ class Driver(ABC):
 
     def _on_close(self) -> None:
         pass
+
+    def report(self) -> dict | None:
+        """What the run summary records about the drive/link; None for a drive with
+        nothing to report."""
+        return None

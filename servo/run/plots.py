@@ -7,8 +7,8 @@ import numpy as np
 
 from kernels.loop import LOG_COLUMNS
 from servo.config import Config
-from servo.plotting import plt, save_figure
-from servo.scenario import segments
+from servo.io.plotting import plt, save_figure
+from servo.runtime.scenario import segments
 
 COL = {c: i for i, c in enumerate(LOG_COLUMNS)}
 COLORS = {"compensated": "tab:blue", "uncompensated": "tab:orange"}

@@ -8,7 +8,7 @@ into one output folder:
 * ``summary.json``: tracking error RMS per segment, per-step overshoot and settling,
   compute time per sample, ticks, overruns, the cold start (process start to first tick);
 * ``tracking.png``, ``steps.png``, ``current.png`` (and ``timing.png`` tick by tick;
-  ``lateness.png`` when paced in real time, see :mod:`servo.realtime`);
+  ``lateness.png`` when paced in real time, see :mod:`servo.run.realtime`);
 * ``config.toml``: the effective configuration (rerun it for the same bits).
 """
 from __future__ import annotations
@@ -22,19 +22,19 @@ from typing import Callable
 import numpy as np
 
 from kernels.loop import LOG_COLUMNS
-from servo import runplots
 from servo.config import Config, to_toml
-from servo.controller import Controller
-from servo.driver import Driver
-from servo.errors import ConfigError
-from servo.metrics import rms, step_metrics, tick_timing
-from servo.pacing import OverrunFault, realtime_section
-from servo.realtime import REALTIME_LOG_BLOCK, RealtimeOptions, grant_line, lateness_line, make_pacer, plot_lateness, report
-from servo.runlog import RunLog, atomic_write
-from servo.runner import LoopResult, log_rows, run_closed_loop
-from servo.scenario import Inputs, scenario_inputs, segments
-from servo.simdriver import SimDriver
-from servo.startup import process_age_s
+from servo.io.atomic import atomic_write
+from servo.io.runlog import RunLog
+from servo.run import plots
+from servo.run.metrics import rms, step_metrics, tick_timing
+from servo.run.realtime import REALTIME_LOG_BLOCK, RealtimeOptions, check_realtime, grant_line, lateness_line, make_pacer, plot_lateness, report
+from servo.run.startup import process_age_s
+from servo.runtime.controller import Controller
+from servo.runtime.driver import Driver
+from servo.runtime.loop import LoopResult, log_rows, run_closed_loop
+from servo.runtime.pacing import OverrunFault, realtime_section
+from servo.runtime.scenario import Inputs, scenario_inputs, segments
+from servo.runtime.simdriver import SimDriver
 
 LABELS = {"on": ("compensated",), "off": ("uncompensated",), "compare": ("compensated", "uncompensated")}
 COL = {c: i for i, c in enumerate(LOG_COLUMNS)}
@@ -48,12 +48,13 @@ def run_simulated(cfg: Config, out_dir: Path, compensated: bool, fast: bool,
                   make_driver: Callable[[Config, Inputs], Driver] | None = None,
                   realtime: RealtimeOptions | None = None) -> tuple[np.ndarray, LoopResult]:  # fmt: skip
     """One closed-loop run against a fresh driver (default: the simulated drive); returns
-    (log rows, result).  A driver with a ``report()`` method (the serial link) has it
-    recorded in ``result.link``.  ``realtime``: pace the ticks on the wall clock (tick path,
-    simulated drive); the result then carries the pacing report and the lateness of every
-    tick.  A run against a plant in real time (paced, or a board) journals its log in
-    blocks of :data:`~servo.realtime.REALTIME_LOG_BLOCK` rows, so that no write stalls a
-    tick for long."""
+    (log rows, result).  What the driver reports (:meth:`Driver.report`: the serial link's
+    frames and counters; None for the simulated drive) is recorded in ``result.link``.
+    ``realtime``: pace the ticks on the wall clock (tick path, simulated drive); the result
+    then carries the pacing report and the lateness of every tick.  A run against a plant
+    in real time (paced, or a board) journals its log in blocks of
+    :data:`~servo.run.realtime.REALTIME_LOG_BLOCK` rows, so that no write stalls a tick for
+    long."""
     label = "compensated" if compensated else "uncompensated"
     inputs = scenario_inputs(cfg)
     meta = {"label": label, "fast_path": fast, "sample_rate_hz": cfg.run.sample_rate_hz, "seed": cfg.run.seed,
@@ -65,7 +66,7 @@ def run_simulated(cfg: Config, out_dir: Path, compensated: bool, fast: bool,
     with driver, RunLog(out_dir, f"log_{label}", LOG_COLUMNS, log_rows(cfg), meta, block) as log:
         with section as grant:  # only around configure and the loop: the log is finalised outside
             result = run_closed_loop(cfg, driver, Controller(cfg, compensation=compensated), inputs, log, fast=fast, pacer=pacer)
-    result.link = driver.report() if hasattr(driver, "report") else None
+    result.link = driver.report()
     if realtime:
         result.realtime = report(pacer, realtime, grant)
         result.lateness_ns = pacer.lateness_ns
@@ -109,12 +110,8 @@ def run_job(cfg: Config, out_dir: Path, compensation: str = "compare", fast: boo
     the fast path as well, or pacing a board, which is its own clock, is an error).  On a
     real-time overrun fault the drive is at zero current and the log of the interrupted
     run is kept."""
+    check_realtime(realtime is not None, fast, make_driver is not None)
     if realtime is not None:
-        if fast:
-            raise ConfigError("--realtime paces the tick path; the all-compiled fast path (--fast) runs blocks "
-                              "of ticks per call and cannot be paced")  # fmt: skip
-        if make_driver is not None:
-            raise ConfigError("--realtime paces the simulated drive; a board is the clock master and paces the loop")
         realtime.check()
         fast = False
     fast = cfg.run.fast_path if fast is None else fast
@@ -132,7 +129,7 @@ def run_job(cfg: Config, out_dir: Path, compensation: str = "compare", fast: boo
             age = process_age_s()
             startup = None if age is None else age - (time.perf_counter() - results[label].started)
         runs[label] = summarise(cfg, logs[label], results[label])
-    runplots.plot_run(cfg, logs, results, out_dir)
+    plots.plot_run(cfg, logs, results, out_dir)
     if realtime is not None:
         plot_lateness(cfg, {k: r.lateness_ns for k, r in results.items()}, out_dir / "lateness.png")
     path = "fast (all compiled)" if fast else "tick by tick through the driver interface"

@@ -12,7 +12,7 @@ for the simulated drive they produce the same log, bit for bit:
 Nothing compiles or warms up inside the loop: the driver warms its kernels at
 ``configure``, the controller and the log/estimator kernels are called once on scratch
 copies before the first tick, and the garbage collector is disabled
-(:func:`servo.pacing.gc_paused`) from before ``configure`` to the end of the loop, so that
+(:func:`servo.runtime.pacing.gc_paused`) from before ``configure`` to the end of the loop, so that
 no collection (tens of ms with numba, scipy and matplotlib loaded) lands on a tick.  A pacer, if given, is started right
 before the first tick.
 """
@@ -25,13 +25,13 @@ import numpy as np
 
 from kernels.loop import LOG_COLUMNS, STATS_SIZE, closed_loop, error_stats, log_row
 from servo.config import Config
-from servo.controller import Controller
-from servo.driver import Driver, DriverState
-from servo.pacing import gc_paused
-from servo.runlog import RunLog
-from servo.scenario import Inputs
-from servo.scheduler import Pacer, Scheduler, Task
-from servo.simdriver import NOISE_BLOCK, SimDriver
+from servo.io.runlog import RunLog
+from servo.runtime.controller import Controller
+from servo.runtime.driver import Driver, DriverState
+from servo.runtime.pacing import Pacer, gc_paused
+from servo.runtime.scenario import Inputs
+from servo.runtime.scheduler import Scheduler, Task
+from servo.runtime.simdriver import NOISE_BLOCK, SimDriver
 
 
 @dataclass
@@ -42,7 +42,7 @@ class LoopResult:
     per-tick compute time in ns (tick path only, else None); ``wall_s``: loop wall time;
     ``started``: :func:`time.perf_counter` when the loop started; ``link``: what a serial
     driver reports about its link (None for the simulated drive).  A paced run adds
-    ``realtime`` (its report, :func:`servo.realtime.report`) and ``lateness_ns`` (each
+    ``realtime`` (its report, :func:`servo.run.realtime.report`) and ``lateness_ns`` (each
     tick's start behind its deadline).
     """
 

@@ -1,4 +1,4 @@
-"""Identification of eq. (4) from a :class:`~servo.recording.Recording` in one call."""
+"""Identification of eq. (4) from a :class:`~servo.io.recording.Recording` in one call."""
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -7,7 +7,7 @@ from servo.identify.least_squares import LSResult, least_squares
 from servo.identify.regressors import (
     TERMS, IdentificationError, Regression, RobustSettings, paper_regression, robust_regression,
 )  # fmt: skip
-from servo.recording import Recording
+from servo.io.recording import Recording
 
 PATHS = ("robust", "paper")
 

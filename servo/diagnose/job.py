@@ -33,7 +33,7 @@ from servo.diagnose.simulate import Prediction, Unsimulable, horizon_samples, pr
 from servo.diagnose.terms import VOCABULARY
 from servo.errors import ServoError
 from servo.identify.regressors import IdentificationError, RobustSettings
-from servo.recording import Recording
+from servo.io.recording import Recording
 
 MIN_ROWS_PER_BLOCK = 20
 #: memory a diagnosis needs (:func:`memory_estimate`): bytes per full-rate sample (the

@@ -11,7 +11,8 @@ Time is the tick counter ``k``, never the wall clock.  One tick::
 A task runs at ticks ``k`` with ``(k - offset) % every == 0``.  The order is the order of
 the lists, fixed at construction.  On the first tick of :meth:`Scheduler.run` the
 controller takes over bumplessly (``controller.start``) from the current the drive
-applies.  Wall-clock pacing is a separate concern (a pacer object with ``wait(k)``).
+applies.  Wall-clock pacing is a separate concern (a :class:`~servo.runtime.pacing.Pacer`:
+``start()`` right before the first tick, ``wait(k)`` before tick ``k``).
 """
 from __future__ import annotations
 
@@ -22,7 +23,8 @@ from typing import Callable, Protocol, Sequence
 
 import numpy as np
 
-from servo.driver import Driver
+from servo.runtime.driver import Driver
+from servo.runtime.pacing import Pacer
 
 
 @dataclass
@@ -56,14 +58,6 @@ class TickData:
 class ControllerLike(Protocol):
     def start(self, x: float, v: float, u_now: float) -> None: ...
     def tick(self, x: float, v: float, r: float, u_exc: float) -> float: ...
-
-
-class Pacer(Protocol):
-    """Ties ticks to the wall clock (:class:`servo.pacing.Pacer`): ``start()`` right
-    before the first tick, ``wait(k)`` before tick ``k``."""
-
-    def start(self) -> None: ...
-    def wait(self, k: int) -> None: ...
 
 
 @dataclass
