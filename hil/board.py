@@ -24,7 +24,7 @@ While a session is READY or ACTIVE a HELLO is refused (ignored, counted in
 :attr:`Board.refused_hellos`, logged): the board belongs to the host that configured it
 until that host's STOP, a fault, or its watchdog.
 
-The drive is a :class:`~servo.simdriver.SimDriver` built afresh at every CONFIG from
+The drive is a :class:`~servo.runtime.simdriver.SimDriver` built afresh at every CONFIG from
 the emulator's config (same seed, same disturbance array), with *no* latency of its own:
 the board applies the command of sample ``k`` at tick ``k + d`` itself, and the command
 of ticks ``k < d`` is the holding current the drive starts with, as in the SimDriver.

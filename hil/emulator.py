@@ -12,7 +12,7 @@ the host of the GIL).
   a time; a closed connection puts the drive in its safe state at once.
 
 Modes: lockstep (the board advances when commands arrive; deterministic) or real time
-(the board is the clock master: :class:`servo.pacing.Pacer` deadlines at its sample rate,
+(the board is the clock master: :class:`servo.runtime.pacing.Pacer` deadlines at its sample rate,
 one :meth:`Board.tick` per period, the input drained without blocking every tick).
 """
 from __future__ import annotations

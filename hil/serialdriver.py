@@ -1,6 +1,6 @@
 """``SerialDriver``: the driver interface over a serial link to a DSP/VCM board.
 
-Lifecycle (see :mod:`servo.driver`):
+Lifecycle (see :mod:`servo.runtime.driver`):
 
 * ``configure``: open the pyserial URL (low-latency mode where offered), HELLO -> INFO
   (version negotiation, sample rate, capabilities), CONFIG -> READY (latency ``d``,

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from servo.cli import main
-from servo.diagnose import run
+from servo.diagnose import job
 from servo.diagnose.concealed import Scenario, concealed_recording
 from servo.diagnose.memprobe import measure
 from servo.errors import ServoError
@@ -31,30 +31,30 @@ def test_peak_memory_per_sample_is_bounded(rec200k, tmp_path):
     assert r["estimate_mb"] >= r["extra_mb"], r  # the up-front estimate does not undershoot
 
 def test_estimate_is_linear_in_samples_and_rows():
-    opt = run.Options()
-    assert run.memory_estimate(2_000_000, opt) == pytest.approx(2 * run.memory_estimate(1_000_000, opt))
-    assert run.memory_estimate(1_000_000, opt) < 1e9  # the benchmark's recording fits in well under 1 GB
+    opt = job.Options()
+    assert job.memory_estimate(2_000_000, opt) == pytest.approx(2 * job.memory_estimate(1_000_000, opt))
+    assert job.memory_estimate(1_000_000, opt) < 1e9  # the benchmark's recording fits in well under 1 GB
 
 def test_available_memory_is_read_or_skipped():
-    avail = run.available_memory()
+    avail = job.available_memory()
     assert avail is None or avail > 0
 
 def test_too_large_is_refused_before_any_work(rec200k, monkeypatch):
-    monkeypatch.setattr(run, "available_memory", lambda: 1e6)
+    monkeypatch.setattr(job, "available_memory", lambda: 1e6)
 
     def boom(*a, **k):
         raise AssertionError("the signals were built before the memory check")
 
-    monkeypatch.setattr(run, "make_signals", boom)
+    monkeypatch.setattr(job, "make_signals", boom)
     with pytest.raises(ServoError) as exc:
-        run.diagnose(rec200k)
+        job.diagnose(rec200k)
     msg = str(exc.value)
     assert "\n" not in msg and msg.startswith("diagnose: this recording")
     assert "GB are available" in msg and "shorter part" in msg
 
 def test_unreadable_meminfo_skips_the_check(monkeypatch):
-    monkeypatch.setattr(run, "available_memory", lambda: None)
-    run.check_memory(10**12, run.Options())  # no error: nothing to compare with
+    monkeypatch.setattr(job, "available_memory", lambda: None)
+    job.check_memory(10**12, job.Options())  # no error: nothing to compare with
 
 def test_too_large_through_the_cli_is_one_line_and_writes_nothing(tmp_path, capsys, monkeypatch):
     t = np.arange(6000) * 1e-3
@@ -62,7 +62,7 @@ def test_too_large_through_the_cli_is_one_line_and_writes_nothing(tmp_path, caps
     x = 1e-3 * np.sin(2 * np.pi * 0.7 * t - 1) + 1e-6 * np.sin(2 * np.pi * 13 * t)
     path = tmp_path / "rec.csv"
     np.savetxt(path, np.column_stack([t, u, x]), delimiter=",", header="t,u,x", comments="")
-    monkeypatch.setattr(run, "available_memory", lambda: 1e3)
+    monkeypatch.setattr(job, "available_memory", lambda: 1e3)
     out = tmp_path / "o"
     code = main(["diagnose", str(path), "--out", str(out)])
     err = capsys.readouterr().err

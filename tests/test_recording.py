@@ -76,7 +76,7 @@ def test_bad_files(tmp_path):
 
 def test_a_byte_order_mark_is_not_part_of_the_first_column_name(tmp_path):
     """Issue 9.8: 'no column 't' (it has: ..., \\ufefft)' for a CSV saved by a spreadsheet."""
-    from servo.recording import load_recording
+    from servo.io.recording import load_recording
 
     t = np.arange(200) * 1e-3
     body = "t,u,x\n" + "".join(f"{a:.17g},{np.sin(a):.17g},{np.cos(a):.17g}\n" for a in t)
@@ -90,7 +90,7 @@ def test_a_byte_order_mark_is_not_part_of_the_first_column_name(tmp_path):
 def test_values_beyond_any_physical_magnitude_are_one_error_line(role, tmp_path):
     """Issue 9.6: values near 1e300 went through to the fits (warnings, exit 70)."""
     from servo.errors import RecordingError
-    from servo.recording import load_recording
+    from servo.io.recording import load_recording
 
     t = np.arange(200) * 1e-3
     cols = {"t": t, "u": np.sin(t), "x": np.cos(t)}

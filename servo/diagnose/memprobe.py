@@ -3,11 +3,11 @@
 For each sample count ``N`` a concealed-hysteresis recording (the benchmark's: a Dahl
 pivot of 0.2 mA, long-stroke scenario, ``N/50000`` s at 50 kHz) is built once, saved as
 ``.npz`` and diagnosed in a fresh Python process.  That process loads the recording,
-notes its resident memory, runs :func:`servo.diagnose.run.diagnose` (not the plots or
+notes its resident memory, runs :func:`servo.diagnose.job.diagnose` (not the plots or
 the files) and reports the peak resident memory (``VmHWM``, its high-water mark reset
 just before; ``ru_maxrss`` where that is missing) less the memory before
 the diagnosis: what the diagnosis itself adds.  It also prints what
-:func:`servo.diagnose.run.memory_estimate` predicted, the figure the diagnosis compares
+:func:`servo.diagnose.job.memory_estimate` predicted, the figure the diagnosis compares
 with the available memory before it starts.
 
 Building the recording in another process matters: the simulation's own peak would
@@ -25,7 +25,7 @@ from pathlib import Path
 CHILD = r"""
 import json, resource, sys, time
 import numpy as np
-from servo.recording import Recording
+from servo.io.recording import Recording
 
 def status_mb(field):
     try:
@@ -51,9 +51,9 @@ def reset_peak():
     except OSError:
         pass
 
-from servo.diagnose.run import Options, diagnose
+from servo.diagnose.job import Options, diagnose
 try:
-    from servo.diagnose.run import memory_estimate
+    from servo.diagnose.job import memory_estimate
 except ImportError:  # a version without the estimate
     memory_estimate = lambda n, opt: float("nan")
 from servo.identify.regressors import RobustSettings
