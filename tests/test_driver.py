@@ -105,3 +105,39 @@ def test_keyboard_interrupt_also_ends_in_the_safe_state(tmp_path):
             run_closed_loop(cfg, drv, CtrlC(cfg, 10**9), scenario_inputs(cfg), log)
     assert drv.applied_current == 0.0 and drv.state is DriverState.CLOSED
     assert np.load(tmp_path / "log.npz")["tick"].shape == (100,)
+
+
+def test_a_simulation_that_diverges_is_a_fault_with_the_drive_safe_and_the_log_kept(tmp_path):
+    """Issue 9.5: a non-finite plant state ran on and was summarised as a result."""
+    import math
+
+    from kernels.loop import LOG_COLUMNS
+    from servo.config import Config
+    from servo.errors import DriverError
+    from servo.io.runlog import RunLog
+    from servo.runtime.controller import Controller
+    from servo.runtime.loop import log_rows, run_closed_loop
+    from servo.runtime.scenario import scenario_inputs
+    from servo.runtime.simdriver import NOISE_BLOCK, SimDriver
+
+    cfg = Config().replace(run={"duration_s": 0.1})
+    for fast in (False, True):
+        drv = SimDriver(cfg)
+        drv.configure()
+        spoiled = {"n": 0}
+        real_noise = drv.noise
+
+        def noise(k0, n):  # spoil the state once the second noise block begins
+            if k0 >= NOISE_BLOCK and not spoiled["n"]:
+                drv.plant.state["x"] = math.nan
+                spoiled["n"] = 1
+            return real_noise(k0, n)
+
+        drv.noise = noise
+        with pytest.raises(DriverError, match="the simulation diverged") as err:
+            with RunLog(tmp_path, f"log{int(fast)}", LOG_COLUMNS, log_rows(cfg)) as log:
+                run_closed_loop(cfg, drv, Controller(cfg), scenario_inputs(cfg), log, fast=fast)
+        assert "\n" not in str(err.value)
+        assert drv.applied_current == 0.0 and drv.latency.sum() == 0.0  # safe state
+        rows = log.rows
+        assert NOISE_BLOCK <= rows <= 2 * NOISE_BLOCK  # every tick before the fault is kept

@@ -66,3 +66,18 @@ def test_ctrl_c_stops_cleanly_and_keeps_everything(tmp_path):
         "log_compensated.csv", "log_compensated.npz"]  # fmt: skip
     assert not any(p.name.startswith(".") for p in out.iterdir())
 
+
+
+def test_summaries_are_strict_json_a_nan_or_infinity_becomes_null(tmp_path):
+    """Issue 9.5: summary.json held 'Infinity', which JSON readers refuse."""
+    import json
+
+    from servo.io.atomic import write_json
+
+    p = tmp_path / "s.json"
+    write_json(p, {"a": float("inf"), "b": [np.float64("nan"), np.float32(1.5)], "c": np.arange(2), "d": "x"})
+    text = p.read_text()
+    assert "Infinity" not in text and "NaN" not in text
+    assert json.loads(text, parse_constant=lambda c: pytest.fail(f"non-JSON constant {c}")) == \
+        {"a": None, "b": [None, 1.5], "c": [0, 1], "d": "x"}
+    assert [q.name for q in tmp_path.iterdir()] == ["s.json"]

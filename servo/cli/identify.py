@@ -3,7 +3,6 @@ drive's square-wave experiment (paper Fig. 5)."""
 from __future__ import annotations
 
 import argparse
-import json
 import time
 from pathlib import Path
 
@@ -60,7 +59,7 @@ def _trim(text: str) -> tuple[int, int]:
 def handle(args: argparse.Namespace) -> int:
     from servo.identify.regressors import RobustSettings, parse_terms
     from servo.identify.report import format_summary, run_identify
-    from servo.io.atomic import atomic_write
+    from servo.io.atomic import write_json
     from servo.io.recording import save_recording_csv
 
     terms = parse_terms(args.terms, args.off)
@@ -103,6 +102,6 @@ def handle(args: argparse.Namespace) -> int:
     if args.simulate:  # written once the fits succeeded: no half-filled folder on an error
         save_recording_csv(out / "recording.csv", rec)
         summary["files"] = sorted(summary["files"] + ["recording.csv"])
-        atomic_write(out / "summary.json", lambda f: Path(f).write_text(json.dumps(summary, indent=2)))
+        write_json(out / "summary.json", summary)
     print(format_summary(summary, out))
     return 0

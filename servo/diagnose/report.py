@@ -2,7 +2,6 @@
 final model as a drive config, and the human summary (one line per finding)."""
 from __future__ import annotations
 
-import json
 import math
 from dataclasses import asdict
 from pathlib import Path
@@ -14,7 +13,7 @@ from servo.diagnose.fit import Fit
 from servo.diagnose.job import Diagnosis, Finding
 from servo.diagnose.terms import VOCABULARY
 from servo.errors import ConfigError
-from servo.io.atomic import atomic_write
+from servo.io.atomic import atomic_write, write_json
 
 SCHEMA = 1
 
@@ -167,7 +166,7 @@ def build_report(D: Diagnosis, files: list | None = None) -> dict:
 
 
 def write_report(report: dict, out: Path) -> None:
-    atomic_write(out / "report.json", lambda f: Path(f).write_text(json.dumps(report, indent=2)))
+    write_json(out / "report.json", report)
 
 
 def write_drive_toml(report: dict, out: Path) -> bool:

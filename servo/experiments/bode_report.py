@@ -9,7 +9,6 @@ control.FrequencyResponseData``; ``pickle.load`` it with python-control installe
 """
 from __future__ import annotations
 
-import json
 import pickle
 import sys
 from pathlib import Path
@@ -20,7 +19,7 @@ from servo.config import Config
 from servo.experiments.bode import SweepSettings, check_holding_loop, sweep
 from servo.experiments.bode_analysis import band_max, linearity, loop_delay, resonance, second_drive
 from servo.experiments.bode_plots import plot_bode
-from servo.io.atomic import atomic_write
+from servo.io.atomic import atomic_write, write_json
 from servo.io.runlog import write_csv
 
 
@@ -90,7 +89,7 @@ def run_bode(cfg: Config, out: Path, s: SweepSettings, with_second: bool = True,
         for (name, comp), sweeps in res.items()
     }
     summary["files"] = sorted(files + ["summary.json"])
-    atomic_write(out / "summary.json", lambda f: Path(f).write_text(json.dumps(summary, indent=2)))
+    write_json(out / "summary.json", summary)
     return summary
 
 

@@ -7,7 +7,6 @@ Outputs in one folder: ``summary.json``, ``dahl_fit.csv`` (t, x, v, u, u_hat, H)
 """
 from __future__ import annotations
 
-import json
 from pathlib import Path
 
 import numpy as np
@@ -17,7 +16,7 @@ from servo.experiments.hysteresis import HysteresisExperiment, average_slope, ru
 from servo.experiments.hysteresis_plots import plot_large_loop, plot_small_loop
 from servo.identify.dahl_fit import DahlFit, fit_dahl
 from servo.identify.regressors import IdentificationError
-from servo.io.atomic import atomic_write
+from servo.io.atomic import write_json
 from servo.io.recording import Recording, save_recording_csv
 from servo.io.runlog import write_csv
 
@@ -86,7 +85,7 @@ def run_hysteresis_simulated(cfg: Config, out: Path, exp: HysteresisExperiment, 
 
 def _finish(out: Path, summary: dict, files: list[str]) -> dict:
     summary["files"] = sorted(files + ["summary.json"])
-    atomic_write(out / "summary.json", lambda f: Path(f).write_text(json.dumps(summary, indent=2)))
+    write_json(out / "summary.json", summary)
     return summary
 
 

@@ -7,7 +7,6 @@ only (each from the summaries the three jobs write).
 """
 from __future__ import annotations
 
-import json
 import sys
 from pathlib import Path
 
@@ -19,7 +18,7 @@ from servo.experiments.hysteresis_report import run_hysteresis_simulated
 from servo.experiments.square_wave import SquareWave, force_lag, nominal, representable, run_square_wave
 from servo.identify.regressors import TERMS, RobustSettings
 from servo.identify.report import run_identify
-from servo.io.atomic import atomic_write
+from servo.io.atomic import atomic_write, write_json
 from servo.io.recording import save_recording_csv
 
 
@@ -43,7 +42,7 @@ def run_paper(cfg: Config, out: Path, sweep: SweepSettings) -> dict:
     _say(f"servo paper: 3/3 Bode sweeps (Fig. 7-10): {2 * 2 * len(sweep.levels)} sweeps of {sweep.n_freq} frequencies")
     bode = run_bode(cfg, out / "bode", sweep, with_second=True, progress=True)
     summary = {"hysteresis": hy, "identification": ident, "bode": bode}
-    atomic_write(out / "summary.json", lambda f: Path(f).write_text(json.dumps(summary, indent=2)))
+    write_json(out / "summary.json", summary)
     atomic_write(out / "REPORT.md", lambda f: Path(f).write_text(report(cfg, summary, sw)))
     return summary
 

@@ -8,7 +8,6 @@ acceleration), and per path ``acceleration_<path>.png`` (paper Fig. 5) and
 """
 from __future__ import annotations
 
-import json
 from pathlib import Path
 
 import numpy as np
@@ -16,7 +15,7 @@ import numpy as np
 from servo.identify.job import Identification, identify
 from servo.identify.plots import estimated_acceleration, plot_acceleration, plot_force_fit
 from servo.identify.regressors import RobustSettings, units
-from servo.io.atomic import atomic_write
+from servo.io.atomic import atomic_write, write_json
 from servo.io.recording import Recording
 from servo.io.runlog import write_csv
 
@@ -77,7 +76,7 @@ def run_identify(rec: Recording, out: Path, paths, terms, settings: RobustSettin
                 for name, ref in refs.items()
             }
     summary["files"] = sorted(files + ["summary.json"])
-    atomic_write(out / "summary.json", lambda f: Path(f).write_text(json.dumps(summary, indent=2)))
+    write_json(out / "summary.json", summary)
     return summary
 
 

@@ -13,7 +13,6 @@ into one output folder:
 """
 from __future__ import annotations
 
-import json
 import time
 from contextlib import nullcontext
 from pathlib import Path
@@ -23,7 +22,7 @@ import numpy as np
 
 from kernels.loop import LOG_COLUMNS
 from servo.config import Config, to_toml
-from servo.io.atomic import atomic_write
+from servo.io.atomic import atomic_write, write_json
 from servo.io.runlog import RunLog
 from servo.run import plots
 from servo.run.metrics import rms, step_metrics, tick_timing
@@ -145,7 +144,7 @@ def run_job(cfg: Config, out_dir: Path, compensation: str = "compare", fast: boo
         "runs": runs,
         "files": sorted({p.name for p in out_dir.iterdir() if not p.name.startswith(".")} | {"summary.json"}),
     }
-    atomic_write(out_dir / "summary.json", lambda p: Path(p).write_text(json.dumps(summary, indent=2)))
+    write_json(out_dir / "summary.json", summary)
     return summary
 
 

@@ -65,7 +65,10 @@ def _steps(cfg, logs, path):
         ax.set_title(label)
         ax.set_xlabel("time after the step (ms)")
         ax.grid(alpha=0.3)
-        ax.legend(fontsize=8, loc="lower right")
+        if ax.get_legend_handles_labels()[0]:  # a run shorter than the first step has none
+            ax.legend(fontsize=8, loc="lower right")
+        else:
+            ax.text(0.5, 0.5, "no step within the run", transform=ax.transAxes, ha="center", color="0.4")
     axes[0][0].set_ylabel("position change / step size")
     fig.suptitle("Normalised step responses (the band is +-5 %)")
     return save_figure(fig, path)

@@ -13,13 +13,22 @@ zero current.
 """
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 from kernels.delay import shift_in
 from kernels.plant import plant_measure, plant_step
 from servo.config import Config
+from servo.errors import DriverError
 from servo.runtime.driver import Driver, DriverInfo
 from servo.runtime.simplant import SimPlant, build_plant
+
+def diverged(k: int) -> DriverError:
+    """The fault of a simulated drive whose state is no longer finite at tick ``k``."""
+    return DriverError(f"simulated drive: the position is not finite at tick {k}: the simulation diverged "
+                       "(an unstable loop or extreme [drive] values); drive set to zero current")
+
 
 NOISE_BLOCK = 1024  # ticks; drawing a block takes ~25 us, small enough not to upset a paced tick
 
@@ -43,6 +52,7 @@ class SimDriver(Driver):
         cfg = self.cfg
         self.plant = build_plant(cfg.drive, cfg.dt)
         self.latency = np.full(cfg.link.command_latency_ticks, self.plant.u_hold)
+        self._x = self.plant.state.view(np.float64)  # [x, v, H]: a float view for the finiteness check
         self._rng = np.random.default_rng(cfg.run.seed)
         self._noise = np.empty((NOISE_BLOCK, 2))
         self._noise_block = -1
@@ -71,6 +81,8 @@ class SimDriver(Driver):
         k = self.tick
         noise = self.noise(k, 1)
         p = self.plant
+        if not math.isfinite(self._x[0]):  # the state, not the sample: quantising casts NaN to a finite int
+            raise diverged(k)  # (the base class then puts the drive in its safe state)
         return plant_measure(p.state, p.params, p.q, p.gain, noise[0, 0], noise[0, 1])
 
     def _write(self, u: float) -> None:

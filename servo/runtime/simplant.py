@@ -105,14 +105,21 @@ def build_plant(d: DriveConfig, dt: float) -> SimPlant:
         )
     state = np.zeros(1, PLANT_STATE)
     state["x"] = d.initial_position
-    q = np.zeros((len(d.mode_hz), 2))
-    q[:, 0] = u_hold / (d.J * (2.0 * np.pi * np.asarray(d.mode_hz)) ** 2)  # static deflection
-    return SimPlant(
-        params=plant_params(d, dt),
-        state=state,
-        q=q,
-        mab=mode_matrices(d.mode_hz, d.mode_zeta, d.J, frac, dt - frac),
-        gain=np.asarray(d.mode_gain, dtype=float),
-        ubuf=np.full(whole + 2, u_hold),
-        u_hold=u_hold,
-    )
+    with np.errstate(all="ignore"):  # an overflow shows as a non-finite array, checked below
+        q = np.zeros((len(d.mode_hz), 2))
+        q[:, 0] = u_hold / (d.J * (2.0 * np.pi * np.asarray(d.mode_hz)) ** 2)  # static deflection
+        plant = SimPlant(
+            params=plant_params(d, dt),
+            state=state,
+            q=q,
+            mab=mode_matrices(d.mode_hz, d.mode_zeta, d.J, frac, dt - frac),
+            gain=np.asarray(d.mode_gain, dtype=float),
+            ubuf=np.full(whole + 2, u_hold),
+            u_hold=u_hold,
+        )
+    bad = [name for name, a in (("parameters", plant.params.view(np.float64)), ("modes", plant.mab), ("state", q))
+           if not np.all(np.isfinite(a))]  # fmt: skip
+    if bad or not np.isfinite(u_hold):
+        raise ConfigError(f"config: the drive's model is not finite with these values ({', '.join(bad) or 'holding current'} "
+                          f"overflow at J = {d.J:g}, sample period {dt:g} s): check the [drive] section")  # fmt: skip
+    return plant
