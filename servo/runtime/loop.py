@@ -18,7 +18,6 @@ before the first tick.
 """
 from __future__ import annotations
 
-import math
 import time
 from dataclasses import dataclass
 
@@ -32,7 +31,7 @@ from servo.runtime.driver import Driver, DriverState
 from servo.runtime.pacing import Pacer, gc_paused
 from servo.runtime.scenario import Inputs
 from servo.runtime.scheduler import Scheduler, Task
-from servo.runtime.simdriver import NOISE_BLOCK, SimDriver, diverged
+from servo.runtime.simdriver import NOISE_BLOCK, SimDriver
 
 
 @dataclass
@@ -165,8 +164,7 @@ def _run_fast(cfg, driver: SimDriver, controller, inputs, log, stats) -> None:
         k += m
         driver.tick = k
         log.maybe_flush()
-        if not math.isfinite(p.state[0]["x"]):  # the state, not a sample (quantising casts NaN)  # checked per block of ticks: the block's log is kept
-            raise diverged(k)
+        driver.check_state()  # after the block's log is kept
 
 
 __all__ = ["LOG_COLUMNS", "LoopResult", "log_rows", "run_closed_loop"]

@@ -24,12 +24,6 @@ from servo.errors import DriverError
 from servo.runtime.driver import Driver, DriverInfo
 from servo.runtime.simplant import SimPlant, build_plant
 
-def diverged(k: int) -> DriverError:
-    """The fault of a simulated drive whose state is no longer finite at tick ``k``."""
-    return DriverError(f"simulated drive: the position is not finite at tick {k}: the simulation diverged "
-                       "(an unstable loop or extreme [drive] values); drive set to zero current")
-
-
 NOISE_BLOCK = 1024  # ticks; drawing a block takes ~25 us, small enough not to upset a paced tick
 
 
@@ -81,8 +75,7 @@ class SimDriver(Driver):
         k = self.tick
         noise = self.noise(k, 1)
         p = self.plant
-        if not math.isfinite(self._x[0]):  # the state, not the sample: quantising casts NaN to a finite int
-            raise diverged(k)  # (the base class then puts the drive in its safe state)
+        self.check_state()  # (a fault here: the base class puts the drive in its safe state)
         return plant_measure(p.state, p.params, p.q, p.gain, noise[0, 0], noise[0, 1])
 
     def _write(self, u: float) -> None:
@@ -100,6 +93,15 @@ class SimDriver(Driver):
     def applied_current(self) -> float:
         """The command (A) that entered the amplifier last (after the link latency)."""
         return 0.0 if self.plant is None else float(self.plant.ubuf[0])
+
+    def check_state(self) -> None:
+        """Raise :class:`~servo.errors.DriverError` if the plant's position is no longer
+        finite (the simulation diverged).  Checked on the state, not on a sample: the
+        sensor's quantiser casts NaN to a finite integer.  The tick path checks before
+        every sample, the fast path after every block of ticks."""
+        if not math.isfinite(self._x[0]):
+            raise DriverError(f"simulated drive: the position is not finite at tick {self.tick}: the simulation "
+                              "diverged (an unstable loop or extreme [drive] values); drive set to zero current")
 
     # ---- inputs, shared with the compiled fast path --------------------------------------
     def noise(self, k0: int, n: int) -> np.ndarray:
