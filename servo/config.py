@@ -227,12 +227,13 @@ def _check_number(key: str, value: Any, m: dict, kind: type) -> Any:
 
 MAGNITUDE_MAX = 1e12
 """Bound on the magnitude of a number field whose range has no explicit bound on that
-side: no servo quantity in SI units comes near it, and values near 1e300 overflow the
-plant's matrix exponentials and the fits (warnings, NaN results)."""
+side, and of every recorded value (:mod:`servo.io.recording`): no servo quantity in SI
+units comes near it, and values near 1e300 overflow the plant's matrix exponentials and
+the fits (warnings, NaN results)."""
 
 
 def _range_text(m: dict, number: bool = True) -> str:
-    """The valid range of a field, in words (``any`` for a flag)."""
+    """The valid range of a field, in words (``true / false`` for a flag)."""
     if not number:
         return "true / false"
     lo = f"{'>' if m['lo_open'] else '>='} {m['lo']:g}" if m["lo"] is not None else f">= {-MAGNITUDE_MAX:g}"

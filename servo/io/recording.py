@@ -24,6 +24,7 @@ from pathlib import Path
 
 import numpy as np
 
+from servo.config import MAGNITUDE_MAX
 from servo.errors import RecordingError
 
 REQUIRED = ("t", "u", "x")
@@ -95,11 +96,6 @@ def _read_table(path: Path) -> dict[str, np.ndarray]:
     except Exception as exc:  # corrupt or foreign file: one line, whatever the reader raised
         raise RecordingError(f"recording: cannot read {path} as {suffix[1:].upper()}: {exc}".splitlines()[0]) from None
     raise RecordingError(f"recording: {path}: unknown format {suffix!r} (use .csv, .npz or .mat)")
-
-
-MAGNITUDE_MAX = 1e12
-"""Largest magnitude of a recorded value in SI units (s, A or N, m, m/s): beyond it a
-column is not a servo signal, and the fits' arithmetic overflows (numpy warnings, NaN)."""
 
 
 def _read_csv(path: Path) -> dict[str, np.ndarray]:
