@@ -185,8 +185,8 @@ def emulator_process(cfg, tmp_path, core: int):
 def test_round_trip_over_a_pty(benchmark, d, b, tmp_path):
     """The link's lockstep tick against the bare pty echo, in adjacent pairs (alternating
     which goes first); the median of the per-pair ratios is asserted.  A neighbour that
-    slows the machine slows both blocks of a pair, so the ratio holds under load where
-    the two figures taken apart do not (one busy core moved the echo alone 22 -> 50 us)."""
+    slows the machine slows both blocks of a pair, where the two figures taken apart moved
+    independently (one busy core moved the echo alone 22 -> 50 us)."""
     cfg = Config().replace(run={"duration_s": 10.0}, link={"command_latency_ticks": d, "batch": b, "watchdog_s": 5.0})
     with one_core() as core, emulator_process(cfg, tmp_path, core) as url, pty_echo(core) as echo:
         drv = SerialDriver(cfg, url)
@@ -209,8 +209,10 @@ def test_round_trip_over_a_pty(benchmark, d, b, tmp_path):
     print(f"\nd={d} b={b}: lockstep tick through the emulator over a pty {per_tick_us:.1f} us; "
           f"bare pty echo round trip {echo_us:.1f} us; median ratio of {PAIRS} adjacent pairs {ratio:.2f}")
     assert drv.board_stats is not None and drv.board_stats["faults"] == 0
-    # budget: both ends pinned to one core, the median pair ratio measured 3.3-3.7 and
-    # 0.66-0.79, idle and with one or two busy cores (bench/README.md); an unbatched tick
-    # costs at most 5.5 bare round trips (the rest is the two Python ends), a batched one
-    # at most 1.2: the bounds sit ~1.5x above the worst loaded figure
-    assert ratio < (5.5 if b == 1 else 1.2)
+    # budget: the median pair ratio measured 0.69-1.63 idle, 1.57-3.10 with one busy core
+    # and 1.47-4.90 with two (d = 0), 0.10-0.73 batched (bench/README.md).  It is set by
+    # the OS (wake-up of an idle core; a spinner sharing the pinned core preempts the side
+    # with more Python work), so the bounds only catch a gross regression, 1.5x above the
+    # worst loaded figure; the host's own cost is guarded precisely by
+    # test_host_cost_per_frame (no system calls: 1.33-1.41 at every load)
+    assert ratio < (7.5 if b == 1 else 1.2)
