@@ -35,7 +35,7 @@ def main() -> int:
     cfg = Config().replace(run={"duration_s": 0.04})
     inputs = scenario_inputs(cfg)
     with tempfile.TemporaryDirectory() as tmp:
-        with SimDriver(cfg, inputs.d) as drv, RunLog(tmp, "probe", LOG_COLUMNS, log_rows(cfg)) as log:
+        with SimDriver(cfg, inputs) as drv, RunLog(tmp, "probe", LOG_COLUMNS, log_rows(cfg)) as log:
             res = run_closed_loop(cfg, drv, Controller(cfg), inputs, log)
     dispatchers = {}
     for name, mod in list(sys.modules.items()):

@@ -28,7 +28,7 @@ class Runs:
         self.open = []
 
     def setup(self):
-        drv = SimDriver(self.cfg, self.inputs.d)
+        drv = SimDriver(self.cfg, self.inputs)
         drv.configure()
         log = RunLog(self.tmp, f"r{len(self.open)}", LOG_COLUMNS, log_rows(self.cfg))
         self.open.append((drv, log))

@@ -78,7 +78,7 @@ class Board:
         self.caps = (P.CAP_VELOCITY if cfg.drive.measures_velocity else 0) | P.CAP_CURRENT
         self.caps |= P.CAP_LOCKSTEP if lockstep else 0
         self._drive_cfg = cfg.replace(link={"command_latency_ticks": 0, "batch": 1})
-        self._disturbance = scenario_inputs(cfg).d
+        self._inputs = scenario_inputs(cfg)  # the board applies their disturbance
         self.decoder = FrameDecoder(mark_errors=True)
         self.out = bytearray()
         self.stats = dict.fromkeys(P.STATS_FIELDS, 0)
@@ -368,7 +368,7 @@ class Board:
         self._safe()
         self._reset_run()
         self._in_session = True
-        sim = SimDriver(self._drive_cfg, self._disturbance)
+        sim = SimDriver(self._drive_cfg, self._inputs)
         sim.configure()
         sim.activate()
         self.sim = sim

@@ -69,7 +69,6 @@ def error_stats(stats, e):
         int64,
         int64,
         int64,
-        int64,
         float64[::1],
         float64[:, ::1],
         int64,
@@ -82,7 +81,7 @@ def closed_loop(
     ps, pp, q, mab, gain, ubuf, latency,
     cs, cp,
     r, u_exc, d, noise,
-    k0, n, exc_every, est_every, log_every,
+    k0, n, est_every, log_every,
     stats, log, row,
     start, u_start,
 ):  # fmt: skip
@@ -90,9 +89,10 @@ def closed_loop(
 
     Plant: state ``ps``, params ``pp``, modes ``q``/``mab``/``gain``, input-delay buffer
     ``ubuf``; ``latency`` the link's command queue (length = latency in ticks).
-    Controller: ``cs``/``cp``.  Inputs indexed by absolute tick: reference ``r`` (m),
-    excitation ``u_exc`` (A), disturbance ``d`` (A); ``noise[k - k0]`` the two standard
-    normal draws of tick k.  Logs every ``log_every`` ticks into ``log[row]`` onwards and
+    Controller: ``cs``/``cp``.  Inputs of tick k at index ``k - k0``: reference ``r`` (m)
+    and excitation ``u_exc`` (A) as the excitation task holds them (sampled every
+    ``run.excitation_every`` ticks, see :class:`servo.runtime.scenario.Window`),
+    disturbance ``d`` (A), ``noise`` the two standard normal draws.  Logs every ``log_every`` ticks into ``log[row]`` onwards and
     returns the next free row.  ``start != 0``: the controller takes over at ``k0`` with
     ``u_start`` (A) applied (:func:`kernels.controller.controller_start`).
     """
@@ -101,12 +101,12 @@ def closed_loop(
         x, v = plant_measure(ps, pp, q, gain, noise[k - k0, 0], noise[k - k0, 1])
         if start != 0 and k == k0:
             controller_start(cs, cp, x, v, u_start)
-        ke = k - k % exc_every
-        u = controller_tick(cs, cp, x, v, r[ke], u_exc[ke])
-        plant_step(ps, pp, q, mab, ubuf, shift_in(latency, u), d[k])
+        i = k - k0
+        u = controller_tick(cs, cp, x, v, r[i], u_exc[i])
+        plant_step(ps, pp, q, mab, ubuf, shift_in(latency, u), d[i])
         if k % est_every == 0:
             error_stats(stats, cs[0].e)
         if k % log_every == 0:
-            log_row(log[row], k, dt, x, u_exc[ke], cs)
+            log_row(log[row], k, dt, x, u_exc[i], cs)
             row += 1
     return row

@@ -55,7 +55,7 @@ def test_lockstep_board_applies_the_command_of_sample_k_at_tick_k_plus_d(d, b):
     host = Host(board)
     info, ready = host.start(d=d, b=b)
     assert info.nonce == 42 and info.sample_rate_hz == 20_000.0 and info.caps & P.CAP_LOCKSTEP
-    ref = SimDriver(CFG.replace(link={"command_latency_ticks": d, "batch": b}), scenario_inputs(CFG).d)
+    ref = SimDriver(CFG.replace(link={"command_latency_ticks": d, "batch": b}), scenario_inputs(CFG))
     ref.configure()
     ref.activate()
     assert (ready.x, ready.i) == (ref.read()[0], ref.applied_current)  # READY: tick 0 and the holding current

@@ -76,7 +76,7 @@ class ExplodingController(Controller):
 def test_exception_inside_the_loop_leaves_zero_current_and_the_log_on_disk(tmp_path):
     cfg = Config().replace(run={"duration_s": 0.5})
     inputs = scenario_inputs(cfg)
-    drv = SimDriver(cfg, inputs.d)
+    drv = SimDriver(cfg, inputs)
     fail_at = 20_001
     with pytest.raises(RuntimeError, match="boom"):
         with drv, RunLog(tmp_path, "log", LOG_COLUMNS, log_rows(cfg), block_rows=4096) as log:

@@ -87,7 +87,7 @@ def lockstep_emulator(tmp_path_factory):
 def test_lockstep_through_the_emulator_is_bit_identical_to_the_simulator(lockstep_emulator, d, b, tmp_path):
     url, _ = lockstep_emulator
     cfg = CFG.replace(link={"command_latency_ticks": d, "batch": b, "watchdog_s": 2.0})
-    sim = run_log(cfg, SimDriver(cfg, scenario_inputs(cfg).d), tmp_path, "sim")
+    sim = run_log(cfg, SimDriver(cfg, scenario_inputs(cfg)), tmp_path, "sim")
     drv = SerialDriver(cfg, url)
     hil = run_log(cfg, drv, tmp_path, "hil")
     assert hil.shape == sim.shape == (10_000, len(LOG_COLUMNS))
@@ -107,7 +107,7 @@ def test_servo_run_port_gives_the_simulator_run_bit_for_bit(lockstep_emulator, t
     assert r.returncode == 0, r.stderr
     assert "link (compensated): 10002 frames in" in r.stdout and "0 host-side errors" in r.stdout
     for label, comp in (("compensated", True), ("uncompensated", False)):
-        sim = run_log(CFG, SimDriver(CFG, scenario_inputs(CFG).d), tmp_path, label, Controller(CFG, comp))
+        sim = run_log(CFG, SimDriver(CFG, scenario_inputs(CFG)), tmp_path, label, Controller(CFG, comp))
         port = np.load(out / f"log_{label}.npz")
         for i, col in enumerate(LOG_COLUMNS):
             assert np.array_equal(port[col], sim[:, i]), col
@@ -220,7 +220,7 @@ def test_tcp_transport_matches_the_simulator_and_a_closed_connection_is_the_safe
         drv = SerialDriver(cfg, url)
         hil = run_log(cfg, drv, tmp_path, "hil")
         assert "TCP_NODELAY set" in drv.notes
-        sim = run_log(cfg, SimDriver(cfg, scenario_inputs(cfg).d), tmp_path, "sim")
+        sim = run_log(cfg, SimDriver(cfg, scenario_inputs(cfg)), tmp_path, "sim")
         assert np.array_equal(hil, sim)
         with pytest.raises(DriverError, match="vanished"):
             run_log(cfg, SerialDriver(cfg, f"faulty://?url={url}&vanish_rx=50"), tmp_path, "cut")

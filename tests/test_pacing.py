@@ -70,7 +70,7 @@ def test_what_the_os_refuses_is_one_note_and_nothing_changes():
 
 def closed_loop_log(cfg, tmp_path, name, pacer=None):
     inputs = scenario_inputs(cfg)
-    with SimDriver(cfg, inputs.d) as drv, RunLog(tmp_path, name, LOG_COLUMNS, log_rows(cfg)) as log:
+    with SimDriver(cfg, inputs) as drv, RunLog(tmp_path, name, LOG_COLUMNS, log_rows(cfg)) as log:
         res = run_closed_loop(cfg, drv, Controller(cfg), inputs, log, pacer=pacer)
     return log.recorded().copy(), res
 
@@ -102,7 +102,7 @@ def test_overrun_fault_leaves_the_drive_at_zero_current_and_keeps_the_log(tmp_pa
     pacer = Pacer(cfg.dt, cfg.n_ticks, policy="fault", max_consecutive=5)
     inputs = scenario_inputs(cfg)
     with pytest.raises(OverrunFault, match="5 consecutive deadline overruns"):
-        with SimDriver(cfg, inputs.d) as drv, RunLog(tmp_path, "f", LOG_COLUMNS, log_rows(cfg)) as log:
+        with SimDriver(cfg, inputs) as drv, RunLog(tmp_path, "f", LOG_COLUMNS, log_rows(cfg)) as log:
             try:
                 run_closed_loop(cfg, drv, Controller(cfg), inputs, log, pacer=pacer)
             finally:
@@ -116,7 +116,7 @@ def test_overrun_fault_leaves_the_drive_at_zero_current_and_keeps_the_log(tmp_pa
 def test_the_fast_path_cannot_be_paced(tmp_path):
     cfg = Config().replace(run={"duration_s": 0.01})
     inputs = scenario_inputs(cfg)
-    with SimDriver(cfg, inputs.d) as drv, RunLog(tmp_path, "x", LOG_COLUMNS, log_rows(cfg)) as log:
+    with SimDriver(cfg, inputs) as drv, RunLog(tmp_path, "x", LOG_COLUMNS, log_rows(cfg)) as log:
         with pytest.raises(ValueError, match="cannot be paced"):
             run_closed_loop(cfg, drv, Controller(cfg), inputs, log, fast=True, pacer=Pacer(cfg.dt, cfg.n_ticks))
 

@@ -13,7 +13,7 @@ from kernels.loop import LOG_COLUMNS
 from servo.config import Config
 from servo.runtime.controller import Controller
 from servo.runtime.loop import log_rows, run_closed_loop
-from servo.runtime.scenario import Inputs
+from servo.runtime.scenario import ArrayInputs
 from servo.runtime.simdriver import SimDriver
 
 
@@ -49,13 +49,9 @@ def simulate(cfg: Config, u_exc: np.ndarray, r: np.ndarray | None = None, compen
     cfg = cfg.replace(run={"duration_s": n * cfg.dt, "log_every": 1})
     if cfg.n_ticks != n:  # rounding of duration_s * rate
         raise ValueError(f"tick count mismatch: {cfg.n_ticks} != {n}")
-    inputs = Inputs(
-        r=np.zeros(n) if r is None else np.ascontiguousarray(r, dtype=float),
-        u_exc=np.ascontiguousarray(u_exc, dtype=float),
-        d=np.zeros(n) if d is None else np.ascontiguousarray(d, dtype=float),
-    )
+    inputs = ArrayInputs(r=r, u_exc=u_exc, d=d)
     log = MemoryLog(log_rows(cfg))
-    driver = SimDriver(cfg, inputs.d)
+    driver = SimDriver(cfg, inputs)
     try:
         run_closed_loop(cfg, driver, Controller(cfg, compensation=compensation), inputs, log, fast=True, timing=False)
     finally:

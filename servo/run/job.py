@@ -58,7 +58,7 @@ def run_simulated(cfg: Config, out_dir: Path, compensated: bool, fast: bool,
     inputs = scenario_inputs(cfg)
     meta = {"label": label, "fast_path": fast, "sample_rate_hz": cfg.run.sample_rate_hz, "seed": cfg.run.seed,
             "realtime": realtime is not None}  # fmt: skip
-    driver = SimDriver(cfg, inputs.d) if make_driver is None else make_driver(cfg, inputs)
+    driver = SimDriver(cfg, inputs) if make_driver is None else make_driver(cfg, inputs)
     pacer = make_pacer(cfg, realtime) if realtime else None
     section = realtime_section(realtime.cpu, realtime.fifo_priority, realtime.lock_memory) if realtime else nullcontext()
     block = REALTIME_LOG_BLOCK if (realtime or make_driver is not None) else 8192

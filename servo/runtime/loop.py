@@ -29,9 +29,9 @@ from servo.io.runlog import RunLog
 from servo.runtime.controller import Controller
 from servo.runtime.driver import Driver, DriverState
 from servo.runtime.pacing import Pacer, gc_paused
-from servo.runtime.scenario import Inputs
+from servo.runtime.scenario import BLOCK, Inputs, Window
 from servo.runtime.scheduler import Scheduler, Task
-from servo.runtime.simdriver import NOISE_BLOCK, SimDriver
+from servo.runtime.simdriver import SimDriver
 
 
 @dataclass
@@ -118,15 +118,16 @@ def _warm_up(controller, log: RunLog) -> None:
 
 
 def _run_ticks(cfg, driver, controller, inputs, log, stats, pacer, tick_ns) -> None:
-    dt, r, u_exc = cfg.dt, inputs.r, inputs.u_exc
+    dt = cfg.dt
     state = controller.state
+    r, u_exc = Window(inputs.reference), Window(inputs.excitation)
 
     sched = Scheduler(driver, controller, pacer=pacer)
     data = sched.data
 
     def excitation(k: int) -> None:
-        data.r = r[k]
-        data.u_exc = u_exc[k]
+        data.r = r.at(k)
+        data.u_exc = u_exc.at(k)
 
     def estimator(k: int) -> None:
         error_stats(stats, state[0]["e"])
@@ -149,16 +150,19 @@ def _run_ticks(cfg, driver, controller, inputs, log, stats, pacer, tick_ns) -> N
 def _run_fast(cfg, driver: SimDriver, controller, inputs, log, stats) -> None:
     n = cfg.n_ticks
     p = driver.plant
-    d = driver.disturbance(n)
+    every = cfg.run.excitation_every
+    r, u_exc = Window(inputs.reference, every), Window(inputs.excitation, every)
     u_start = driver.applied_current
     k = first = driver.tick
     while k < n:
-        m = min(NOISE_BLOCK - k % NOISE_BLOCK, n - k)
+        m = min(BLOCK - k % BLOCK, n - k)  # one input and noise block
+        i = r.load(k)
+        u_exc.load(k)
         log.rows = closed_loop(
             p.state, p.params, p.q, p.mab, p.gain, p.ubuf, driver.latency,
             controller.state, controller.params,
-            inputs.r, inputs.u_exc, d, driver.noise(k, m),
-            k, m, cfg.run.excitation_every, cfg.run.estimator_every, cfg.run.log_every,
+            r.values[i : i + m], u_exc.values[i : i + m], driver.disturbance(k, m), driver.noise(k, m),
+            k, m, cfg.run.estimator_every, cfg.run.log_every,
             stats, log.data, log.rows, 1 if k == first else 0, u_start,
         )  # fmt: skip
         k += m

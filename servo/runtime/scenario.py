@@ -1,61 +1,128 @@
-"""Scenario inputs of a run, one value per tick: reference, excitation, disturbance.
+"""Scenario inputs of a run: reference, excitation and disturbance, as functions of the tick.
 
-Computed once for the whole run, as arrays, so that the tick-by-tick path and the
-compiled fast path read the very same numbers.
+An :class:`Inputs` evaluates its three signals for any array of tick indices, so a run of
+any length needs no array as long as the run: both the tick-by-tick path and the compiled
+fast path read them through a :class:`Window` of :data:`BLOCK` ticks, refilled as the
+run moves on.  A signal's value at a tick does not depend on which window computed it,
+so both paths read the very same numbers.
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
+from typing import Callable
 
 import numpy as np
 
 from servo.config import Config
 
+#: Ticks per input window (the same as the simulated drive's noise blocks).
+BLOCK = 1024
 
-@dataclass
+
 class Inputs:
-    """Per-tick inputs (each shape (n_ticks,)).
+    """Per-tick inputs of a run.  Each method takes tick indices (int64, any shape) and
+    returns the values (float64, same shape); ticks beyond the signal's end give 0.
 
-    ``r``: reference position relative to the holding position, m.
-    ``u_exc``: excitation current added to the holding loop's output, A.
-    ``d``: disturbance force on the arm (simulated drive only), A.
+    ``reference``: reference position relative to the holding position, m.
+    ``excitation``: excitation current added to the controller's output, A.
+    ``disturbance``: disturbance force on the arm (simulated drive only), A.
     """
 
-    r: np.ndarray
-    u_exc: np.ndarray
-    d: np.ndarray
+    def reference(self, ticks: np.ndarray) -> np.ndarray:
+        return np.zeros(np.shape(ticks))
+
+    def excitation(self, ticks: np.ndarray) -> np.ndarray:
+        return np.zeros(np.shape(ticks))
+
+    def disturbance(self, ticks: np.ndarray) -> np.ndarray:
+        return np.zeros(np.shape(ticks))
 
     @classmethod
-    def zeros(cls, n: int) -> "Inputs":
-        return cls(np.zeros(n), np.zeros(n), np.zeros(n))
+    def zeros(cls) -> "Inputs":
+        """No reference change, no excitation, no disturbance."""
+        return cls()
 
 
-def step_reference(times_s, positions_m, n: int, dt: float) -> np.ndarray:
-    """Piecewise-constant reference (m): ``positions_m[i]`` from ``times_s[i]`` on, 0 before."""
-    r = np.zeros(n)
-    for t, pos in zip(times_s, positions_m):
-        k = int(round(t / dt))
-        if k < n:
-            r[k:] = pos
-    return r
+class ArrayInputs(Inputs):
+    """Inputs given as arrays, one value per tick from tick 0 (each (n,), any length)."""
+
+    def __init__(self, r=None, u_exc=None, d=None):
+        self.r, self.u_exc, self.d = (np.zeros(0) if a is None else np.ascontiguousarray(a, dtype=float)
+                                      for a in (r, u_exc, d))  # fmt: skip
+
+    @staticmethod
+    def _at(a: np.ndarray, ticks: np.ndarray) -> np.ndarray:
+        ticks = np.asarray(ticks)
+        inside = ticks < a.shape[0]
+        return np.where(inside, a[np.where(inside, ticks, 0)] if a.shape[0] else 0.0, 0.0)
+
+    def reference(self, ticks):
+        return self._at(self.r, ticks)
+
+    def excitation(self, ticks):
+        return self._at(self.u_exc, ticks)
+
+    def disturbance(self, ticks):
+        return self._at(self.d, ticks)
 
 
-def sine_disturbance(amplitude: float, hz: float, start_s: float, n: int, dt: float) -> np.ndarray:
-    """``amplitude*sin(2*pi*hz*(t - start_s))`` from ``start_s`` on, 0 before (A)."""
-    t = np.arange(n) * dt
-    d = amplitude * np.sin(2.0 * np.pi * hz * (t - start_s))
-    d[t < start_s] = 0.0
-    return d
+class ScenarioInputs(Inputs):
+    """The ``servo run`` scenario of ``cfg.scenario``: hold, reference steps, then a
+    sinusoidal force disturbance; no excitation."""
+
+    def __init__(self, cfg: Config):
+        s = cfg.scenario
+        self.dt = cfg.dt
+        self.step_ticks = np.array([int(round(t / cfg.dt)) for t in s.step_times], dtype=np.int64)
+        self.step_positions = np.array(s.step_positions, dtype=float)
+        self.amplitude, self.hz, self.start_s = s.disturbance_amplitude, s.disturbance_hz, s.disturbance_start
+
+    def reference(self, ticks):
+        """Piecewise constant (m): ``step_positions[i]`` from ``step_times[i]`` on, 0 before."""
+        ticks = np.asarray(ticks)
+        r = np.zeros(ticks.shape)
+        for k, pos in zip(self.step_ticks, self.step_positions):
+            r[ticks >= k] = pos
+        return r
+
+    def disturbance(self, ticks):
+        """``amplitude*sin(2*pi*hz*(t - start_s))`` from ``start_s`` on, 0 before (A)."""
+        t = np.asarray(ticks) * self.dt
+        d = self.amplitude * np.sin(2.0 * np.pi * self.hz * (t - self.start_s))
+        d[t < self.start_s] = 0.0
+        return d
 
 
 def scenario_inputs(cfg: Config) -> Inputs:
-    """The ``servo run`` scenario of ``cfg.scenario``: hold, steps, then a disturbance."""
-    s, n, dt = cfg.scenario, cfg.n_ticks, cfg.dt
-    return Inputs(
-        r=step_reference(s.step_times, s.step_positions, n, dt),
-        u_exc=np.zeros(n),
-        d=sine_disturbance(s.disturbance_amplitude, s.disturbance_hz, s.disturbance_start, n, dt),
-    )
+    """The inputs of ``servo run``'s scenario (:class:`ScenarioInputs`)."""
+    return ScenarioInputs(cfg)
+
+
+class Window:
+    """One signal of an :class:`Inputs` over an aligned block of :data:`BLOCK` ticks,
+    sample-and-held every ``hold`` ticks (value at tick k = ``signal(k - k % hold)``).
+
+    ``load(k)`` makes the block holding tick ``k`` current and returns k's index in
+    :attr:`values`.  A refill (one vectorised call, a few us) happens once per block.
+    """
+
+    def __init__(self, signal: Callable[[np.ndarray], np.ndarray], hold: int = 1, size: int = BLOCK):
+        self.signal = signal
+        self.hold = int(hold)
+        self.size = int(size)
+        self.values = np.zeros(self.size)
+        self.base = -1
+
+    def load(self, k: int) -> int:
+        base = k - k % self.size
+        if base != self.base:
+            ticks = np.arange(base, base + self.size, dtype=np.int64)
+            self.values[:] = self.signal(ticks - ticks % self.hold)
+            self.base = base
+        return k - base
+
+    def at(self, k: int) -> float:
+        """The value at tick ``k``."""
+        return float(self.values[self.load(k)])
 
 
 def segments(cfg: Config) -> list[tuple[str, float, float]]:

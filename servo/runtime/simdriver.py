@@ -22,22 +22,24 @@ from kernels.plant import plant_measure, plant_step
 from servo.config import Config
 from servo.errors import DriverError
 from servo.runtime.driver import Driver, DriverInfo
+from servo.runtime.scenario import BLOCK, Inputs, Window
 from servo.runtime.simplant import SimPlant, build_plant
 
-NOISE_BLOCK = 1024  # ticks; drawing a block takes ~25 us, small enough not to upset a paced tick
+NOISE_BLOCK = BLOCK  # ticks; drawing a block takes ~25 us, small enough not to upset a paced tick
 
 
 class SimDriver(Driver):
     """Driver for the simulated drive of ``cfg.drive`` at ``cfg.run.sample_rate_hz``.
 
-    ``disturbance``: force (A) added at each tick (index = tick), zero beyond its end.
+    ``inputs``: the run's inputs, of which the drive applies the disturbance force (A)
+    at each tick (:meth:`~servo.runtime.scenario.Inputs.disturbance`); None: no force.
     """
 
-    def __init__(self, cfg: Config, disturbance: np.ndarray | None = None):
+    def __init__(self, cfg: Config, inputs: Inputs | None = None):
         super().__init__()
         self.cfg = cfg
         self.tick = 0
-        self._d = np.zeros(0) if disturbance is None else np.ascontiguousarray(disturbance, dtype=float)
+        self._d = Window((inputs or Inputs()).disturbance)
         self.plant: SimPlant | None = None
         self.latency = np.zeros(0)
 
@@ -119,12 +121,12 @@ class SimDriver(Driver):
         return self._noise[i : i + n]
 
     def disturbance_at(self, k: int) -> float:
-        return float(self._d[k]) if k < self._d.shape[0] else 0.0
+        """The disturbance force (A) of tick ``k``."""
+        return self._d.at(k)
 
-    def disturbance(self, n: int) -> np.ndarray:
-        """The disturbance of ticks ``0 .. n-1`` (zero-padded)."""
-        if self._d.shape[0] >= n:
-            return self._d
-        out = np.zeros(n)
-        out[: self._d.shape[0]] = self._d
-        return out
+    def disturbance(self, k0: int, n: int) -> np.ndarray:
+        """The disturbance (A) of ticks ``k0 .. k0+n-1``, all in one input block (a view)."""
+        i = self._d.load(k0)
+        if i + n > self._d.size:
+            raise ValueError("disturbance request spans two blocks")
+        return self._d.values[i : i + n]
