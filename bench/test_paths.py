@@ -4,13 +4,13 @@ driver interface (the path real-time runs use), and the all-compiled fast path.
 Both run the ``servo run`` scenario through :func:`servo.runtime.loop.run_closed_loop`, with its
 standard tasks (excitation, estimator, log) and a run log on disk, as a user runs them.
 """
-import numpy as np
 
 from bench.budgets import BUDGETS
 from bench.timing import per_sample_ns
 from kernels.loop import LOG_COLUMNS
 from servo.io.runlog import RunLog
 from servo.runtime.controller import Controller
+from servo.runtime.durations import Durations
 from servo.runtime.loop import log_rows, run_closed_loop
 from servo.runtime.scenario import scenario_inputs
 from servo.runtime.simdriver import SimDriver
@@ -24,7 +24,7 @@ class Runs:
     def __init__(self, cfg, tmp_path, fast):
         self.cfg, self.tmp, self.fast = cfg, tmp_path, fast
         self.inputs = scenario_inputs(cfg)
-        self.tick_ns = []
+        self.timing = Durations()  # every round's ticks
         self.open = []
 
     def setup(self):
@@ -36,8 +36,8 @@ class Runs:
 
     def run(self, drv, ctl, log):
         res = run_closed_loop(self.cfg, drv, ctl, self.inputs, log, fast=self.fast)
-        if res.tick_ns is not None:
-            self.tick_ns.append(res.tick_ns)
+        if res.timing is not None:
+            self.timing.merge(res.timing)
 
     def close(self):
         for drv, log in self.open:
@@ -54,11 +54,11 @@ def test_tick_path_per_tick(benchmark, cfg, record, tmp_path):
         round_ns = per_sample_ns(benchmark, runs.run, c.n_ticks, ROUNDS, setup=runs.setup)
     finally:
         runs.close()
-    ticks = np.concatenate(runs.tick_ns)
-    median_us = float(np.median(ticks)) / 1e3
+    ticks = runs.timing
+    median_us = ticks.quantile(0.5) / 1e3
     benchmark.extra_info["tick_us_median"] = median_us
     record.figure("tick_path", median_us * 1e3, "tick_path", round_ns_per_tick=round_ns,
-                  tick_us_p99=float(np.percentile(ticks, 99)) / 1e3, ticks=int(ticks.size))  # fmt: skip
+                  tick_us_p99=ticks.quantile(0.99) / 1e3, ticks=ticks.count)  # fmt: skip
     limit = BUDGETS["tick_path"].ns(cfg) / 1e3
     assert median_us <= limit, f"tick path: {median_us:.2f} us per tick (median), over its budget of {limit:.1f} us (3/4 of the period)"
 

@@ -8,7 +8,6 @@ same order and through the same kernels, so both give the same bits:
              -> link latency -> plant_step -> [estimator every est_every]
              -> [log row every log_every]
 """
-import numpy as np
 from numba import float64, int64, njit, void
 
 from kernels.controller import controller_start, controller_tick, ctrl_params_t, ctrl_state_t

@@ -91,7 +91,7 @@ def test_the_paced_run_keeps_the_sample_rate(tmp_path):
     pacer = Pacer(cfg.dt, cfg.n_ticks)
     _, res = closed_loop_log(cfg, tmp_path, "paced", pacer)
     # absolute deadlines: the last tick starts at (n-1)*period, however late ticks were
-    last = pacer.t0 + (cfg.n_ticks - 1) * pacer.period_ns + pacer.lateness_ns[-1]
+    last = pacer.t0 + (cfg.n_ticks - 1) * pacer.period_ns + pacer.lateness.last
     assert (last - pacer.t0) / 1e9 >= (cfg.n_ticks - 1) * cfg.dt
     assert res.wall_s >= (cfg.n_ticks - 1) * cfg.dt
 

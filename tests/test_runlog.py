@@ -6,6 +6,7 @@ import sys
 import time
 
 import numpy as np
+import pytest
 
 from servo.io.runlog import RunLog, read_journal
 

@@ -68,7 +68,7 @@ def run_simulated(cfg: Config, out_dir: Path, compensated: bool, fast: bool,
     result.link = driver.report()
     if realtime:
         result.realtime = report(pacer, realtime, grant)
-        result.lateness_ns = pacer.lateness_ns
+        result.lateness = pacer.lateness
     return log.recorded(), result
 
 
@@ -90,8 +90,8 @@ def summarise(cfg: Config, log: np.ndarray, result: LoopResult) -> dict:
         "wall_s": result.wall_s,
         "per_sample_us": result.wall_s / result.n_ticks * 1e6,
     }
-    if result.tick_ns is not None:
-        out.update(tick_timing(result.tick_ns, cfg.dt))
+    if result.timing is not None:
+        out.update(tick_timing(result.timing, cfg.dt))
     if result.link is not None:
         out["link"] = result.link
     if result.realtime is not None:
@@ -130,7 +130,7 @@ def run_job(cfg: Config, out_dir: Path, compensation: str = "compare", fast: boo
         runs[label] = summarise(cfg, logs[label], results[label])
     plots.plot_run(cfg, logs, results, out_dir)
     if realtime is not None:
-        plot_lateness(cfg, {k: r.lateness_ns for k, r in results.items()}, out_dir / "lateness.png")
+        plot_lateness(cfg, {k: r.lateness for k, r in results.items()}, out_dir / "lateness.png")
     path = "fast (all compiled)" if fast else "tick by tick through the driver interface"
     summary = {
         "ticks": cfg.n_ticks,

@@ -3,6 +3,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from servo.runtime.durations import Durations
+
 
 def step_metrics(t: np.ndarray, x: np.ndarray, t_step: float, t_end: float, x0: float, x1: float, band: float = 0.05) -> dict:
     """Overshoot and settling of one reference step from ``x0`` to ``x1`` (m) at
@@ -28,14 +30,13 @@ def rms(x: np.ndarray) -> float:
     return float(np.sqrt(np.mean(np.square(x)))) if x.size else float("nan")
 
 
-def tick_timing(tick_ns: np.ndarray, period_s: float) -> dict:
+def tick_timing(ticks: Durations, period_s: float) -> dict:
     """Per-tick compute time (us): the first tick (after ``configure``), median, p99, max;
     overruns = ticks longer than the period."""
-    us = tick_ns / 1e3
     return {
-        "tick_us_first": float(us[0]),
-        "tick_us_median": float(np.median(us)),
-        "tick_us_p99": float(np.percentile(us, 99)),
-        "tick_us_max": float(us.max()),
-        "overruns": int(np.count_nonzero(tick_ns > period_s * 1e9)),
+        "tick_us_first": ticks.first / 1e3,
+        "tick_us_median": ticks.quantile(0.5) / 1e3,
+        "tick_us_p99": ticks.quantile(0.99) / 1e3,
+        "tick_us_max": ticks.max / 1e3,
+        "overruns": ticks.count_above(period_s * 1e9),
     }

@@ -18,7 +18,7 @@ def plot_run(cfg: Config, logs: dict, results: dict, out_dir: Path) -> list[Path
     """Write the PNGs of a run into ``out_dir``; returns their paths."""
     paths = [_tracking(cfg, logs, out_dir / "tracking.png"), _steps(cfg, logs, out_dir / "steps.png"),
              _currents(logs, out_dir / "current.png")]  # fmt: skip
-    ticks = {k: r.tick_ns for k, r in results.items() if r.tick_ns is not None}
+    ticks = {k: r.timing for k, r in results.items() if r.timing is not None}
     if ticks:
         paths.append(_timing(cfg, ticks, out_dir / "timing.png"))
     return paths
@@ -99,10 +99,11 @@ def _currents(logs, path):
 def _timing(cfg, ticks, path):
     fig, ax = plt.subplots(figsize=(8, 4))
     period = cfg.dt * 1e6
-    for label, ns in ticks.items():
-        us = ns / 1e3
-        bins = np.logspace(np.log10(max(us.min(), 0.1)), np.log10(max(us.max(), period) * 1.1), 80)
-        ax.hist(us, bins=bins, histtype="step", color=COLORS[label], label=label)
+    for label, durations in ticks.items():
+        edges_ns, counts = durations.histogram()
+        us = edges_ns / 1e3
+        bins = np.logspace(np.log10(max(us.min(), 0.1)), np.log10(max(durations.max / 1e3, period) * 1.1), 80)
+        ax.hist(np.maximum(us, bins[0]), bins=bins, weights=counts, histtype="step", color=COLORS[label], label=label)
     ax.axvline(period, color="r", lw=1, label=f"period {period:g} us")
     ax.set_xscale("log")
     ax.set_yscale("log")

@@ -23,6 +23,7 @@ import numpy as np
 
 from servo.config import Config
 from servo.errors import ConfigError
+from servo.runtime.durations import Durations
 from servo.runtime.pacing import Pacer, RealtimeGrant
 
 #: Rows per run-log journal write in a paced run: 512 rows (48 KB) cost ~25 us, a tick or
@@ -116,7 +117,7 @@ def lateness_line(label: str, rt: dict, period_us: float) -> str:
     )
 
 
-def plot_lateness(cfg: Config, lateness_ns: dict[str, np.ndarray], path: Path) -> Path:
+def plot_lateness(cfg: Config, lateness: dict[str, Durations], path: Path) -> Path:
     """Histogram PNG of the lateness of every tick (us, log-log; lateness below 10 ns,
     including 0, is counted in the first bin), one curve per run, with the period and
     each run's p99.9 marked."""
@@ -126,12 +127,13 @@ def plot_lateness(cfg: Config, lateness_ns: dict[str, np.ndarray], path: Path) -
     period = cfg.dt * 1e6
     colors = {"compensated": "tab:blue", "uncompensated": "tab:orange"}
     lo = 0.01
-    hi = max(max(float(ns.max()) / 1e3 for ns in lateness_ns.values()), period) * 1.2
+    hi = max(max(late.max / 1e3 for late in lateness.values()), period) * 1.2
     bins = np.logspace(np.log10(lo), np.log10(hi), 90)
-    for label, ns in lateness_ns.items():
-        us = np.maximum(ns / 1e3, lo)
-        ax.hist(us, bins=bins, histtype="step", color=colors.get(label), label=f"{label} ({us.size} ticks)")
-        ax.axvline(np.percentile(us, 99.9), color=colors.get(label), ls=":", lw=1, label=f"p99.9, {label}")
+    for label, late in lateness.items():
+        edges_ns, counts = late.histogram()
+        us = np.maximum(edges_ns / 1e3, lo)
+        ax.hist(us, bins=bins, weights=counts, histtype="step", color=colors.get(label), label=f"{label} ({late.count} ticks)")
+        ax.axvline(max(late.quantile(0.999) / 1e3, lo), color=colors.get(label), ls=":", lw=1, label=f"p99.9, {label}")
     ax.axvline(period, color="r", lw=1, label=f"period {period:g} us")
     ax.set_xscale("log")
     ax.set_yscale("log")

@@ -28,6 +28,7 @@ from servo.config import Config
 from servo.io.runlog import RunLog
 from servo.runtime.controller import Controller
 from servo.runtime.driver import Driver, DriverState
+from servo.runtime.durations import Durations
 from servo.runtime.pacing import Pacer, gc_paused
 from servo.runtime.scenario import BLOCK, Inputs, Window
 from servo.runtime.scheduler import Scheduler, Task
@@ -38,23 +39,23 @@ from servo.runtime.simdriver import SimDriver
 class LoopResult:
     """What a closed-loop run measured besides its log.
 
-    ``stats``: error estimator accumulators (sum e^2, count, max |e|); ``tick_ns``:
-    per-tick compute time in ns (tick path only, else None); ``wall_s``: loop wall time;
+    ``stats``: error estimator accumulators (sum e^2, count, max |e|); ``timing``:
+    per-tick compute times in ns (tick path only, else None); ``wall_s``: loop wall time;
     ``started``: :func:`time.perf_counter` when the loop started; ``link``: what a serial
     driver reports about its link (None for the simulated drive).  A paced run adds
-    ``realtime`` (its report, :func:`servo.run.realtime.report`) and ``lateness_ns`` (each
-    tick's start behind its deadline).
+    ``realtime`` (its report, :func:`servo.run.realtime.report`) and ``lateness`` (each
+    tick's start behind its deadline, ns).
     """
 
     n_ticks: int
     fast: bool
     stats: np.ndarray
-    tick_ns: np.ndarray | None
+    timing: Durations | None
     wall_s: float
     started: float = 0.0
     link: dict | None = None
     realtime: dict | None = None
-    lateness_ns: np.ndarray | None = None
+    lateness: Durations | None = None
 
     @property
     def error_rms(self) -> float:
@@ -91,7 +92,7 @@ def run_closed_loop(
         if driver.state is DriverState.UNCONFIGURED:
             driver.configure()
         stats = np.zeros(STATS_SIZE)
-        tick_ns = np.full(cfg.n_ticks, 0, dtype=np.int64) if (timing and not fast) else None  # written: no page faults in the loop
+        durations = Durations() if (timing and not fast) else None
         _warm_up(controller, log)
         driver.activate()
         t0 = time.perf_counter()
@@ -99,11 +100,13 @@ def run_closed_loop(
             if fast:
                 _run_fast(cfg, driver, controller, inputs, log, stats)
             else:
-                _run_ticks(cfg, driver, controller, inputs, log, stats, pacer, tick_ns)
+                _run_ticks(cfg, driver, controller, inputs, log, stats, pacer, durations)
         finally:
             driver.deactivate()
+            if pacer is not None:
+                pacer.finish()
             log.flush()
-        return LoopResult(cfg.n_ticks, fast, stats, tick_ns, time.perf_counter() - t0, started=t0)
+        return LoopResult(cfg.n_ticks, fast, stats, durations, time.perf_counter() - t0, started=t0)
 
 
 def _warm_up(controller, log: RunLog) -> None:
@@ -117,7 +120,7 @@ def _warm_up(controller, log: RunLog) -> None:
     error_stats(np.zeros(STATS_SIZE), 0.0)
 
 
-def _run_ticks(cfg, driver, controller, inputs, log, stats, pacer, tick_ns) -> None:
+def _run_ticks(cfg, driver, controller, inputs, log, stats, pacer, durations) -> None:
     dt = cfg.dt
     state = controller.state
     r, u_exc = Window(inputs.reference), Window(inputs.excitation)
@@ -144,7 +147,7 @@ def _run_ticks(cfg, driver, controller, inputs, log, stats, pacer, tick_ns) -> N
     ]
     if pacer is not None:
         pacer.start()
-    sched.run(0, cfg.n_ticks, start=True, tick_ns=tick_ns)
+    sched.run(0, cfg.n_ticks, start=True, timing=durations)
 
 
 def _run_fast(cfg, driver: SimDriver, controller, inputs, log, stats) -> None:

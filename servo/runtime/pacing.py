@@ -4,7 +4,8 @@ The scheduler counts ticks; a :class:`Pacer` ties tick ``k`` to the wall clock:
 
 * absolute deadlines, ``deadline_k = t0 + k*period`` (``next += period``: no drift);
 * wait = ``time.sleep`` until ``spin`` before the deadline, then spin on the clock;
-* lateness ``now - deadline_k`` of every tick recorded in a preallocated array;
+* lateness ``now - deadline_k`` of every tick recorded in constant memory
+  (:class:`~servo.runtime.durations.Durations`);
 * overrun: the tick is entered after its deadline (the previous tick ran over its
   period).  Policy ``"count"`` counts and continues; ``"fault"`` raises
   :class:`OverrunFault` after ``max_consecutive`` overruns in a row, so the caller's
@@ -26,9 +27,9 @@ import time
 from contextlib import contextmanager
 from dataclasses import dataclass, field
 
-import numpy as np
 
 from servo.errors import DriverError
+from servo.runtime.durations import Durations
 
 
 class OverrunFault(DriverError):
@@ -50,7 +51,9 @@ class Pacer:
         self.spin_ns = int(round(spin_s * 1e9))
         self.policy = policy
         self.max_consecutive = max_consecutive
-        self.lateness_ns = np.full(n_ticks, 0, dtype=np.int64)  # written now: no page faults in the loop
+        self.n_ticks = n_ticks
+        self.lateness = Durations()
+        self._j = 0  # lateness values in lateness.buf not yet folded
         self.overruns = 0
         self.consecutive = 0
         self.t0 = 0
@@ -69,8 +72,8 @@ class Pacer:
             self.overruns += 1
             self.consecutive += 1
             if self.policy == "fault" and self.consecutive >= self.max_consecutive:
-                self.lateness_ns[k] = now - deadline
-                self.k_last = k
+                self._record(k, now - deadline)
+                self.finish()
                 raise OverrunFault(
                     f"realtime: {self.consecutive} consecutive deadline overruns at tick {k} "
                     f"({(now - deadline) / 1e3:.0f} us late): the host cannot keep {1e9 / self.period_ns:g} Hz"
@@ -83,17 +86,30 @@ class Pacer:
             while time.perf_counter_ns() < deadline:
                 pass
             now = time.perf_counter_ns()
-        self.lateness_ns[k] = now - deadline
+        self._record(k, now - deadline)
+
+    def _record(self, k: int, late_ns: int) -> None:
+        self.lateness.buf[self._j] = late_ns
+        self._j += 1
+        if self._j == self.lateness.buf.shape[0]:
+            self.lateness.fold(self._j)
+            self._j = 0
         self.k_last = k
+
+    def finish(self) -> None:
+        """Fold the lateness values not yet counted (call after the last tick)."""
+        self.lateness.fold(self._j)
+        self._j = 0
 
     def report(self) -> dict:
         """Lateness distribution (us) of the ticks paced so far, and overruns."""
-        late = self.lateness_ns[: self.k_last + 1] / 1e3
-        if late.size == 0:
+        self.finish()
+        late = self.lateness
+        if late.count == 0:
             return {"ticks": 0, "overruns": 0}
-        p50, p99, p999 = np.percentile(late, [50, 99, 99.9])
-        return {"ticks": int(late.size), "lateness_us_p50": float(p50), "lateness_us_p99": float(p99),
-                "lateness_us_p999": float(p999), "lateness_us_max": float(late.max()), "overruns": self.overruns}  # fmt: skip
+        p50, p99, p999 = (late.quantile(q) / 1e3 for q in (0.5, 0.99, 0.999))
+        return {"ticks": late.count, "lateness_us_p50": p50, "lateness_us_p99": p99,
+                "lateness_us_p999": p999, "lateness_us_max": late.max / 1e3, "overruns": self.overruns}  # fmt: skip
 
 
 @dataclass

@@ -21,9 +21,8 @@ import time
 from dataclasses import dataclass, field
 from typing import Callable, Protocol, Sequence
 
-import numpy as np
-
 from servo.runtime.driver import Driver
+from servo.runtime.durations import Durations
 from servo.runtime.pacing import Pacer
 
 
@@ -71,30 +70,41 @@ class Scheduler:
     data: TickData = field(default_factory=TickData)
     pacer: Pacer | None = None
 
-    def run(self, k0: int, n: int, start: bool = True, tick_ns: np.ndarray | None = None) -> None:
+    def run(self, k0: int, n: int, start: bool = True, timing: Durations | None = None) -> None:
         """Run ticks ``k0 .. k0+n-1``.  ``start``: the controller takes over at ``k0``.
-        ``tick_ns`` (n,), if given, receives each tick's compute time in ns (read to the
-        end of the last task), for overrun accounting."""
+        ``timing``, if given, receives each tick's compute time in ns (read to the end of
+        the last task), for overrun accounting; it is folded every block and on exit."""
         driver, ctl, data = self.driver, self.controller, self.data
         before, after, pacer = tuple(self.before), tuple(self.after), self.pacer
         clock = time.perf_counter_ns
-        for k in range(k0, k0 + n):
-            if pacer is not None:
-                pacer.wait(k)
-            t0 = clock()
-            x, v = driver.read()
-            data.x = x
-            data.v = v
-            if start and k == k0:
-                ctl.start(x, v, driver.applied_current)
-            for task in before:
-                if (k - task.offset) % task.every == 0:
-                    task.fn(k)
-            u = ctl.tick(x, v, data.r, data.u_exc)
-            driver.write(u)
-            data.u = u
-            for task in after:
-                if (k - task.offset) % task.every == 0:
-                    task.fn(k)
-            if tick_ns is not None:
-                tick_ns[k - k0] = clock() - t0
+        tbuf = timing.buf if timing is not None else None
+        tsize = 0 if tbuf is None else tbuf.shape[0]
+        j = 0  # durations in tbuf not yet folded
+        try:
+            for k in range(k0, k0 + n):
+                if pacer is not None:
+                    pacer.wait(k)
+                t0 = clock()
+                x, v = driver.read()
+                data.x = x
+                data.v = v
+                if start and k == k0:
+                    ctl.start(x, v, driver.applied_current)
+                for task in before:
+                    if (k - task.offset) % task.every == 0:
+                        task.fn(k)
+                u = ctl.tick(x, v, data.r, data.u_exc)
+                driver.write(u)
+                data.u = u
+                for task in after:
+                    if (k - task.offset) % task.every == 0:
+                        task.fn(k)
+                if tbuf is not None:
+                    tbuf[j] = clock() - t0
+                    j += 1
+                    if j == tsize:
+                        timing.fold(j)
+                        j = 0
+        finally:
+            if timing is not None:
+                timing.fold(j)
