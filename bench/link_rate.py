@@ -33,7 +33,7 @@ from servo.config import Config, to_toml
 from servo.errors import DriverError
 from servo.io.runlog import RunLog
 from servo.runtime.controller import Controller
-from servo.runtime.loop import log_rows, run_closed_loop
+from servo.runtime.loop import run_closed_loop
 from servo.runtime.pacing import realtime_section
 from servo.runtime.scenario import scenario_inputs
 
@@ -63,7 +63,7 @@ def one_rate(rate: float, d: int, b: int, seconds: float, cpus: tuple[int, int] 
             error = None
             with realtime_section(cpus[0] if cpus else None, fifo or fifo_host):
                 try:
-                    with drv, RunLog(tmp, "log", LOG_COLUMNS, log_rows(cfg)) as log:
+                    with drv, RunLog(tmp, "log", LOG_COLUMNS) as log:
                         run_closed_loop(cfg, drv, Controller(cfg), scenario_inputs(cfg), log, timing=False)
                 except DriverError as exc:
                     error = str(exc)

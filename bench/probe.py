@@ -27,14 +27,14 @@ def main() -> int:
     from servo.config import Config
     from servo.io.runlog import RunLog
     from servo.runtime.controller import Controller
-    from servo.runtime.loop import log_rows, run_closed_loop
+    from servo.runtime.loop import run_closed_loop
     from servo.runtime.scenario import scenario_inputs
     from servo.runtime.simdriver import SimDriver
 
     cfg = Config().replace(run={"duration_s": 0.04})
     inputs = scenario_inputs(cfg)
     with tempfile.TemporaryDirectory() as tmp:
-        with SimDriver(cfg, inputs) as drv, RunLog(tmp, "probe", LOG_COLUMNS, log_rows(cfg)) as log:
+        with SimDriver(cfg, inputs) as drv, RunLog(tmp, "probe", LOG_COLUMNS) as log:
             res = run_closed_loop(cfg, drv, Controller(cfg), inputs, log)
     dispatchers = {}
     for name, mod in list(sys.modules.items()):

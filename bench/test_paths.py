@@ -11,7 +11,7 @@ from kernels.loop import LOG_COLUMNS
 from servo.io.runlog import RunLog
 from servo.runtime.controller import Controller
 from servo.runtime.durations import Durations
-from servo.runtime.loop import log_rows, run_closed_loop
+from servo.runtime.loop import run_closed_loop
 from servo.runtime.scenario import scenario_inputs
 from servo.runtime.simdriver import SimDriver
 
@@ -30,7 +30,7 @@ class Runs:
     def setup(self):
         drv = SimDriver(self.cfg, self.inputs)
         drv.configure()
-        log = RunLog(self.tmp, f"r{len(self.open)}", LOG_COLUMNS, log_rows(self.cfg))
+        log = RunLog(self.tmp, f"r{len(self.open)}", LOG_COLUMNS)
         self.open.append((drv, log))
         return (drv, Controller(self.cfg), log), {}
 

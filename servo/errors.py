@@ -24,3 +24,9 @@ class DriverError(ServoError):
 
 class LifecycleError(DriverError):
     """A driver method was called in a state that does not allow it."""
+
+
+class Interrupted(ServoError):
+    """Ctrl-C or SIGTERM stopped a command; the message says what was kept."""
+
+    exit_code = 130

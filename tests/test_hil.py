@@ -31,7 +31,7 @@ from servo.errors import DriverError
 from servo.io.runlog import RunLog
 from servo.runtime.controller import Controller
 from servo.runtime.driver import DriverState
-from servo.runtime.loop import log_rows, run_closed_loop
+from servo.runtime.loop import run_closed_loop
 from servo.runtime.scenario import scenario_inputs
 from servo.runtime.simdriver import SimDriver
 
@@ -70,7 +70,7 @@ def emulator(*args, timeout=60.0):
 def run_log(cfg, driver, tmp_path, name, controller=None):
     """Run the scenario of ``cfg`` against ``driver``; returns (rows, driver)."""
     inputs = scenario_inputs(cfg)
-    with driver, RunLog(tmp_path, name, LOG_COLUMNS, log_rows(cfg)) as log:
+    with driver, RunLog(tmp_path, name, LOG_COLUMNS) as log:
         run_closed_loop(cfg, driver, controller or Controller(cfg), inputs, log)
     return log.recorded().copy()
 
@@ -177,7 +177,7 @@ def test_a_port_that_disappears_mid_run_stops_servo_run_with_one_line(tmp_path):
                                           "--compensation", "on"), stdout=subprocess.PIPE, stderr=subprocess.PIPE,
                                 text=True)  # fmt: skip
         try:
-            journal = out / "log_compensated.journal"
+            journal = tmp_path / f"{out.name}.incomplete" / "log_compensated.journal"
             assert wait_until(lambda: journal.exists() and journal.stat().st_size > 8192 * 8 * 12, timeout=60)
             emu.send_signal(signal.SIGKILL)
             _, err = host.communicate(timeout=30)
@@ -187,11 +187,13 @@ def test_a_port_that_disappears_mid_run_stops_servo_run_with_one_line(tmp_path):
                 host.communicate()
     assert host.returncode == 3
     assert err.count("\n") == 1 and re.match(r"servo: error: link: the port /dev/pts/\d+ vanished", err), err
-    data = np.load(out / "log_compensated.npz")
+    kept = journal.parent
+    assert err.strip().endswith(f"recorded data kept in {kept}/") and not out.exists()
+    data = np.load(kept / "log_compensated.npz")
     rows = data["tick"].shape[0]
     assert 8192 <= rows < 200_000
     np.testing.assert_array_equal(data["tick"], np.arange(rows))
-    assert not list(out.glob("*.journal")) and not list(out.glob(".*.tmp"))
+    assert not list(kept.glob("*.journal")) and not list(kept.glob(".*"))
 
 
 def test_a_host_too_slow_for_a_real_time_board_is_a_deadline_fault(tmp_path):

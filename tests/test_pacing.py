@@ -15,7 +15,7 @@ from servo.config import Config
 from servo.io.runlog import RunLog
 from servo.runtime.controller import Controller
 from servo.runtime.driver import DriverState
-from servo.runtime.loop import log_rows, run_closed_loop
+from servo.runtime.loop import run_closed_loop
 from servo.runtime.pacing import OverrunFault, Pacer, realtime_section
 from servo.runtime.scenario import scenario_inputs
 from servo.runtime.simdriver import SimDriver
@@ -70,7 +70,7 @@ def test_what_the_os_refuses_is_one_note_and_nothing_changes():
 
 def closed_loop_log(cfg, tmp_path, name, pacer=None):
     inputs = scenario_inputs(cfg)
-    with SimDriver(cfg, inputs) as drv, RunLog(tmp_path, name, LOG_COLUMNS, log_rows(cfg)) as log:
+    with SimDriver(cfg, inputs) as drv, RunLog(tmp_path, name, LOG_COLUMNS) as log:
         res = run_closed_loop(cfg, drv, Controller(cfg), inputs, log, pacer=pacer)
     return log.recorded().copy(), res
 
@@ -102,7 +102,7 @@ def test_overrun_fault_leaves_the_drive_at_zero_current_and_keeps_the_log(tmp_pa
     pacer = Pacer(cfg.dt, cfg.n_ticks, policy="fault", max_consecutive=5)
     inputs = scenario_inputs(cfg)
     with pytest.raises(OverrunFault, match="5 consecutive deadline overruns"):
-        with SimDriver(cfg, inputs) as drv, RunLog(tmp_path, "f", LOG_COLUMNS, log_rows(cfg)) as log:
+        with SimDriver(cfg, inputs) as drv, RunLog(tmp_path, "f", LOG_COLUMNS) as log:
             try:
                 run_closed_loop(cfg, drv, Controller(cfg), inputs, log, pacer=pacer)
             finally:
@@ -116,7 +116,7 @@ def test_overrun_fault_leaves_the_drive_at_zero_current_and_keeps_the_log(tmp_pa
 def test_the_fast_path_cannot_be_paced(tmp_path):
     cfg = Config().replace(run={"duration_s": 0.01})
     inputs = scenario_inputs(cfg)
-    with SimDriver(cfg, inputs) as drv, RunLog(tmp_path, "x", LOG_COLUMNS, log_rows(cfg)) as log:
+    with SimDriver(cfg, inputs) as drv, RunLog(tmp_path, "x", LOG_COLUMNS) as log:
         with pytest.raises(ValueError, match="cannot be paced"):
             run_closed_loop(cfg, drv, Controller(cfg), inputs, log, fast=True, pacer=Pacer(cfg.dt, cfg.n_ticks))
 
@@ -158,8 +158,9 @@ def test_servo_run_realtime_fault_is_one_line_and_keeps_the_log(tmp_path):
     assert r.returncode == 3
     assert r.stderr.count("\n") == 1 and "Traceback" not in r.stderr, r.stderr
     assert r.stderr.startswith("servo: error: realtime: 3 consecutive deadline overruns")
-    assert "drive set to zero current" in r.stderr
-    assert (out / "log_compensated.npz").exists() and not (out / "summary.json").exists()
+    assert "drive set to zero current" in r.stderr and f"recorded data kept in {out}.incomplete/" in r.stderr
+    kept = tmp_path / "o.incomplete"
+    assert (kept / "log_compensated.npz").exists() and not (kept / "summary.json").exists() and not out.exists()
 
 
 @pytest.mark.parametrize(

@@ -85,7 +85,7 @@ def test_tick_order_and_multi_rate_tasks():
 
 def run(cfg: Config, fast: bool, tmp_path, name: str):
     inputs = scenario_inputs(cfg)
-    with SimDriver(cfg, inputs) as drv, RunLog(tmp_path, name, LOG_COLUMNS, log_rows(cfg)) as log:
+    with SimDriver(cfg, inputs) as drv, RunLog(tmp_path, name, LOG_COLUMNS) as log:
         res = run_closed_loop(cfg, drv, Controller(cfg), inputs, log, fast=fast)
     return log.recorded().copy(), res.stats.copy()
 

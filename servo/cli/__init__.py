@@ -4,7 +4,7 @@ Each subcommand lives in its own module here with ``register(subparsers)``; the 
 names are listed in :data:`COMMANDS`.  Every user-facing failure is one line on stderr
 and a non-zero exit: ``servo: error: ...`` (exit 2; 3 for drive/link failures; an
 operating-system error such as an output path under a file, a read-only or full disk is
-``servo: error: PATH: CAUSE``, exit 2), Ctrl-C or SIGTERM ``servo: interrupted`` (exit
+``servo: error: PATH: CAUSE``, exit 2), Ctrl-C or SIGTERM ``servo: interrupted; WHAT WAS KEPT`` (exit
 130), and a bug ``servo: internal error: ...`` (exit 70; ``SERVO_DEBUG=1`` shows the
 traceback).
 """
@@ -17,9 +17,9 @@ import signal
 import sys
 import tomllib
 
-from servo.errors import ConfigError, ServoError
+from servo.errors import ConfigError, Interrupted, ServoError
 
-COMMANDS = ("run", "config", "identify", "hysteresis", "bode", "paper", "emulate", "diagnose")
+COMMANDS = ("run", "config", "identify", "hysteresis", "bode", "paper", "emulate", "diagnose", "recover")
 
 
 class UsageError(ServoError):
@@ -80,11 +80,14 @@ def main(argv: list[str] | None = None) -> int:
             parser.print_help()
             return 2
         return int(args.handler(args) or 0)
+    except Interrupted as exc:  # a command that says what it kept
+        print(f"servo: interrupted; {exc}", file=sys.stderr)
+        return exc.exit_code
     except ServoError as exc:
         print(f"servo: error: {exc}", file=sys.stderr)
         return exc.exit_code
     except KeyboardInterrupt:
-        print("servo: interrupted; drive left at zero current, recorded data kept", file=sys.stderr)
+        print("servo: interrupted", file=sys.stderr)
         return 130
     except BrokenPipeError:
         return 0

@@ -20,7 +20,10 @@ def register(sub) -> None:
     add_config_options(p)
     p.add_argument("--duration", type=float, metavar="S", help="simulated seconds (default: run.duration_s)")
     p.add_argument("--seed", type=int, help="sensor-noise seed (default: run.seed)")
-    p.add_argument("--out", metavar="DIR", help="output folder (default: servo-out/run-<time>)")
+    p.add_argument("--out", metavar="DIR", help="output folder, new or empty (default: servo-out/run-<time>); "
+                   "written as DIR.incomplete/ and renamed when complete")  # fmt: skip
+    p.add_argument("--log-format", choices=("npz", "csv", "both"), default="both",
+                   help="run log files to write (default both)")  # fmt: skip
     p.add_argument("--compensation", choices=("on", "off", "compare"), default="compare",
                    help="run with the compensator, without, or both and compare (default)")  # fmt: skip
     p.add_argument("--fast", action=argparse.BooleanOptionalAction, default=None,
@@ -75,24 +78,29 @@ def realtime_options(args: argparse.Namespace):
 
 
 def handle(args: argparse.Namespace) -> int:
+    from servo.io.outdir import check_output, staged
     from servo.run.job import default_out_dir, format_summary, run_job
 
     realtime = realtime_options(args)
     cfg = config_from_args(args, run={"duration_s": args.duration, "seed": args.seed})
     out = Path(args.out) if args.out else default_out_dir()
+    formats = ("npz", "csv") if args.log_format == "both" else (args.log_format,)
+    check_output(out)
     if args.port is None:
-        summary = run_job(cfg, out, compensation=args.compensation, fast=False if realtime else args.fast,
-                          realtime=realtime)  # fmt: skip
+        with staged(out, keep_partial=True) as tmp:
+            summary = run_job(cfg, tmp, compensation=args.compensation, fast=False if realtime else args.fast,
+                              realtime=realtime, log_formats=formats)  # fmt: skip
     else:
-        summary = _run_on_port(cfg, out, args)
+        summary = _run_on_port(cfg, out, args, formats)
     print(format_summary(summary, out))
     return 0
 
 
-def _run_on_port(cfg, out: Path, args: argparse.Namespace) -> dict:
+def _run_on_port(cfg, out: Path, args: argparse.Namespace, formats: tuple[str, ...]) -> dict:
     """The same job against the serial link: a fresh session (driver) per run.  The first
     driver is configured (handshake, version and rate checks) before anything is written,
     so a bad URL or an absent board leaves no output folder."""
+    from servo.io.outdir import staged
     from hil.serialdriver import SerialDriver
     from servo.run.job import run_job
     from servo.runtime.pacing import realtime_section
@@ -107,9 +115,9 @@ def _run_on_port(cfg, out: Path, args: argparse.Namespace) -> dict:
         return pending.pop() if pending else SerialDriver(cfg, args.port)
 
     try:
-        with realtime_section():  # no garbage-collector pauses while the board waits for commands
-            return run_job(cfg, out, compensation=args.compensation, fast=False, make_driver=make_driver,
+        with realtime_section(), staged(out, keep_partial=True) as tmp:  # no GC pauses while the board waits
+            return run_job(cfg, tmp, compensation=args.compensation, fast=False, make_driver=make_driver,
                            where=f"{first.info.name} (d = {cfg.link.command_latency_ticks}, "
-                           f"batch = {cfg.link.batch})")  # fmt: skip
+                           f"batch = {cfg.link.batch})", log_formats=formats)  # fmt: skip
     finally:
         first.close()

@@ -1,12 +1,19 @@
-"""Run logs: preallocated rows, streamed to disk in blocks, finalised atomically.
+"""Run logs in constant memory: rows streamed to a journal in blocks, finalised from it.
 
-While a run goes, completed blocks of rows are appended to ``<name>.journal`` (one JSON
-header line, then raw little-endian float64 rows) and flushed, so a crash, a Ctrl-C or a
-kill loses at most the rows of the current block.  :meth:`RunLog.close` (called on every
-exit path by the context manager) writes ``<name>.npz`` and ``<name>.csv`` under
-temporary names, renames them into place and removes the journal: a reader never sees a
-half-written NPZ or CSV.  :func:`read_journal` recovers the rows of a journal a hard kill
-left behind.
+A run fills one block of rows at a time (:attr:`RunLog.data`, :attr:`RunLog.rows`).  A
+full block is handed to a writer thread that appends it to ``<name>.journal`` (one JSON
+header line, then raw little-endian float64 rows) and ``fsync``\\ s it, while the run
+fills the next block; a crash, a Ctrl-C or a kill loses at most the rows not yet
+synced.  A failure to write the journal (disk full, file size limit, the disk gone) is a
+:class:`JournalError`, a driver fault: the run stops with the drive in its safe state.
+
+:meth:`RunLog.finalise` (called by :meth:`RunLog.close`, which the context manager calls
+on every exit path) streams the journal, in chunks, into ``<name>.npz`` and/or
+``<name>.csv`` under temporary names, renames them into place and removes the journal: a
+reader never sees a half-written NPZ or CSV, and a run of any length needs the same
+memory.  The chunks also go to the caller's consumers (the run's summary and plots).
+:func:`read_journal` recovers the rows of a journal a hard kill left behind;
+:func:`finalise_journal` turns it into the NPZ and CSV.
 
 NPZ: one float64 array per column (``t``, ``x``, ``u``...) plus ``meta`` (a JSON string).
 CSV: a header row of column names, then one row per sample, ``%.17g`` (exact round trip).
@@ -14,11 +21,28 @@ CSV: a header row of column names, then one row per sample, ``%.17g`` (exact rou
 from __future__ import annotations
 
 import json
+import os
+import queue
+import signal
+import threading
+import zipfile
+from contextlib import contextmanager
 from pathlib import Path
+from typing import Callable, Iterable, Iterator
 
 import numpy as np
 
+from servo.errors import DriverError
 from servo.io.atomic import atomic_write
+
+#: Rows per chunk when a journal is read back (~6 MB for 12 columns).
+CHUNK_ROWS = 65536
+#: Log formats a run can write.
+FORMATS = ("npz", "csv")
+
+
+class JournalError(DriverError):
+    """The run log's journal could not be written: a fault that stops the run."""
 
 
 def write_npz(path: Path, columns, data: np.ndarray, meta: dict) -> None:
@@ -44,29 +68,76 @@ def write_csv(path: Path, columns, data: np.ndarray) -> None:
     atomic_write(path, w)
 
 
-class RunLog:
-    """A preallocated log of ``n_rows`` rows of ``columns``, journalled in blocks.
+class _Writer(threading.Thread):
+    """Appends blocks to the journal and fsyncs each; returns the buffers for reuse."""
 
-    Fill rows in place (``data[rows]``), advance ``rows``, call :meth:`maybe_flush`.
-    Use as a context manager; :meth:`close` finalises whatever was recorded.
+    def __init__(self, fh, free: queue.Queue):
+        super().__init__(name="runlog-journal", daemon=True)
+        self.fh, self.free = fh, free
+        self.todo: queue.Queue = queue.Queue()
+        self.error: OSError | None = None
+        self.synced_rows = 0
+
+    def run(self) -> None:
+        while True:
+            item = self.todo.get()
+            if item is None:
+                self.todo.task_done()
+                return
+            buf, n = item
+            try:
+                if self.error is None:
+                    self.fh.write(buf[:n].astype("<f8", copy=False).tobytes())
+                    self.fh.flush()
+                    os.fsync(self.fh.fileno())
+                    self.synced_rows += n
+            except OSError as exc:
+                self.error = exc
+            finally:
+                self.free.put(buf)
+                self.todo.task_done()
+
+
+class RunLog:
+    """A run log of ``columns``, journalled in blocks of ``block_rows`` rows.
+
+    Fill rows of the current block in place (``data[rows]``), advance ``rows``, call
+    :meth:`maybe_flush`; a caller may write up to ``headroom`` rows past ``block_rows``
+    before it calls :meth:`maybe_flush` (the compiled loop writes a block of ticks per
+    call).  ``formats``: which of ``npz``/``csv`` :meth:`finalise` writes.  Use as a
+    context manager; :meth:`close` finalises whatever was recorded.
     """
 
-    def __init__(self, out_dir: str | Path, name: str, columns, n_rows: int, meta: dict | None = None, block_rows: int = 8192):
+    BUFFERS = 3  # the one being filled, one being written, one spare
+
+    def __init__(self, out_dir: str | Path, name: str, columns, meta: dict | None = None, block_rows: int = 8192,
+                 headroom: int = 1024, formats: Iterable[str] = FORMATS):  # fmt: skip
         self.dir = Path(out_dir)
         self.name = name
         self.columns = tuple(columns)
         self.meta = dict(meta or {})
-        self.block_rows = block_rows
-        self.data = np.full((n_rows, len(self.columns)), np.nan)
-        self.rows = 0
-        self.flushed = 0
+        self.block_rows = int(block_rows)
+        self.formats = tuple(formats)
+        if not set(self.formats) <= set(FORMATS):
+            raise ValueError(f"log formats are {FORMATS}, not {self.formats}")
+        self.total = 0  # rows handed to the journal
+        self.rows = 0  # rows in the current block
         self.closed = False
+        self.finalised = False
+        self._reported = False
         self.journal_path = self.dir / f"{name}.journal"
         self.dir.mkdir(parents=True, exist_ok=True)
         self._journal = open(self.journal_path, "wb")
         header = {"columns": self.columns, "meta": self.meta}
         self._journal.write((json.dumps(header) + "\n").encode())
         self._journal.flush()
+        os.fsync(self._journal.fileno())
+        self._free: queue.Queue = queue.Queue()
+        for _ in range(self.BUFFERS - 1):
+            self._free.put(np.zeros((self.block_rows + headroom, len(self.columns))))  # written: no page faults later
+        self.data = np.zeros((self.block_rows + headroom, len(self.columns)))
+        self._writer = _Writer(self._journal, self._free)
+        self._writer.start()
 
     @property
     def npz_path(self) -> Path:
@@ -76,47 +147,217 @@ class RunLog:
     def csv_path(self) -> Path:
         return self.dir / f"{self.name}.csv"
 
+    @property
+    def recorded_rows(self) -> int:
+        """Rows recorded so far (handed to the journal and in the current block)."""
+        return self.total + self.rows
+
     def maybe_flush(self) -> None:
-        if self.rows - self.flushed >= self.block_rows:
-            self.flush()
+        """Hand the current block to the journal when it is full."""
+        if self.rows >= self.block_rows:
+            self._hand_over()
 
     def flush(self) -> None:
-        """Append the rows recorded since the last flush to the journal."""
-        if self.rows > self.flushed:
-            self._journal.write(np.ascontiguousarray(self.data[self.flushed : self.rows], dtype="<f8").tobytes())
-            self._journal.flush()  # to the OS: survives a crash of this process, costs no fsync in the loop
-            self.flushed = self.rows
+        """Hand over what is recorded and wait until the journal holds it, synced.
+        Raises :class:`JournalError` (once) if the journal could not be written."""
+        if self.rows:
+            self._hand_over()
+        self._writer.todo.join()
+        self._check()
+
+    def _hand_over(self) -> None:
+        self._check()
+        self._writer.todo.put((self.data, self.rows))
+        self.total += self.rows
+        self.rows = 0
+        self.data = self._free.get()  # waits only if the writer is two blocks behind
+
+    def _check(self) -> None:
+        err = self._writer.error
+        if err is not None and not self._reported:
+            self._reported = True
+            kept = journal_rows(self.journal_path)
+            raise JournalError(f"run log: writing {self.journal_path} failed ({err.strerror or err}) after {kept} rows; "
+                               "the run stopped with the drive at zero current")  # fmt: skip
+
+    def _stop_writer(self) -> None:
+        if self._writer.is_alive():
+            self._writer.todo.put(None)
+            self._writer.join()
+        self._journal.close()
 
     def recorded(self) -> np.ndarray:
-        """The rows recorded so far (a view)."""
-        return self.data[: self.rows]
+        """Every row recorded so far, read back from the journal (rows, columns).  This
+        holds the whole log in memory: for tests and short runs."""
+        self.flush()
+        if self.finalised:
+            return load_npz_rows(self.npz_path, self.columns) if "npz" in self.formats else np.loadtxt(
+                self.csv_path, delimiter=",", skiprows=1, ndmin=2)  # fmt: skip
+        return read_journal(self.journal_path)[1]
+
+    def finalise(self, consumers: Iterable[Callable[[np.ndarray], None]] = ()) -> None:
+        """Flush, stop the writer, then stream the journal into the NPZ/CSV (atomically)
+        and remove it.  Each chunk of rows (at most :data:`CHUNK_ROWS`, in order) also
+        goes to every consumer.  If the journal could not be written, what it holds is
+        finalised, then the :class:`JournalError` is raised if it was not yet."""
+        if self.finalised:
+            return
+        err = None
+        if not self.closed:
+            try:
+                self.flush()
+            except JournalError as exc:
+                err = exc
+            finally:
+                self._stop_writer()
+                self.closed = True
+        with interrupts_deferred():  # a second Ctrl-C must not leave half the files
+            finalise_journal(self.journal_path, self.formats, consumers, meta=self.meta)
+        self.finalised = True
+        if err is not None:
+            raise err
 
     def close(self) -> None:
-        """Finalise: NPZ and CSV of every recorded row, atomically; remove the journal."""
-        if self.closed:
-            return
-        self.closed = True
-        self.flush()
-        self._journal.close()
-        self.meta["rows"] = self.rows
-        write_npz(self.npz_path, self.columns, self.recorded(), self.meta)
-        write_csv(self.csv_path, self.columns, self.recorded())
-        self.journal_path.unlink()
+        """Finalise whatever was recorded (once); the journal stays if that fails."""
+        self.finalise()
+
+    def close_after_fault(self) -> None:
+        """Finalise what was recorded when the run has already failed: a failure to do
+        so (the disk that failed the run) leaves the journal in place and does not mask
+        the fault that stopped the run."""
+        try:
+            self.finalise()
+        except (OSError, DriverError):
+            pass
 
     def __enter__(self) -> "RunLog":
         return self
 
-    def __exit__(self, *exc) -> None:
-        self.close()
+    def __exit__(self, exc_type, exc, tb) -> None:
+        if exc_type is None:
+            self.close()
+        else:
+            self.close_after_fault()
+
+
+@contextmanager
+def interrupts_deferred():
+    """Hold SIGINT and SIGTERM back for the block (main thread only): a Ctrl-C during it
+    is raised as :class:`KeyboardInterrupt` when the block ends, so the files it writes
+    are complete.  A hard kill still leaves the journal."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    caught = []
+    old = {s: signal.getsignal(s) for s in (signal.SIGINT, signal.SIGTERM)}
+    for s in old:
+        signal.signal(s, lambda signum, frame: caught.append(signum))
+    try:
+        yield
+    finally:
+        for s, h in old.items():
+            signal.signal(s, h)
+    if caught:
+        raise KeyboardInterrupt
+
+
+def _journal_header(fh) -> tuple[tuple[str, ...], dict]:
+    header = json.loads(fh.readline())
+    return tuple(header["columns"]), header["meta"]
+
+
+def iter_journal(path: str | Path, chunk_rows: int = CHUNK_ROWS) -> Iterator[np.ndarray]:
+    """The complete rows of a journal, in chunks of at most ``chunk_rows`` (rows, columns)."""
+    with open(path, "rb") as fh:
+        cols, _ = _journal_header(fh)
+        width = len(cols)
+        while True:
+            raw = fh.read(8 * width * chunk_rows)
+            whole = len(raw) - len(raw) % (8 * width)
+            if whole == 0:
+                return
+            yield np.frombuffer(raw[:whole], dtype="<f8").reshape(-1, width)
 
 
 def read_journal(path: str | Path) -> tuple[tuple[str, ...], np.ndarray, dict]:
-    """Columns, complete rows and meta of a journal left by an interrupted run."""
-    raw = Path(path).read_bytes()
-    head, _, body = raw.partition(b"\n")
-    header = json.loads(head)
-    cols = tuple(header["columns"])
-    width = 8 * len(cols)
-    body = body[: len(body) - len(body) % width]
-    data = np.frombuffer(body, dtype="<f8").reshape(-1, len(cols)).copy()
-    return cols, data, header["meta"]
+    """Columns, complete rows and meta of a journal (e.g. one an interrupted run left)."""
+    with open(path, "rb") as fh:
+        cols, meta = _journal_header(fh)
+    chunks = list(iter_journal(path))
+    data = np.concatenate(chunks) if chunks else np.zeros((0, len(cols)))
+    return cols, data, meta
+
+
+def journal_rows(path: str | Path) -> int:
+    """Complete rows in a journal."""
+    with open(path, "rb") as fh:
+        cols, _ = _journal_header(fh)
+        body = os.fstat(fh.fileno()).st_size - fh.tell()
+    return body // (8 * len(cols))
+
+
+def finalise_journal(path: str | Path, formats: Iterable[str] = FORMATS,
+                     consumers: Iterable[Callable[[np.ndarray], None]] = (), meta: dict | None = None) -> list[Path]:  # fmt: skip
+    """Write ``<name>.npz`` and/or ``<name>.csv`` beside the journal ``path`` from its
+    complete rows, in one streaming pass (plus one pass over per-column temporaries for
+    the NPZ), atomically; then remove the journal.  Returns the files written."""
+    path = Path(path)
+    with open(path, "rb") as fh:
+        cols, jmeta = _journal_header(fh)
+    meta = dict(jmeta if meta is None else meta)
+    meta["rows"] = journal_rows(path)
+    stem = path.with_suffix("")
+    formats = tuple(formats)
+    consumers = tuple(consumers)
+    written = []
+    tmp_cols = [stem.with_name(f".{stem.name}.{c}.col") for c in cols]
+    csv_tmp = stem.with_name(f".{stem.name}.csv.tmp")
+    try:
+        col_fh = [open(p, "wb") for p in tmp_cols] if "npz" in formats else []
+        csv_fh = open(csv_tmp, "w", encoding="ascii") if "csv" in formats else None
+        try:
+            if csv_fh:
+                csv_fh.write(",".join(cols) + "\n")
+            for chunk in iter_journal(path):
+                for i, f in enumerate(col_fh):
+                    f.write(np.ascontiguousarray(chunk[:, i]).tobytes())
+                if csv_fh:
+                    np.savetxt(csv_fh, chunk, fmt="%.17g", delimiter=",")
+                for consume in consumers:
+                    consume(chunk)
+        finally:
+            for f in col_fh:
+                f.close()
+            if csv_fh:
+                csv_fh.close()
+        if "npz" in formats:
+            atomic_write(stem.with_suffix(".npz"), lambda tmp: _zip_columns(tmp, cols, tmp_cols, meta))
+            written.append(stem.with_suffix(".npz"))
+        if csv_fh:
+            os.replace(csv_tmp, stem.with_suffix(".csv"))
+            written.append(stem.with_suffix(".csv"))
+    finally:
+        for p in [*tmp_cols, csv_tmp]:
+            if p.exists():
+                p.unlink()
+    path.unlink()
+    return written
+
+
+def _zip_columns(dest, cols, col_files, meta: dict) -> None:
+    """An NPZ (``np.load`` reads it like ``np.savez``'s) of the column files, streamed."""
+    with zipfile.ZipFile(dest, "w", compression=zipfile.ZIP_STORED, allowZip64=True) as zf:
+        for c, p in zip(cols, col_files):
+            n = os.path.getsize(p) // 8
+            with zf.open(f"{c}.npy", "w", force_zip64=True) as out, open(p, "rb") as src:
+                np.lib.format.write_array_header_1_0(out, {"descr": "<f8", "fortran_order": False, "shape": (n,)})
+                while block := src.read(1 << 22):
+                    out.write(block)
+        with zf.open("meta.npy", "w") as out:
+            np.lib.format.write_array(out, np.array(json.dumps(meta)))
+
+
+def load_npz_rows(path: str | Path, columns) -> np.ndarray:
+    """The rows of a finalised NPZ log as one (rows, columns) array."""
+    with np.load(path) as z:
+        return np.column_stack([z[c] for c in columns])

@@ -23,20 +23,23 @@ import numpy as np
 from kernels.loop import LOG_COLUMNS
 from servo.config import Config, to_toml
 from servo.io.atomic import atomic_write, write_json
-from servo.io.runlog import RunLog
+from servo.io.resources import check_disk
+from servo.io.runlog import FORMATS, RunLog
 from servo.run import plots
-from servo.run.metrics import rms, step_metrics, tick_timing
+from servo.run.metrics import tick_timing
+from servo.run.reduce import PlotRows, RunFigures
 from servo.run.realtime import REALTIME_LOG_BLOCK, RealtimeOptions, check_realtime, grant_line, lateness_line, make_pacer, plot_lateness, report
 from servo.run.startup import process_age_s
 from servo.runtime.controller import Controller
 from servo.runtime.driver import Driver
 from servo.runtime.loop import LoopResult, log_rows, run_closed_loop
-from servo.runtime.pacing import OverrunFault, realtime_section
-from servo.runtime.scenario import Inputs, scenario_inputs, segments
+from servo.runtime.pacing import realtime_section
+from servo.runtime.scenario import Inputs, scenario_inputs
 from servo.runtime.simdriver import SimDriver
 
+#: Rows per journal block of a simulated run (~0.8 MB): each block is one write and one fsync.
+LOG_BLOCK = 8192
 LABELS = {"on": ("compensated",), "off": ("uncompensated",), "compare": ("compensated", "uncompensated")}
-COL = {c: i for i, c in enumerate(LOG_COLUMNS)}
 
 
 def default_out_dir() -> Path:
@@ -45,15 +48,20 @@ def default_out_dir() -> Path:
 
 def run_simulated(cfg: Config, out_dir: Path, compensated: bool, fast: bool,
                   make_driver: Callable[[Config, Inputs], Driver] | None = None,
-                  realtime: RealtimeOptions | None = None) -> tuple[np.ndarray, LoopResult]:  # fmt: skip
+                  realtime: RealtimeOptions | None = None,
+                  log_formats: tuple[str, ...] = FORMATS) -> tuple[dict, np.ndarray, LoopResult]:  # fmt: skip
     """One closed-loop run against a fresh driver (default: the simulated drive); returns
-    (log rows, result).  What the driver reports (:meth:`Driver.report`: the serial link's
-    frames and counters; None for the simulated drive) is recorded in ``result.link``.
-    ``realtime``: pace the ticks on the wall clock (tick path, simulated drive); the result
-    then carries the pacing report and the lateness of every tick.  A run against a plant
-    in real time (paced, or a board) journals its log in blocks of
-    :data:`~servo.run.realtime.REALTIME_LOG_BLOCK` rows, so that no write stalls a tick for
-    long."""
+    (figures, plot rows, result): the run's tracking and step figures
+    (:class:`~servo.run.reduce.RunFigures`), the rows its plots draw
+    (:class:`~servo.run.reduce.PlotRows`), and the loop's result.  The log streams to
+    ``log_<label>.journal`` while the run goes and is finalised into ``log_formats``
+    after the driver is closed; the figures are computed in that same pass, so memory
+    does not grow with the run.  What the driver reports (:meth:`Driver.report`: the
+    serial link's frames and counters; None for the simulated drive) is recorded in
+    ``result.link``.  ``realtime``: pace the ticks on the wall clock (tick path,
+    simulated drive); the result then carries the pacing report and the lateness of
+    every tick.  A run against a plant in real time (paced, or a board) journals its log
+    in blocks of :data:`~servo.run.realtime.REALTIME_LOG_BLOCK` rows."""
     label = "compensated" if compensated else "uncompensated"
     inputs = scenario_inputs(cfg)
     meta = {"label": label, "fast_path": fast, "sample_rate_hz": cfg.run.sample_rate_hz, "seed": cfg.run.seed,
@@ -61,35 +69,28 @@ def run_simulated(cfg: Config, out_dir: Path, compensated: bool, fast: bool,
     driver = SimDriver(cfg, inputs) if make_driver is None else make_driver(cfg, inputs)
     pacer = make_pacer(cfg, realtime) if realtime else None
     section = realtime_section(realtime.cpu, realtime.fifo_priority, realtime.lock_memory) if realtime else nullcontext()
-    block = REALTIME_LOG_BLOCK if (realtime or make_driver is not None) else 8192
-    with driver, RunLog(out_dir, f"log_{label}", LOG_COLUMNS, log_rows(cfg), meta, block) as log:
-        with section as grant:  # only around configure and the loop: the log is finalised outside
-            result = run_closed_loop(cfg, driver, Controller(cfg, compensation=compensated), inputs, log, fast=fast, pacer=pacer)
+    block = REALTIME_LOG_BLOCK if (realtime or make_driver is not None) else LOG_BLOCK
+    figures, plot_rows = RunFigures(cfg), PlotRows(log_rows(cfg))
+    log = RunLog(out_dir, f"log_{label}", LOG_COLUMNS, meta, block, formats=log_formats)
+    try:
+        with driver:
+            with section as grant:  # only around configure and the loop: the log is finalised outside
+                result = run_closed_loop(cfg, driver, Controller(cfg, compensation=compensated), inputs, log, fast=fast, pacer=pacer)
+    except BaseException:
+        log.close_after_fault()
+        raise
+    log.finalise([figures, plot_rows])
     result.link = driver.report()
     if realtime:
         result.realtime = report(pacer, realtime, grant)
         result.lateness = pacer.lateness
-    return log.recorded(), result
+    return figures.result(), plot_rows.rows(), result
 
 
-def summarise(cfg: Config, log: np.ndarray, result: LoopResult) -> dict:
-    t, x, e = log[:, COL["t"]], log[:, COL["x"]], log[:, COL["e"]]
-    x_hold = log[0, COL["r"]]
-    seg = {name: rms(e[(t >= a) & (t < b)]) for name, a, b in segments(cfg)}
-    steps, prev = [], 0.0
-    ends = {name: b for name, _, b in segments(cfg)}
-    for i, (ts, pos) in enumerate(zip(cfg.scenario.step_times, cfg.scenario.step_positions)):
-        if ts < cfg.run.duration_s and pos != prev:
-            steps.append({"t_s": ts, **step_metrics(t, x, ts, ends[f"step {i + 1}"], x_hold + prev, x_hold + pos)})
-        prev = pos
-    out = {
-        "error_rms_m": rms(e),
-        "error_rms_by_segment_m": seg,
-        "error_max_m": float(np.abs(e).max()),
-        "steps": steps,
-        "wall_s": result.wall_s,
-        "per_sample_us": result.wall_s / result.n_ticks * 1e6,
-    }
+def summarise(cfg: Config, figures: dict, result: LoopResult) -> dict:
+    """The summary of one run: its figures (:meth:`RunFigures.result`), compute time,
+    and what the link and the pacer report."""
+    out = {**figures, "wall_s": result.wall_s, "per_sample_us": result.wall_s / result.n_ticks * 1e6}
     if result.timing is not None:
         out.update(tick_timing(result.timing, cfg.dt))
     if result.link is not None:
@@ -99,36 +100,45 @@ def summarise(cfg: Config, log: np.ndarray, result: LoopResult) -> dict:
     return out
 
 
+def output_bytes(cfg: Config, runs: int, log_formats: tuple[str, ...]) -> float:
+    """Disk bytes the logs of ``runs`` runs of ``cfg`` need at their peak (journal, NPZ
+    column temporaries and NPZ, CSV at ~25 characters a value)."""
+    values = log_rows(cfg) * len(LOG_COLUMNS)
+    per_value = 8 + (16 if "npz" in log_formats else 0) + (25 if "csv" in log_formats else 0)
+    return float(runs * values * per_value)
+
+
 def run_job(cfg: Config, out_dir: Path, compensation: str = "compare", fast: bool | None = None,
             make_driver: Callable[[Config, Inputs], Driver] | None = None, where: str | None = None,
-            realtime: RealtimeOptions | None = None) -> dict:  # fmt: skip
+            realtime: RealtimeOptions | None = None, log_formats: tuple[str, ...] = FORMATS) -> dict:  # fmt: skip
     """Run the ``servo run`` job into ``out_dir``; returns the summary (also written as
     ``summary.json``).  ``make_driver(cfg, inputs)``: a fresh driver per run instead of the
     simulated drive (``where`` describes it, e.g. the serial URL).  ``realtime``: pace
     every tick of the simulated drive on the wall clock (implies the tick path; asking for
-    the fast path as well, or pacing a board, which is its own clock, is an error).  On a
-    real-time overrun fault the drive is at zero current and the log of the interrupted
-    run is kept."""
+    the fast path as well, or pacing a board, which is its own clock, is an error).
+    ``log_formats``: ``npz`` and/or ``csv``.  Memory does not grow with the run's length;
+    the disk its logs need is checked first (one line if it is not there).  On a fault
+    the drive is at zero current and the log of the interrupted run is kept."""
     check_realtime(realtime is not None, fast, make_driver is not None)
     if realtime is not None:
         realtime.check()
         fast = False
     fast = cfg.run.fast_path if fast is None else fast
     out_dir = Path(out_dir)
+    labels = LABELS[compensation]
+    check_disk(out_dir, output_bytes(cfg, len(labels), log_formats), "the run logs",
+               "shorten --duration, raise run.log_every, or write one format (--log-format npz)")  # fmt: skip
     out_dir.mkdir(parents=True, exist_ok=True)
     atomic_write(out_dir / "config.toml", lambda p: Path(p).write_text(to_toml(cfg)))
-    logs, results, runs = {}, {}, {}
-    for label in LABELS[compensation]:
-        try:
-            logs[label], results[label] = run_simulated(cfg, out_dir, label == "compensated", fast, make_driver, realtime)
-        except OverrunFault as exc:
-            raise OverrunFault(f"{exc}; drive set to zero current, log of the {label} run kept in "
-                               f"{out_dir / f'log_{label}.npz'}") from None  # fmt: skip
+    plot_logs, results, runs = {}, {}, {}
+    for label in labels:
+        figures, plot_logs[label], results[label] = run_simulated(cfg, out_dir, label == "compensated", fast,
+                                                                  make_driver, realtime, log_formats)  # fmt: skip
         if not runs:
             age = process_age_s()
             startup = None if age is None else age - (time.perf_counter() - results[label].started)
-        runs[label] = summarise(cfg, logs[label], results[label])
-    plots.plot_run(cfg, logs, results, out_dir)
+        runs[label] = summarise(cfg, figures, results[label])
+    plots.plot_run(cfg, plot_logs, results, out_dir)
     if realtime is not None:
         plot_lateness(cfg, {k: r.lateness for k, r in results.items()}, out_dir / "lateness.png")
     path = "fast (all compiled)" if fast else "tick by tick through the driver interface"

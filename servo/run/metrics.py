@@ -6,24 +6,52 @@ import numpy as np
 from servo.runtime.durations import Durations
 
 
-def step_metrics(t: np.ndarray, x: np.ndarray, t_step: float, t_end: float, x0: float, x1: float, band: float = 0.05) -> dict:
+class StepResponse:
     """Overshoot and settling of one reference step from ``x0`` to ``x1`` (m) at
-    ``t_step`` (s), judged up to ``t_end`` (s).
+    ``t_step`` (s), judged up to ``t_end`` (s), accumulated over chunks of samples given
+    in time order (:meth:`update`), so a log of any length needs no more memory.
 
-    Returns ``size_m``; ``overshoot_pct`` (peak beyond the target, % of the step);
-    ``settling_ms`` (time after the step of the last sample outside ``+-band`` of the
-    step around the target; None if it has not settled by ``t_end``).
+    :meth:`result`: ``size_m``; ``overshoot_pct`` (peak beyond the target, % of the
+    step); ``settling_ms`` (time after the step of the first sample after the last one
+    outside ``+-band`` of the step around the target; None if it has not settled by
+    ``t_end``, 0 if it never left the band).
     """
-    m = (t >= t_step) & (t < t_end)
-    size = x1 - x0
-    y = (x[m] - x0) / size  # normalised: 0 before, 1 at target
-    tt = t[m] - t_step
-    outside = np.flatnonzero(np.abs(y - 1.0) > band)
-    if outside.size and outside[-1] == y.size - 1:
-        settle = None
-    else:
-        settle = float(tt[outside[-1] + 1]) * 1e3 if outside.size else 0.0
-    return {"size_m": size, "overshoot_pct": float(max(y.max() - 1.0, 0.0) * 100), "settling_ms": settle}
+
+    def __init__(self, t_step: float, t_end: float, x0: float, x1: float, band: float = 0.05):
+        self.t_step, self.t_end, self.x0, self.x1, self.band = t_step, t_end, x0, x1, band
+        self.peak = -np.inf
+        self.left_band = False
+        self.pending = False  # the last sample seen was outside the band
+        self.settle_s = 0.0
+
+    def update(self, t: np.ndarray, x: np.ndarray) -> None:
+        m = (t >= self.t_step) & (t < self.t_end)
+        if not m.any():
+            return
+        y = (x[m] - self.x0) / (self.x1 - self.x0)  # normalised: 0 before, 1 at target
+        tt = t[m] - self.t_step
+        self.peak = max(self.peak, float(y.max()))
+        if self.pending:
+            self.settle_s, self.pending = float(tt[0]), False
+        outside = np.flatnonzero(np.abs(y - 1.0) > self.band)
+        if outside.size:
+            self.left_band = True
+            if outside[-1] == y.size - 1:
+                self.pending = True
+            else:
+                self.settle_s = float(tt[outside[-1] + 1])
+
+    def result(self) -> dict:
+        settle = None if self.pending else (self.settle_s * 1e3 if self.left_band else 0.0)
+        overshoot = float(max(self.peak - 1.0, 0.0) * 100) if np.isfinite(self.peak) else 0.0
+        return {"size_m": self.x1 - self.x0, "overshoot_pct": overshoot, "settling_ms": settle}
+
+
+def step_metrics(t: np.ndarray, x: np.ndarray, t_step: float, t_end: float, x0: float, x1: float, band: float = 0.05) -> dict:
+    """:class:`StepResponse` of whole arrays ``t`` (s) and ``x`` (m)."""
+    step = StepResponse(t_step, t_end, x0, x1, band)
+    step.update(t, x)
+    return step.result()
 
 
 def rms(x: np.ndarray) -> float:

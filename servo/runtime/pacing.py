@@ -76,7 +76,8 @@ class Pacer:
                 self.finish()
                 raise OverrunFault(
                     f"realtime: {self.consecutive} consecutive deadline overruns at tick {k} "
-                    f"({(now - deadline) / 1e3:.0f} us late): the host cannot keep {1e9 / self.period_ns:g} Hz"
+                    f"({(now - deadline) / 1e3:.0f} us late): the host cannot keep {1e9 / self.period_ns:g} Hz; "
+                    "drive set to zero current"
                 )
         else:
             self.consecutive = 0
