@@ -47,6 +47,7 @@ def settings_from_args(args) -> "SweepSettings":  # noqa: F821
 
 
 def handle(args: argparse.Namespace) -> int:
+    from servo.io.outdir import staged
     from servo.experiments.bode_report import format_summary, run_bode
 
     cfg = config_from_args(args)
@@ -56,6 +57,7 @@ def handle(args: argparse.Namespace) -> int:
     if max(s.levels) > cfg.controller.current_limit:
         raise ConfigError("a level exceeds the current limit")
     out = Path(args.out) if args.out else Path("servo-out") / time.strftime("bode-%Y%m%d-%H%M%S")
-    summary = run_bode(cfg, out, s, with_second=not args.no_second_drive)
+    with staged(out) as tmp:
+        summary = run_bode(cfg, tmp, s, with_second=not args.no_second_drive)
     print(format_summary(summary, out))
     return 0

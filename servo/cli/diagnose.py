@@ -35,6 +35,7 @@ def register(sub) -> None:
 
 
 def handle(args: argparse.Namespace) -> int:
+    from servo.io.outdir import staged
     from servo.diagnose.job import Options, diagnose
     from servo.diagnose.report import build_report, format_summary, write_drive_toml, write_report
     from servo.identify.regressors import RobustSettings
@@ -49,17 +50,15 @@ def handle(args: argparse.Namespace) -> int:
                   settings=RobustSettings(cutoff_hz=args.cutoff_hz, decimate=args.decimate))  # fmt: skip
     D = diagnose(rec, opt)  # everything computed before any file is written
     out = Path(args.out) if args.out else Path("servo-out") / time.strftime("diagnose-%Y%m%d-%H%M%S")
-    out.mkdir(parents=True, exist_ok=True)
-    files = ["report.json"]
-    if not args.no_plots:
-        from servo.diagnose.plots import write_plots
+    with staged(out) as tmp:  # the folder appears complete, or not at all
+        files = ["report.json"]
+        if not args.no_plots:
+            from servo.diagnose.plots import write_plots
 
-        files += write_plots(D, out)
-    report = build_report(D, files + ["final_model.toml"])
-    if write_drive_toml(report, out):
-        pass
-    else:
-        report["files"].remove("final_model.toml")
-    write_report(report, out)
+            files += write_plots(D, tmp)
+        report = build_report(D, files + ["final_model.toml"])
+        if not write_drive_toml(report, tmp):
+            report["files"].remove("final_model.toml")
+        write_report(report, tmp)
     print(format_summary(report, out))
     return 0

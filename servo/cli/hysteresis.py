@@ -36,6 +36,7 @@ def register(sub) -> None:
 
 
 def handle(args: argparse.Namespace) -> int:
+    from servo.io.outdir import staged
     from servo.experiments.hysteresis import HysteresisExperiment
     from servo.experiments.hysteresis_report import format_summary, run_hysteresis_recording, run_hysteresis_simulated
 
@@ -51,13 +52,15 @@ def handle(args: argparse.Namespace) -> int:
             raise ConfigError("--amplitude, --hz, --duration, --large-amplitude and --large-hz must be positive")
         if exp.large_amplitude_m >= cfg.drive.stroke:
             raise ConfigError(f"--large-amplitude must stay inside the stroke (+-{cfg.drive.stroke:g} m)")
-        summary = run_hysteresis_simulated(cfg, out, exp, fit_alpha=args.fix_alpha is None)
+        with staged(out) as tmp:
+            summary = run_hysteresis_simulated(cfg, tmp, exp, fit_alpha=args.fix_alpha is None)
     else:
         if not args.recording:
             raise ConfigError("give a RECORDING (CSV, NPZ or .mat with t,u,x,v) or --simulate")
         rec = recording_from_args(args)
         deadband = cfg.controller.direction_deadband if args.deadband is None else args.deadband
-        summary = run_hysteresis_recording(rec, out, deadband, args.fix_alpha is None,
-                                           1.0 if args.fix_alpha is None else args.fix_alpha, args.slope)  # fmt: skip
+        with staged(out) as tmp:
+            summary = run_hysteresis_recording(rec, tmp, deadband, args.fix_alpha is None,
+                                               1.0 if args.fix_alpha is None else args.fix_alpha, args.slope)  # fmt: skip
     print(format_summary(summary, out))
     return 0

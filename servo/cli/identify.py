@@ -57,6 +57,7 @@ def _trim(text: str) -> tuple[int, int]:
 
 
 def handle(args: argparse.Namespace) -> int:
+    from servo.io.outdir import staged
     from servo.identify.regressors import RobustSettings, parse_terms
     from servo.identify.report import format_summary, run_identify
     from servo.io.atomic import write_json
@@ -98,10 +99,11 @@ def handle(args: argparse.Namespace) -> int:
     paths = {"robust": ("robust",), "paper": ("paper",), "both": ("robust", "paper")}[
         args.path or ("both" if rec.v is not None else "robust")
     ]
-    summary = run_identify(rec, out, paths, terms, settings, args.force_unit, reference, lag)
-    if args.simulate:  # written once the fits succeeded: no half-filled folder on an error
-        save_recording_csv(out / "recording.csv", rec)
-        summary["files"] = sorted(summary["files"] + ["recording.csv"])
-        write_json(out / "summary.json", summary)
+    with staged(out) as tmp:  # the folder appears complete, or not at all
+        summary = run_identify(rec, tmp, paths, terms, settings, args.force_unit, reference, lag)
+        if args.simulate:
+            save_recording_csv(tmp / "recording.csv", rec)
+            summary["files"] = sorted(summary["files"] + ["recording.csv"])
+            write_json(tmp / "summary.json", summary)
     print(format_summary(summary, out))
     return 0

@@ -23,6 +23,7 @@ def register(sub) -> None:
 
 
 def handle(args: argparse.Namespace) -> int:
+    from servo.io.outdir import staged
     from servo.cli.bode import settings_from_args
     from servo.experiments.paper import run_paper
 
@@ -31,7 +32,8 @@ def handle(args: argparse.Namespace) -> int:
     s = settings_from_args(args)
     out = Path(args.out) if args.out else Path("servo-out") / time.strftime("paper-%Y%m%d-%H%M%S")
     t0 = time.perf_counter()
-    summary = run_paper(cfg, out, s)
+    with staged(out) as tmp:
+        summary = run_paper(cfg, tmp, s)
     c = summary["bode"]["linearity_compensated"]
     h = summary["hysteresis"]["error_pct"]
     print(f"servo paper: section IV regenerated in {time.perf_counter() - t0:.0f} s")

@@ -2,10 +2,12 @@
 
 A run fills one block of rows at a time (:attr:`RunLog.data`, :attr:`RunLog.rows`).  A
 full block is handed to a writer thread that appends it to ``<name>.journal`` (one JSON
-header line, then raw little-endian float64 rows) and ``fsync``\\ s it, while the run
-fills the next block; a crash, a Ctrl-C or a kill loses at most the rows not yet
-synced.  A failure to write the journal (disk full, file size limit, the disk gone) is a
-:class:`JournalError`, a driver fault: the run stops with the drive in its safe state.
+header line, then raw little-endian float64 rows) and fsyncs it while the run fills the
+next block; blocks that queue up during an fsync share the next one, and the loop waits
+only when :attr:`RunLog.BUFFER_BYTES` of blocks wait for the disk.  A crash, a Ctrl-C or
+a kill loses at most the rows not yet synced.  A failure to write the journal (disk full,
+file size limit, the disk gone) is a :class:`JournalError`, a driver fault: the run stops
+with the drive in its safe state.
 
 :meth:`RunLog.finalise` (called by :meth:`RunLog.close`, which the context manager calls
 on every exit path) streams the journal, in chunks, into ``<name>.npz`` and/or
@@ -80,22 +82,30 @@ class _Writer(threading.Thread):
 
     def run(self) -> None:
         while True:
-            item = self.todo.get()
-            if item is None:
-                self.todo.task_done()
-                return
-            buf, n = item
+            items = [self.todo.get()]
+            while True:  # what queued up while the last fsync ran goes out with one fsync
+                try:
+                    items.append(self.todo.get_nowait())
+                except queue.Empty:
+                    break
+            stop = items[-1] is None
+            blocks = [it for it in items if it is not None]
             try:
-                if self.error is None:
-                    self.fh.write(buf[:n].astype("<f8", copy=False).tobytes())
+                if self.error is None and blocks:
+                    for buf, n in blocks:
+                        self.fh.write(buf[:n].astype("<f8", copy=False).tobytes())
                     self.fh.flush()
                     os.fsync(self.fh.fileno())
-                    self.synced_rows += n
+                    self.synced_rows += sum(n for _, n in blocks)
             except OSError as exc:
                 self.error = exc
             finally:
-                self.free.put(buf)
-                self.todo.task_done()
+                for buf, _ in blocks:
+                    self.free.put(buf)
+                for _ in items:
+                    self.todo.task_done()
+            if stop:
+                return
 
 
 class RunLog:
@@ -108,7 +118,10 @@ class RunLog:
     context manager; :meth:`close` finalises whatever was recorded.
     """
 
-    BUFFERS = 3  # the one being filled, one being written, one spare
+    #: Bytes of blocks in memory (the one being filled and those waiting for the disk):
+    #: a disk that stalls (an fsync of seconds under load) stalls the loop only once
+    #: this much is waiting.  At least three blocks.
+    BUFFER_BYTES = 8 << 20
 
     def __init__(self, out_dir: str | Path, name: str, columns, meta: dict | None = None, block_rows: int = 8192,
                  headroom: int = 1024, formats: Iterable[str] = FORMATS):  # fmt: skip
@@ -132,10 +145,12 @@ class RunLog:
         self._journal.write((json.dumps(header) + "\n").encode())
         self._journal.flush()
         os.fsync(self._journal.fileno())
+        shape = (self.block_rows + headroom, len(self.columns))
+        self.buffers = max(3, -(-self.BUFFER_BYTES // (8 * shape[0] * shape[1])))
         self._free: queue.Queue = queue.Queue()
-        for _ in range(self.BUFFERS - 1):
-            self._free.put(np.zeros((self.block_rows + headroom, len(self.columns))))  # written: no page faults later
-        self.data = np.zeros((self.block_rows + headroom, len(self.columns)))
+        for _ in range(self.buffers - 1):
+            self._free.put(np.full(shape, np.nan))  # written now (not calloc): no page faults in the loop
+        self.data = np.full(shape, np.nan)
         self._writer = _Writer(self._journal, self._free)
         self._writer.start()
 
@@ -170,7 +185,7 @@ class RunLog:
         self._writer.todo.put((self.data, self.rows))
         self.total += self.rows
         self.rows = 0
-        self.data = self._free.get()  # waits only if the writer is two blocks behind
+        self.data = self._free.get()  # waits only if BUFFER_BYTES are waiting for the disk
 
     def _check(self) -> None:
         err = self._writer.error

@@ -26,8 +26,9 @@ from servo.errors import ConfigError
 from servo.runtime.durations import Durations
 from servo.runtime.pacing import Pacer, RealtimeGrant
 
-#: Rows per run-log journal write in a paced run: 512 rows (48 KB) cost ~25 us, a tick or
-#: two of lateness, where the default 8192 rows cost ~0.8 ms, some forty ticks.
+#: Rows per run-log block in a paced run (or against a board): the journal's writer
+#: thread writes and fsyncs each block; smaller blocks keep what a crash can lose, and
+#: the thread's share of the interpreter lock per write, small.
 REALTIME_LOG_BLOCK = 512
 
 

@@ -19,7 +19,7 @@ class Durations:
     """Per-tick durations (ns): count, first, last, max, histogram, quantiles."""
 
     def __init__(self, block: int = FOLD_BLOCK):
-        self.buf = np.zeros(block, dtype=np.int64)  # written now: no page faults in a loop
+        self.buf = np.full(block, 0, dtype=np.int64)  # written now (not calloc): no page faults in a loop
         self.counts = np.zeros(N_BINS, dtype=np.int64)
         self.count = 0
         self.first: int | None = None
