@@ -124,6 +124,7 @@ def _run_ticks(cfg, driver, controller, inputs, log, stats, pacer, durations) ->
     dt = cfg.dt
     state = controller.state
     r, u_exc = Window(inputs.reference), Window(inputs.excitation)
+    r.load(0), u_exc.load(0)  # the first windows now, not on the first tick
 
     sched = Scheduler(driver, controller, pacer=pacer)
     data = sched.data

@@ -72,6 +72,7 @@ class SimDriver(Driver):
         plant_step(ps, p.params, q, p.mab, ub, p.u_hold, 0.0)
         shift_in(self.latency.copy(), 0.0)
         self.noise(0, 1)
+        self._d.load(0)  # the first window of the disturbance, likewise
 
     def _read(self) -> tuple[float, float]:
         k = self.tick
