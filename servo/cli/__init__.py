@@ -71,8 +71,19 @@ def _sigterm(signum, frame):
     raise KeyboardInterrupt
 
 
+def use_agg() -> None:
+    """Select matplotlib's Agg backend (files, no display): the command line's choice,
+    made here and nowhere in the library (whose figures need no backend at all).
+    Without importing matplotlib when nothing has yet (``servo config`` needs none)."""
+    if "matplotlib" in sys.modules:
+        sys.modules["matplotlib"].use("Agg")
+    else:
+        os.environ["MPLBACKEND"] = "Agg"
+
+
 def main(argv: list[str] | None = None) -> int:
     signal.signal(signal.SIGTERM, _sigterm)
+    use_agg()
     try:
         parser = build_parser()
         args = parser.parse_args(argv)
