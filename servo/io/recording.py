@@ -2,7 +2,9 @@
 
 A recording is what a servo engineer brings from the lab (or a run log of this tool):
 time ``t`` (s), input ``u`` (A of VCM current, or any force unit after scaling), position
-``x`` (m), and velocity ``v`` (m/s) when it was measured.
+``x`` (m), velocity ``v`` (m/s) when it was measured, and the reference ``r`` (or an
+excitation injected in the loop) when the loop was closed: the instrument of a
+closed-loop frequency response (``servo frf --closed-loop``).
 
 * CSV: a header row naming the columns (``t,u,x`` at least, ``v`` optional; extra
   columns are ignored, so a ``servo run`` log is a recording).
@@ -28,7 +30,7 @@ from servo.config import MAGNITUDE_MAX
 from servo.errors import RecordingError
 
 REQUIRED = ("t", "u", "x")
-OPTIONAL = ("v",)
+OPTIONAL = ("v", "r")
 MIN_SAMPLES = 20
 #: sampling is "uniform" when every step is within this fraction of the median step
 UNIFORM_TOLERANCE = 0.01
@@ -36,7 +38,9 @@ UNIFORM_TOLERANCE = 0.01
 
 @dataclass
 class Recording:
-    """A validated recording; arrays are float64, shape (n,)."""
+    """A validated recording; arrays are float64, shape (n,): ``t`` s, ``u`` A (or the
+    force unit), ``x`` m, ``v`` m/s, ``r`` the reference or excitation (``None`` when
+    not recorded)."""
 
     t: np.ndarray
     u: np.ndarray
@@ -44,6 +48,7 @@ class Recording:
     v: np.ndarray | None = None
     source: str = ""
     meta: dict = field(default_factory=dict)
+    r: np.ndarray | None = None
 
     @property
     def n(self) -> int:
@@ -61,7 +66,8 @@ class Recording:
     def slice(self, start: int, stop: int) -> "Recording":
         """Samples ``start:stop`` as a new recording (e.g. a training or test block)."""
         v = None if self.v is None else self.v[start:stop]
-        return Recording(self.t[start:stop], self.u[start:stop], self.x[start:stop], v, self.source, dict(self.meta))
+        r = None if self.r is None else self.r[start:stop]
+        return Recording(self.t[start:stop], self.u[start:stop], self.x[start:stop], v, self.source, dict(self.meta), r)
 
 
 def parse_mapping(text: str | None, what: str) -> dict[str, str]:
@@ -144,7 +150,7 @@ def load_recording(path: str | Path, columns: dict[str, str] | None = None, scal
     columns = dict(columns or {})
     for key in columns:
         if key not in REQUIRED + OPTIONAL:
-            raise RecordingError(f"recording: unknown column role {key!r} (roles: t, u, x, v)")
+            raise RecordingError(f"recording: unknown column role {key!r} (roles: t, u, x, v, r)")
     arrays: dict[str, np.ndarray] = {}
     for role in REQUIRED + OPTIONAL:
         name = columns.get(role, role)
@@ -194,14 +200,14 @@ def load_recording(path: str | Path, columns: dict[str, str] | None = None, scal
             f"({off.size} irregular steps; gaps must be filled or the recording split)"
         )
     meta = {"columns": {r: columns.get(r, r) for r in arrays}, "scale": dict(scale or {})}
-    return Recording(arrays["t"], arrays["u"], arrays["x"], arrays.get("v"), str(path), meta)
+    return Recording(arrays["t"], arrays["u"], arrays["x"], arrays.get("v"), str(path), meta, arrays.get("r"))
 
 
 def save_recording_csv(path: str | Path, rec: Recording) -> None:
-    """Write ``rec`` as a CSV recording (header ``t,u,x[,v]``, ``%.17g``), atomically."""
+    """Write ``rec`` as a CSV recording (header ``t,u,x[,v][,r]``, ``%.17g``), atomically."""
     from servo.io.runlog import write_csv
 
-    cols = ["t", "u", "x"] + (["v"] if rec.v is not None else [])
+    cols = ["t", "u", "x"] + [c for c in OPTIONAL if getattr(rec, c) is not None]
     data = np.column_stack([getattr(rec, c) for c in cols])
     write_csv(Path(path), cols, data)
 
