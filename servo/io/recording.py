@@ -1,4 +1,4 @@
-"""Recordings: load and validate ``t, u, x[, v]`` from CSV, NPZ or MATLAB .mat.
+"""Recordings: load and validate ``t, u, x[, v][, r]`` from the files labs have.
 
 A recording is what a servo engineer brings from the lab (or a run log of this tool):
 time ``t`` (s), input ``u`` (A of VCM current, or any force unit after scaling), position
@@ -6,12 +6,20 @@ time ``t`` (s), input ``u`` (A of VCM current, or any force unit after scaling),
 excitation injected in the loop) when the loop was closed: the instrument of a
 closed-loop frequency response (``servo frf --closed-loop``).
 
-* CSV: a header row naming the columns (``t,u,x`` at least, ``v`` optional; extra
-  columns are ignored, so a ``servo run`` log is a recording).
+Formats (read by :func:`servo.io.tables.read_table`, which its docstring details):
+
+* CSV and other delimited text (``.csv .tsv .txt .dat``): a header row naming the
+  columns (``t,u,x`` at least; extra columns are ignored, so a ``servo run`` log is a
+  recording); ``,`` ``;`` tab ``|`` or spaces; a byte-order mark, ``#`` comments, a
+  decimal comma (with another delimiter) and units in brackets (``x [m]``) are
+  understood.  Parsed by ``numpy.loadtxt``.
 * NPZ: one array per column (a ``servo run`` log NPZ is one).
-* MATLAB .mat (v5, via ``scipy.io.loadmat``): variables mapped to columns with
-  ``columns={"u": "vir", "x": "qm"}`` and scaled with ``scale={"u": "gtau"}`` (a number,
-  or the name of a scalar variable in the file).  The same mapping works for CSV/NPZ.
+* MATLAB .mat: v4-v7 via ``scipy.io.loadmat``, v7.3 (HDF5) via ``h5py``; struct fields
+  as ``struct.field``.  HDF5 (``.h5``, ``.hdf5``): datasets by path, ``group/name``.
+
+Variables are mapped to roles with ``columns={"u": "vir", "x": "qm"}`` and scaled with
+``scale={"u": "gtau"}`` (a number, or the name of a scalar variable in the file), in
+every format.
 
 Every problem is a :class:`~servo.errors.RecordingError` with one line that says what is
 wrong and where: unreadable file, missing column, unequal lengths, NaN/inf (first
@@ -20,7 +28,6 @@ samples.  Whether the data *excite* what a tool wants to identify is the tool's 
 """
 from __future__ import annotations
 
-import csv
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -28,6 +35,7 @@ import numpy as np
 
 from servo.config import MAGNITUDE_MAX
 from servo.errors import RecordingError
+from servo.io.tables import read_table
 
 REQUIRED = ("t", "u", "x")
 OPTIONAL = ("v", "r")
@@ -83,50 +91,6 @@ def parse_mapping(text: str | None, what: str) -> dict[str, str]:
     return out
 
 
-def _read_table(path: Path) -> dict[str, np.ndarray]:
-    suffix = path.suffix.lower()
-    try:
-        if suffix == ".csv":
-            return _read_csv(path)
-        if suffix == ".npz":
-            with np.load(path, allow_pickle=False) as z:
-                return {k: np.asarray(z[k]) for k in z.files}
-        if suffix == ".mat":
-            from scipy.io import loadmat
-
-            return {k: np.asarray(v) for k, v in loadmat(str(path)).items() if not k.startswith("__")}
-    except RecordingError:
-        raise
-    except FileNotFoundError:
-        raise RecordingError(f"recording: no such file: {path}") from None
-    except Exception as exc:  # corrupt or foreign file: one line, whatever the reader raised
-        raise RecordingError(f"recording: cannot read {path} as {suffix[1:].upper()}: {exc}".splitlines()[0]) from None
-    raise RecordingError(f"recording: {path}: unknown format {suffix!r} (use .csv, .npz or .mat)")
-
-
-def _read_csv(path: Path) -> dict[str, np.ndarray]:
-    with open(path, newline="", encoding="utf-8-sig") as fh:  # -sig: a byte-order mark is not part of the header
-        reader = csv.reader(fh)
-        try:
-            header = [h.strip() for h in next(reader)]
-        except StopIteration:
-            raise RecordingError(f"recording: {path} is empty") from None
-        if not header or any(not h for h in header):
-            raise RecordingError(f"recording: {path}: the first row must name every column")
-        rows = []
-        for lineno, row in enumerate(reader, start=2):
-            if not row:
-                continue
-            if len(row) != len(header):
-                raise RecordingError(f"recording: {path} line {lineno}: {len(row)} fields, the header has {len(header)}")
-            try:
-                rows.append([float(c) for c in row])
-            except ValueError:
-                raise RecordingError(f"recording: {path} line {lineno}: not a number in {row!r}") from None
-    data = np.array(rows, dtype=float).reshape(-1, len(header))
-    return {name: data[:, i] for i, name in enumerate(header)}
-
-
 def _scale_factor(value: str, table: dict, path: Path) -> float:
     try:
         return float(value)
@@ -146,7 +110,7 @@ def load_recording(path: str | Path, columns: dict[str, str] | None = None, scal
     (default: the same names); ``scale`` multiplies a column by a number or a scalar
     variable of the file (``{"u": "gtau"}``)."""
     path = Path(path)
-    table = _read_table(path)
+    table = read_table(path)
     columns = dict(columns or {})
     for key in columns:
         if key not in REQUIRED + OPTIONAL:
@@ -199,7 +163,10 @@ def load_recording(path: str | Path, columns: dict[str, str] | None = None, scal
             f"recording: {path.name}: irregular sampling at sample {i + 1}: step {dt[i]:.6g} s, the median is {step:.6g} s "
             f"({off.size} irregular steps; gaps must be filled or the recording split)"
         )
-    meta = {"columns": {r: columns.get(r, r) for r in arrays}, "scale": dict(scale or {})}
+    meta = {"columns": {r: columns.get(r, r) for r in arrays}, "scale": dict(scale or {}), "format": table.format}
+    units = {r: table.units[columns.get(r, r)] for r in arrays if columns.get(r, r) in table.units}
+    if units:
+        meta["units"] = units
     return Recording(arrays["t"], arrays["u"], arrays["x"], arrays.get("v"), str(path), meta, arrays.get("r"))
 
 
