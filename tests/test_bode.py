@@ -78,6 +78,10 @@ def test_bode_command_writes_csv_frd_and_plots(tmp_path, capsys):
     np.testing.assert_allclose(first.H, row[:, 6] + 1j * row[:, 7], rtol=1e-12)
     np.testing.assert_allclose(first.rel_std * np.abs(first.H), row[:, 8], rtol=1e-12)
     assert {"bode_compensated.png", "bode_uncompensated.png", "summary.json"} <= {p.name for p in out.iterdir()}
+    import json
+
+    prov = json.loads((out / "summary.json").read_text())["provenance"]
+    assert prov["command"][:2] == ["servo", "bode"] and prov["libraries"]["control"] == control.__version__
     assert main(["bode", "--levels", "1,x", "--out", str(tmp_path / "bad")]) == 2
     assert "expected comma-separated numbers" in capsys.readouterr().err
     assert not (tmp_path / "bad").exists()

@@ -52,6 +52,7 @@ def parse_set(items: list[str] | None) -> dict:
 
 def build_parser() -> Parser:
     parser = Parser(prog="servo", description="Servo runtime and modeling tool for voice-coil actuators.")
+    parser.add_argument("--version", action="store_true", help="print the version and exit")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND", parser_class=Parser)
     for name in COMMANDS:
         importlib.import_module(f"servo.cli.{name}").register(sub)
@@ -87,6 +88,12 @@ def main(argv: list[str] | None = None) -> int:
     try:
         parser = build_parser()
         args = parser.parse_args(argv)
+        args.argv = ["servo", *(sys.argv[1:] if argv is None else argv)]  # the command line, for provenance
+        if args.version:
+            from servo.io.provenance import package_version
+
+            print(f"servo {package_version()}")
+            return 0
         if args.command is None:
             parser.print_help()
             return 2

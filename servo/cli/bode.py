@@ -57,6 +57,8 @@ def handle(args: argparse.Namespace) -> int:
     if max(s.levels) > cfg.controller.current_limit:
         raise ConfigError("a level exceeds the current limit")
     out = Path(args.out) if args.out else Path("servo-out") / time.strftime("bode-%Y%m%d-%H%M%S")
-    summary = run_bode(cfg, out, s, with_second=not args.no_second_drive)
+    from servo.io.provenance import provenance
+
+    summary = run_bode(cfg, out, s, with_second=not args.no_second_drive, provenance=provenance(cfg, [], args.argv))
     print(format_summary(summary, out))
     return 0

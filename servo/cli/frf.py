@@ -44,6 +44,8 @@ def handle(args: argparse.Namespace) -> int:
     settings = WelchSettings(nperseg=args.nperseg, overlap=args.overlap, window=args.window, detrend=args.detrend)
     resp = estimate_frf(rec, args.closed_loop, settings, args.force_unit, args.f_min, args.f_max)
     out = Path(args.out) if args.out else Path("servo-out") / time.strftime("frf-%Y%m%d-%H%M%S")
-    summary = write_frf(resp, rec, out)
+    from servo.io.provenance import provenance
+
+    summary = write_frf(resp, rec, out, {"provenance": provenance(None, [args.recording], args.argv)})
     print(format_summary(summary, out))
     return 0

@@ -98,10 +98,18 @@ def handle(args: argparse.Namespace) -> int:
     paths = {"robust": ("robust",), "paper": ("paper",), "both": ("robust", "paper")}[
         args.path or ("both" if rec.v is not None else "robust")
     ]
-    summary = run_identify(rec, out, paths, terms, settings, args.force_unit, reference, lag)
+    from servo.io.provenance import provenance
+
+    prov = provenance(cfg if args.simulate else None, [] if args.simulate else [args.recording], args.argv)
+    summary = run_identify(rec, out, paths, terms, settings, args.force_unit, reference, lag, prov)
     if args.simulate:  # written once the fits succeeded: no half-filled folder on an error
+        from servo.identify.report import paper_path_note
+
         save_recording_csv(out / "recording.csv", rec)
         summary["files"] = sorted(summary["files"] + ["recording.csv"])
+        note = paper_path_note(summary, has_modes=bool(cfg.drive.mode_hz))
+        if note:
+            summary["notes"] = {"paper": note}
         write_json(out / "summary.json", summary)
     print(format_summary(summary, out))
     return 0

@@ -22,21 +22,23 @@ def _title(D: Diagnosis) -> str:
 
 
 def plot_time(D: Diagnosis, path: Path | None = None) -> Figure:
-    """Held-out force residual over time, before and after, with the flagged windows."""
+    """Force residual over the whole record, before and after, with the flagged windows;
+    only the part after the split is marked "held out" (the training part is not)."""
     sig, (k, unit) = D.sig, _scale(D.opt.force_unit)
     t, v = sig.t_rows, sig.valid
     fig, ax = subplots(2, 1, figsize=(11, 7), sharex=True)
     rb = np.where(v, D.residual_before, np.nan) * k
     ra = np.where(v, D.residual_after, np.nan) * k
-    ax[0].plot(t, rb, color="tab:red", lw=0.6, label="baseline (held out)")
-    ax[0].plot(t, ra, color="k", lw=0.6, alpha=0.8, label="final model (held out)")
+    ax[0].plot(t, rb, color="tab:red", lw=0.6, label="baseline")
+    ax[0].plot(t, ra, color="k", lw=0.6, alpha=0.8, label="final model")
     for t0, t1 in D.locate["time"]["flagged"]:
         for a in ax:
             a.axvspan(t0, t1, color="gold", alpha=0.3, lw=0)
     t_split = t[np.flatnonzero(D.design.train_rows)[-1]]
     for a in ax:
         a.axvline(t_split, color="tab:blue", ls="--", lw=1)
-    ax[0].text(t_split, np.nanmax(rb) if np.isfinite(np.nanmax(rb)) else 0, "  test part", color="tab:blue", va="top")
+    ax[0].axvspan(t_split, t[-1], color="tab:blue", alpha=0.06, lw=0, label="held out (nothing fitted or chosen on it)")
+    ax[0].text(t_split, np.nanmax(rb) if np.isfinite(np.nanmax(rb)) else 0, "  held out", color="tab:blue", va="top")
     w = D.locate["time"]["windows"]
     mid = [0.5 * (x["t0"] + x["t1"]) for x in w]
     ax[1].step(mid, [x["rms"] * k if x["rms"] is not None else np.nan for x in w], where="mid", color="tab:red",

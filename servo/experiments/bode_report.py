@@ -41,7 +41,10 @@ def run_sweeps(cfg: Config, s: SweepSettings, drives: dict, progress: bool = Tru
     return out
 
 
-def run_bode(cfg: Config, out: Path, s: SweepSettings, with_second: bool = True, progress: bool = True) -> dict:
+def run_bode(cfg: Config, out: Path, s: SweepSettings, with_second: bool = True, progress: bool = True,
+             provenance: dict | None = None) -> dict:  # fmt: skip
+    """Every sweep, then the files of the module docstring into ``out``; returns the
+    summary (``provenance`` recorded as given)."""
     drives = {"drive": cfg}
     if with_second:
         drives["drive2"] = second_drive(cfg)
@@ -91,6 +94,8 @@ def run_bode(cfg: Config, out: Path, s: SweepSettings, with_second: bool = True,
         f"{name}, compensation {'on' if comp else 'off'}": int(sum(np.count_nonzero(sw.coherence < 0.9) for sw in sweeps))
         for (name, comp), sweeps in res.items()
     }
+    if provenance is not None:
+        summary["provenance"] = provenance
     summary["files"] = sorted(files + ["summary.json"])
     write_json(out / "summary.json", summary)
     return summary
