@@ -1,4 +1,4 @@
-"""The simulated VCM drive: one sample of the plant of PHYSICS.md (paper eq. 1).
+"""The simulated VCM drive: one sample of the plant of docs/model.md (paper eq. 1).
 
 Forces are normalised to amperes (force constant 1 at the stroke centre)::
 

@@ -1,6 +1,6 @@
 """Run configuration: TOML, every field documented with its unit, a complete default.
 
-The default (no file) is the simulated HDD drive of PHYSICS.md section 5 at 50 kHz, the
+The default (no file) is the simulated HDD drive of docs/model.md section 5 at 50 kHz, the
 paper's compensator with the drive's nominal parameters, and the ``servo run`` scenario.
 A file needs only the fields it changes::
 
@@ -51,7 +51,7 @@ class RunConfig:
 
 @dataclass
 class DriveConfig:
-    """The simulated VCM drive (PHYSICS.md section 5).  Forces are in amperes of VCM current
+    """The simulated VCM drive (docs/model.md section 5).  Forces are in amperes of VCM current
     (force constant 1 N/A at the stroke centre), positions in metres at the head."""
 
     J: float = P(1.0e-3, "A*s^2/m", "normalised inertia (equivalent mass)", 1e-9, 1e3)

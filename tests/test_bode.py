@@ -55,22 +55,33 @@ def test_sine_point_matches_a_known_linear_plant():
 
 
 def test_bode_command_writes_csv_frd_and_plots(tmp_path, capsys):
-    import pickle
-
     import control
 
     from servo.cli import main
+    from servo.io.frequency_response import load_frequency_responses
 
     out = tmp_path / "b"
     assert main(["bode", "--levels", "1,4", "--n-freq", "3", "--periods", "2", "--f-min", "100", "--f-max", "300",
                  "--no-second-drive", "--out", str(out)]) == 0  # fmt: skip
     printed = capsys.readouterr()
     assert "equivalent resonance" in printed.out and "sweep 4/4" in printed.err
-    frds = pickle.loads((out / "frd.pkl").read_bytes())
-    assert len(frds) == 4 and all(isinstance(f, control.FrequencyResponseData) for f in frds.values())
+    assert not (out / "frd.pkl").exists()  # no pickle tied to a python-control version
+    resp = load_frequency_responses(out / "frd.npz")
+    assert len(resp) == 4 and all(r.unit == "m/A" and r.f_hz.size == 3 for r in resp.values())
+    frds = {k: r.to_control() for k, r in resp.items()}
+    assert all(isinstance(f, control.FrequencyResponseData) for f in frds.values())
     rows = np.loadtxt(out / "bode.csv", delimiter=",", skiprows=1)
     assert rows.shape == (12, 11)
+    # the file holds the very numbers of the table, by label
+    first = next(iter(resp.values()))  # "drive, ...": drive code 0 in the table
+    row = rows[(rows[:, 0] == 0) & (rows[:, 1] == first.meta["compensation"]) & (rows[:, 2] == first.meta["level_A"])]
+    np.testing.assert_allclose(first.H, row[:, 6] + 1j * row[:, 7], rtol=1e-12)
+    np.testing.assert_allclose(first.rel_std * np.abs(first.H), row[:, 8], rtol=1e-12)
     assert {"bode_compensated.png", "bode_uncompensated.png", "summary.json"} <= {p.name for p in out.iterdir()}
+    import json
+
+    prov = json.loads((out / "summary.json").read_text())["provenance"]
+    assert prov["command"][:2] == ["servo", "bode"] and prov["libraries"]["control"] == control.__version__
     assert main(["bode", "--levels", "1,x", "--out", str(tmp_path / "bad")]) == 2
     assert "expected comma-separated numbers" in capsys.readouterr().err
     assert not (tmp_path / "bad").exists()

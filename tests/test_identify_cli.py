@@ -80,6 +80,12 @@ def test_hysteresis_command_on_its_own_recording(tmp_path, capsys):
     assert main(["hysteresis", str(out / "recording_small.csv"), "--out", str(again)]) == 0
     s = json.loads((again / "summary.json").read_text())
     assert abs(s["dahl"]["params"]["sigma"] - 320.0) / 320.0 < 0.02
+    from servo.io.provenance import sha256_file
+
+    src = str(out / "recording_small.csv")
+    assert s["provenance"]["inputs"] == {src: sha256_file(src)} and s["provenance"]["config_sha256"] is None
+    sim = json.loads((out / "summary.json").read_text())["provenance"]
+    assert sim["command"][:3] == ["servo", "hysteresis", "--simulate"] and len(sim["config_sha256"]) == 64
     capsys.readouterr()
     assert main(["hysteresis", str(out / "recording_small.csv"), "--columns", "v=nope", "--out", str(tmp_path / "x")]) == 2
     assert "has no column 'nope'" in capsys.readouterr().err

@@ -13,7 +13,7 @@ from tests.helpers import NO_MODES, quiet_config, simulate_open_loop
 
 
 def reference_solution(cfg, u, u_hold):
-    """The drive of PHYSICS.md as one ODE (rigid body, Dahl eq. 6 in time, modes, delayed
+    """The drive of docs/model.md as one ODE (rigid body, Dahl eq. 6 in time, modes, delayed
     zero-order-hold input) integrated by DOP853 at rtol 1e-12 between input switches.
     Returns (n+1, 4): rigid x, v, H and measured position at the sample instants."""
     d, dt, tau = cfg.drive, cfg.dt, cfg.drive.input_delay_s

@@ -67,7 +67,7 @@ def test_bad_files(tmp_path):
     with pytest.raises(RecordingError, match="no such file"):
         load_recording(tmp_path / "missing.csv")
     with pytest.raises(RecordingError, match="unknown format"):
-        load_recording(tmp_path / "e.txt")
+        load_recording(tmp_path / "e.xlsx")
     with pytest.raises(RecordingError, match="neither a number nor a variable"):
         load_recording(write_csv(tmp_path / "f.csv", ["t", "u", "x"], good_rows()[:, :3]), scale={"u": "gtau"})
     with pytest.raises(RecordingError, match="expected NAME=VALUE"):

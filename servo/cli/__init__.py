@@ -19,7 +19,7 @@ import tomllib
 
 from servo.errors import ConfigError, Interrupted, ServoError
 
-COMMANDS = ("run", "config", "identify", "hysteresis", "bode", "paper", "emulate", "diagnose", "recover")
+COMMANDS = ("run", "config", "identify", "hysteresis", "bode", "frf", "paper", "emulate", "diagnose", "recover")
 
 
 class UsageError(ServoError):
@@ -52,6 +52,7 @@ def parse_set(items: list[str] | None) -> dict:
 
 def build_parser() -> Parser:
     parser = Parser(prog="servo", description="Servo runtime and modeling tool for voice-coil actuators.")
+    parser.add_argument("--version", action="store_true", help="print the version and exit")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND", parser_class=Parser)
     for name in COMMANDS:
         importlib.import_module(f"servo.cli.{name}").register(sub)
@@ -71,11 +72,28 @@ def _sigterm(signum, frame):
     raise KeyboardInterrupt
 
 
+def use_agg() -> None:
+    """Select matplotlib's Agg backend (files, no display): the command line's choice,
+    made here and nowhere in the library (whose figures need no backend at all).
+    Without importing matplotlib when nothing has yet (``servo config`` needs none)."""
+    if "matplotlib" in sys.modules:
+        sys.modules["matplotlib"].use("Agg")
+    else:
+        os.environ["MPLBACKEND"] = "Agg"
+
+
 def main(argv: list[str] | None = None) -> int:
     signal.signal(signal.SIGTERM, _sigterm)
+    use_agg()
     try:
         parser = build_parser()
         args = parser.parse_args(argv)
+        args.argv = ["servo", *(sys.argv[1:] if argv is None else argv)]  # the command line, for provenance
+        if args.version:
+            from servo.io.provenance import package_version
+
+            print(f"servo {package_version()}")
+            return 0
         if args.command is None:
             parser.print_help()
             return 2

@@ -17,7 +17,8 @@ def register(sub) -> None:
         description="Stepped-sine frequency response from VCM current to position under the PI holding loop, at "
         "four or more input current levels, without and with the paper's compensator (Fig. 7-8), and the same "
         "compensator on a second drive (Fig. 9-10). Prints the resonance per level and the double-integrator "
-        "figures; writes bode.csv, frd.pkl (control.FrequencyResponseData), PNGs and summary.json.",
+        "figures; writes bode.csv, frd.npz (servo.io.frequency_response.load_frequency_responses, convertible to "
+        "control.FrequencyResponseData), PNGs and summary.json.",
     )
     p.add_argument("--levels", default="0.2,1,4,16", metavar="MA,...", help="excitation amplitudes in mA (default 0.2,1,4,16)")
     p.add_argument("--f-min", type=float, default=10.0, help="lowest frequency, Hz (default 10)")
@@ -57,7 +58,9 @@ def handle(args: argparse.Namespace) -> int:
     if max(s.levels) > cfg.controller.current_limit:
         raise ConfigError("a level exceeds the current limit")
     out = Path(args.out) if args.out else Path("servo-out") / time.strftime("bode-%Y%m%d-%H%M%S")
+    from servo.io.provenance import provenance
+
     with staged(out) as tmp:
-        summary = run_bode(cfg, tmp, s, with_second=not args.no_second_drive)
+        summary = run_bode(cfg, tmp, s, with_second=not args.no_second_drive, provenance=provenance(cfg, [], args.argv))
     print(format_summary(summary, out))
     return 0

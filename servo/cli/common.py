@@ -24,10 +24,11 @@ def config_from_args(args: argparse.Namespace, **sections: dict) -> Config:
 
 
 def add_recording_options(p: argparse.ArgumentParser, optional: bool = False) -> None:
-    """The positional RECORDING (CSV, NPZ or .mat) and its --columns/--scale mapping."""
-    help_ = "CSV, NPZ or .mat recording with columns t,u,x[,v] (map other names with --columns/--scale)"
+    """The positional RECORDING (delimited text, NPZ, MAT v5/v7.3, HDF5) and its --columns/--scale mapping."""
+    help_ = ("recording (CSV/TSV/TXT, NPZ, MAT v5 or v7.3, HDF5) with columns t,u,x[,v][,r] (map other names, "
+             "struct.field or group/dataset, with --columns/--scale)")
     p.add_argument("recording", nargs="?" if optional else None, help=help_ + (" (omit with --simulate)" if optional else ""))
-    p.add_argument("--columns", metavar="ROLE=NAME,...", help="map t,u,x,v to names in the file, e.g. u=vir,x=qm")
+    p.add_argument("--columns", metavar="ROLE=NAME,...", help="map t,u,x,v,r to names in the file, e.g. u=vir,x=qm")
     p.add_argument("--scale", metavar="ROLE=FACTOR,...", help="scale columns by a number or a scalar variable, e.g. u=gtau")
 
 

@@ -56,7 +56,10 @@ def handle(args: argparse.Namespace) -> int:
             from servo.diagnose.plots import write_plots
 
             files += write_plots(D, tmp)
+        from servo.io.provenance import provenance
+
         report = build_report(D, files + ["final_model.toml"])
+        report["provenance"] = provenance(None, [args.recording] + ([args.model] if args.model else []), args.argv)
         if not write_drive_toml(report, tmp):
             report["files"].remove("final_model.toml")
         write_report(report, tmp)

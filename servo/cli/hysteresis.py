@@ -40,6 +40,8 @@ def handle(args: argparse.Namespace) -> int:
     from servo.experiments.hysteresis import HysteresisExperiment
     from servo.experiments.hysteresis_report import format_summary, run_hysteresis_recording, run_hysteresis_simulated
 
+    from servo.io.provenance import provenance
+
     cfg = config_from_args(args)
     out = Path(args.out) if args.out else Path("servo-out") / time.strftime("hysteresis-%Y%m%d-%H%M%S")
     if args.fix_alpha is not None and not 0.1 <= args.fix_alpha <= 10:
@@ -53,7 +55,8 @@ def handle(args: argparse.Namespace) -> int:
         if exp.large_amplitude_m >= cfg.drive.stroke:
             raise ConfigError(f"--large-amplitude must stay inside the stroke (+-{cfg.drive.stroke:g} m)")
         with staged(out) as tmp:
-            summary = run_hysteresis_simulated(cfg, tmp, exp, fit_alpha=args.fix_alpha is None)
+            summary = run_hysteresis_simulated(cfg, tmp, exp, fit_alpha=args.fix_alpha is None,
+                                               provenance=provenance(cfg, [], args.argv))  # fmt: skip
     else:
         if not args.recording:
             raise ConfigError("give a RECORDING (CSV, NPZ or .mat with t,u,x,v) or --simulate")
@@ -61,6 +64,7 @@ def handle(args: argparse.Namespace) -> int:
         deadband = cfg.controller.direction_deadband if args.deadband is None else args.deadband
         with staged(out) as tmp:
             summary = run_hysteresis_recording(rec, tmp, deadband, args.fix_alpha is None,
-                                               1.0 if args.fix_alpha is None else args.fix_alpha, args.slope)  # fmt: skip
+                                               1.0 if args.fix_alpha is None else args.fix_alpha, args.slope,
+                                               provenance(None, [args.recording], args.argv))  # fmt: skip
     print(format_summary(summary, out))
     return 0

@@ -99,11 +99,19 @@ def handle(args: argparse.Namespace) -> int:
     paths = {"robust": ("robust",), "paper": ("paper",), "both": ("robust", "paper")}[
         args.path or ("both" if rec.v is not None else "robust")
     ]
+    from servo.io.provenance import provenance
+
+    prov = provenance(cfg if args.simulate else None, [] if args.simulate else [args.recording], args.argv)
     with staged(out) as tmp:  # the folder appears complete, or not at all
-        summary = run_identify(rec, tmp, paths, terms, settings, args.force_unit, reference, lag)
+        summary = run_identify(rec, tmp, paths, terms, settings, args.force_unit, reference, lag, prov)
         if args.simulate:
+            from servo.identify.report import paper_path_note
+
             save_recording_csv(tmp / "recording.csv", rec)
             summary["files"] = sorted(summary["files"] + ["recording.csv"])
+            note = paper_path_note(summary, has_modes=bool(cfg.drive.mode_hz))
+            if note:
+                summary["notes"] = {"paper": note}
             write_json(tmp / "summary.json", summary)
     print(format_summary(summary, out))
     return 0

@@ -86,17 +86,20 @@ def handle(args: argparse.Namespace) -> int:
     out = Path(args.out) if args.out else default_out_dir()
     formats = ("npz", "csv") if args.log_format == "both" else (args.log_format,)
     check_output(out)
+    from servo.io.provenance import provenance
+
+    prov = provenance(cfg, [], getattr(args, "argv", None))
     if args.port is None:
         with staged(out, keep_partial=True) as tmp:
             summary = run_job(cfg, tmp, compensation=args.compensation, fast=False if realtime else args.fast,
-                              realtime=realtime, log_formats=formats)  # fmt: skip
+                              realtime=realtime, log_formats=formats, provenance=prov)  # fmt: skip
     else:
-        summary = _run_on_port(cfg, out, args, formats)
+        summary = _run_on_port(cfg, out, args, formats, prov)
     print(format_summary(summary, out))
     return 0
 
 
-def _run_on_port(cfg, out: Path, args: argparse.Namespace, formats: tuple[str, ...]) -> dict:
+def _run_on_port(cfg, out: Path, args: argparse.Namespace, formats: tuple[str, ...], prov: dict) -> dict:
     """The same job against the serial link: a fresh session (driver) per run.  The first
     driver is configured (handshake, version and rate checks) before anything is written,
     so a bad URL or an absent board leaves no output folder."""
@@ -118,6 +121,6 @@ def _run_on_port(cfg, out: Path, args: argparse.Namespace, formats: tuple[str, .
         with realtime_section(), staged(out, keep_partial=True) as tmp:  # no GC pauses while the board waits
             return run_job(cfg, tmp, compensation=args.compensation, fast=False, make_driver=make_driver,
                            where=f"{first.info.name} (d = {cfg.link.command_latency_ticks}, "
-                           f"batch = {cfg.link.batch})", log_formats=formats)  # fmt: skip
+                           f"batch = {cfg.link.batch})", log_formats=formats, provenance=prov)  # fmt: skip
     finally:
         first.close()

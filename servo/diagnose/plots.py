@@ -1,13 +1,15 @@
 """Figures of a diagnosis: the residual over time with the located windows, against the
-state, its spectrum, and the fits before and after on the held-out part."""
+state, its spectrum, and the fits before and after on the held-out part.  Each returns
+its Figure and writes it as PNG only when given a path."""
 from __future__ import annotations
 
 from pathlib import Path
 
 import numpy as np
+from matplotlib.figure import Figure
 
 from servo.diagnose.job import Diagnosis
-from servo.io.plotting import plt, save_figure
+from servo.io.plotting import finish, subplots
 
 
 def _scale(fu: str):
@@ -19,22 +21,24 @@ def _title(D: Diagnosis) -> str:
     return f"{Path(D.rec.source).name or D.rec.source}: {names}"
 
 
-def plot_time(D: Diagnosis, path: Path) -> Path:
-    """Held-out force residual over time, before and after, with the flagged windows."""
+def plot_time(D: Diagnosis, path: Path | None = None) -> Figure:
+    """Force residual over the whole record, before and after, with the flagged windows;
+    only the part after the split is marked "held out" (the training part is not)."""
     sig, (k, unit) = D.sig, _scale(D.opt.force_unit)
     t, v = sig.t_rows, sig.valid
-    fig, ax = plt.subplots(2, 1, figsize=(11, 7), sharex=True)
+    fig, ax = subplots(2, 1, figsize=(11, 7), sharex=True)
     rb = np.where(v, D.residual_before, np.nan) * k
     ra = np.where(v, D.residual_after, np.nan) * k
-    ax[0].plot(t, rb, color="tab:red", lw=0.6, label="baseline (held out)")
-    ax[0].plot(t, ra, color="k", lw=0.6, alpha=0.8, label="final model (held out)")
+    ax[0].plot(t, rb, color="tab:red", lw=0.6, label="baseline")
+    ax[0].plot(t, ra, color="k", lw=0.6, alpha=0.8, label="final model")
     for t0, t1 in D.locate["time"]["flagged"]:
         for a in ax:
             a.axvspan(t0, t1, color="gold", alpha=0.3, lw=0)
     t_split = t[np.flatnonzero(D.design.train_rows)[-1]]
     for a in ax:
         a.axvline(t_split, color="tab:blue", ls="--", lw=1)
-    ax[0].text(t_split, np.nanmax(rb) if np.isfinite(np.nanmax(rb)) else 0, "  test part", color="tab:blue", va="top")
+    ax[0].axvspan(t_split, t[-1], color="tab:blue", alpha=0.06, lw=0, label="held out (nothing fitted or chosen on it)")
+    ax[0].text(t_split, np.nanmax(rb) if np.isfinite(np.nanmax(rb)) else 0, "  held out", color="tab:blue", va="top")
     w = D.locate["time"]["windows"]
     mid = [0.5 * (x["t0"] + x["t1"]) for x in w]
     ax[1].step(mid, [x["rms"] * k if x["rms"] is not None else np.nan for x in w], where="mid", color="tab:red",
@@ -48,15 +52,15 @@ def plot_time(D: Diagnosis, path: Path) -> Path:
     for a in ax:
         a.grid(alpha=0.3)
         a.legend(fontsize=8, loc="upper left")
-    return save_figure(fig, path)
+    return finish(fig, path)
 
 
-def plot_state(D: Diagnosis, path: Path) -> Path:
+def plot_state(D: Diagnosis, path: Path | None = None) -> Figure:
     """Residual against position, velocity, direction and distance since reversal,
     with bin means before (red) and after (black)."""
     k, unit = _scale(D.opt.force_unit)
     v = D.sig.valid
-    fig, axes = plt.subplots(2, 2, figsize=(11, 8))
+    fig, axes = subplots(2, 2, figsize=(11, 8))
     st = D.locate["state"]["variables"]
     for ax, (name, (vals, sign, u)) in zip(axes.ravel(), D.state.items()):
         rb = (D.residual_before * (sign if sign is not None else 1.0))[v] * k
@@ -88,10 +92,10 @@ def plot_state(D: Diagnosis, path: Path) -> Path:
     fig.suptitle(f"{_title(D)}\nheld-out residual vs state: baseline (red, bin means thick where flagged), "
                  "final model (black)", fontsize=10)  # fmt: skip
     fig.tight_layout()
-    return save_figure(fig, path)
+    return finish(fig, path)
 
 
-def plot_spectrum(D: Diagnosis, path: Path) -> Path:
+def plot_spectrum(D: Diagnosis, path: Path | None = None) -> Figure:
     """Residual spectra before/after with the peak threshold, and the coherence of the
     baseline residual with the input."""
     from scipy import signal
@@ -100,7 +104,7 @@ def plot_spectrum(D: Diagnosis, path: Path) -> Path:
     sp, co = D.locate["spectrum"], D.locate["coherence"]
     fs = 1.0 / D.sig.row_dt
     f, Pa = signal.welch(np.where(D.sig.valid, D.residual_after, 0.0) * k, fs, nperseg=2 * (sp["f_hz"].size - 1))
-    fig, ax = plt.subplots(2, 1, figsize=(11, 7), sharex=True)
+    fig, ax = subplots(2, 1, figsize=(11, 7), sharex=True)
     ax[0].loglog(sp["f_hz"][1:], sp["psd"][1:] * k * k, color="tab:red", label="baseline residual")
     ax[0].loglog(f[1:], Pa[1:], color="k", label="final model residual")
     ax[0].loglog(sp["f_hz"][1:], sp["floor"][1:] * sp["threshold_ratio"] * k * k, color="gray", ls=":",
@@ -116,10 +120,10 @@ def plot_spectrum(D: Diagnosis, path: Path) -> Path:
     ax[0].set_title(f"{_title(D)}\nresidual spectrum and residual-input coherence")
     for a in ax:
         a.grid(alpha=0.3, which="both")
-    return save_figure(fig, path)
+    return finish(fig, path)
 
 
-def plot_fits(D: Diagnosis, path: Path) -> Path:
+def plot_fits(D: Diagnosis, path: Path | None = None) -> Figure:
     """On the held-out part: force, baseline and final fits (a zoom), and the
     short-horizon simulated output error before and after."""
     k, unit = _scale(D.opt.force_unit)
@@ -128,7 +132,7 @@ def plot_fits(D: Diagnosis, path: Path) -> Path:
     n = test.size
     z = test[n // 2 - min(n // 2, 150) : n // 2 + min(n // 2, 150)]
     y = D.baseline_fit.y + 0.0
-    fig, ax = plt.subplots(3, 1, figsize=(11, 9))
+    fig, ax = subplots(3, 1, figsize=(11, 9))
     t = sig.t_rows
     ax[0].plot(t[z], y[z] * k, color="tab:blue", lw=1.5, label="recorded force (rows)")
     ax[0].plot(t[z], (y - D.baseline_fit.residual)[z] * k, color="tab:red", lw=1, ls="--", label="baseline")
@@ -163,10 +167,11 @@ def plot_fits(D: Diagnosis, path: Path) -> Path:
         a.grid(alpha=0.3)
         a.legend(fontsize=8, loc="upper right")
     fig.tight_layout()
-    return save_figure(fig, path)
+    return finish(fig, path)
 
 
 def write_plots(D: Diagnosis, out: Path) -> list:
+    """Write the four figures into ``out``; returns their file names."""
     names = ["residual_time.png", "residual_state.png", "residual_spectrum.png", "fits.png"]
     for fn, name in zip((plot_time, plot_state, plot_spectrum, plot_fits), names):
         fn(D, out / name)

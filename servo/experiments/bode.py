@@ -29,6 +29,7 @@ import numpy as np
 from servo.config import Config
 from servo.errors import ConfigError
 from servo.experiments.sim import simulate
+from servo.io.frequency_response import FrequencyResponse
 
 
 @dataclass(frozen=True)
@@ -72,11 +73,16 @@ class Sweep:
         ph -= 2 * np.pi * math.ceil(ph[0] / (2 * np.pi))
         return np.degrees(ph)
 
+    def response(self) -> FrequencyResponse:
+        """The sweep as a :class:`~servo.io.frequency_response.FrequencyResponse` (m/A;
+        ``rel_std`` = ``std/|H|``), the form ``servo bode`` writes to ``frd.npz``."""
+        meta = {"method": "stepped sine", "level_A": self.level, "compensation": self.compensation,
+                "x_amp_m": self.x_amp.tolist()}  # fmt: skip
+        return FrequencyResponse(self.f, self.H, self.coherence, self.std / np.abs(self.H), "m/A", meta)
+
     def frd(self):
         """The sweep as :class:`control.FrequencyResponseData` (omega in rad/s)."""
-        import control
-
-        return control.FrequencyResponseData(self.H, 2 * np.pi * self.f)
+        return self.response().to_control()
 
 
 def check_holding_loop(cfg: Config, seconds: float = 2.0, name: str = "the drive") -> None:

@@ -76,7 +76,7 @@ def band_max(cfg: Config) -> float:
 
 
 def second_drive(cfg: Config) -> Config:
-    """The "other HDD" of Fig. 9-10: the benchmark's perturbations of PHYSICS.md section 5
+    """The "other HDD" of Fig. 9-10: the benchmark's perturbations of docs/model.md section 5
     (mode frequencies -5..+2.5 %, damping -50..+100 %, modal gains +-20 %) and the pivot
     and bias changed by tens of percent (sigma +30 %, Ha -25 %, B +40 %, K -30 %, h0 +25 %).
     The compensator keeps the nominal drive's values (no retuning).  The 7 kHz mode's

@@ -1,15 +1,17 @@
 """The ``servo bode`` job: sweeps at every level, with and without the compensator, on the
-configured drive and (optionally) on the second drive; CSV, FRD pickle, PNGs, summary.
+configured drive and (optionally) on the second drive; CSV, frequency responses, PNGs,
+summary.
 
 Files: ``bode.csv`` (one row per point: drive, compensation, level_A, f_hz, mag_db,
-phase_deg, re, im, std, coherence, x_amp_m), ``frd.pkl`` (a dict ``label ->
-control.FrequencyResponseData``; ``pickle.load`` it with python-control installed),
+phase_deg, re, im, std, coherence, x_amp_m), ``frd.npz`` (every sweep, labelled, in the
+version-independent format of :mod:`servo.io.frequency_response`:
+``load_frequency_responses("frd.npz")[label].to_control()`` is a
+``control.FrequencyResponseData``),
 ``bode_uncompensated.png``, ``bode_compensated.png`` (and ``bode_drive2_*.png``),
 ``summary.json``.
 """
 from __future__ import annotations
 
-import pickle
 import sys
 from pathlib import Path
 
@@ -19,7 +21,8 @@ from servo.config import Config
 from servo.experiments.bode import SweepSettings, check_holding_loop, sweep
 from servo.experiments.bode_analysis import band_max, linearity, loop_delay, resonance, second_drive
 from servo.experiments.bode_plots import plot_bode
-from servo.io.atomic import atomic_write, write_json
+from servo.io.atomic import write_json
+from servo.io.frequency_response import save_npz
 from servo.io.runlog import write_csv
 
 
@@ -38,7 +41,10 @@ def run_sweeps(cfg: Config, s: SweepSettings, drives: dict, progress: bool = Tru
     return out
 
 
-def run_bode(cfg: Config, out: Path, s: SweepSettings, with_second: bool = True, progress: bool = True) -> dict:
+def run_bode(cfg: Config, out: Path, s: SweepSettings, with_second: bool = True, progress: bool = True,
+             provenance: dict | None = None) -> dict:  # fmt: skip
+    """Every sweep, then the files of the module docstring into ``out``; returns the
+    summary (``provenance`` recorded as given)."""
     drives = {"drive": cfg}
     if with_second:
         drives["drive2"] = second_drive(cfg)
@@ -46,18 +52,18 @@ def run_bode(cfg: Config, out: Path, s: SweepSettings, with_second: bool = True,
         check_holding_loop(c, name="the second drive" if name == "drive2" else "the drive")
     res = run_sweeps(cfg, s, drives, progress)
     out.mkdir(parents=True, exist_ok=True)
-    rows, frds = [], {}
+    rows, responses = [], {}
     for (name, comp), sweeps in res.items():
         for sw in sweeps:
             for i in range(len(sw.f)):
                 rows.append([0.0 if name == "drive" else 2.0, float(comp), sw.level, sw.f[i], sw.mag_db[i], sw.phase_deg[i],
                              sw.H[i].real, sw.H[i].imag, sw.std[i], sw.coherence[i], sw.x_amp[i]])  # fmt: skip
-            frds[f"{name}, {sw.label}"] = sw.frd()
+            responses[f"{name}, {sw.label}"] = sw.response()
     write_csv(out / "bode.csv", ["drive", "compensation", "level_A", "f_hz", "mag_db", "phase_deg", "re", "im", "std",
                                  "coherence", "x_amp_m"], np.array(rows))  # fmt: skip
-    atomic_write(out / "frd.pkl", lambda f: Path(f).write_bytes(pickle.dumps(frds)))
+    save_npz(out / "frd.npz", responses)
     band = band_max(cfg)
-    files = ["bode.csv", "frd.pkl"]
+    files = ["bode.csv", "frd.npz"]
     titles = {
         ("drive", False): "Frequency response without compensation (paper Fig. 7)",
         ("drive", True): "Frequency response with compensation (paper Fig. 8)",
@@ -88,6 +94,8 @@ def run_bode(cfg: Config, out: Path, s: SweepSettings, with_second: bool = True,
         f"{name}, compensation {'on' if comp else 'off'}": int(sum(np.count_nonzero(sw.coherence < 0.9) for sw in sweeps))
         for (name, comp), sweeps in res.items()
     }
+    if provenance is not None:
+        summary["provenance"] = provenance
     summary["files"] = sorted(files + ["summary.json"])
     write_json(out / "summary.json", summary)
     return summary

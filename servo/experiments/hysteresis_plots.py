@@ -5,16 +5,18 @@ from __future__ import annotations
 from pathlib import Path
 
 import numpy as np
+from matplotlib.figure import Figure
 
 from servo.identify.dahl_fit import DahlFit
 from servo.identify.least_squares import LSResult
-from servo.io.plotting import plt, save_figure
+from servo.io.plotting import figure, finish, subplots
 
 
-def plot_small_loop(t, x, u, fit: DahlFit, path: Path, title: str = "") -> Path:
-    """Current vs position, measured (solid) and Dahl model (dotted), and both over time."""
+def plot_small_loop(t, x, u, fit: DahlFit, path: Path | None = None, title: str = "") -> Figure:
+    """Current vs position, measured (solid) and Dahl model (dotted), and both over time
+    (``t`` s, ``x`` m, ``u`` A, arrays of one length).  Written to ``path`` when given."""
     p = fit.params
-    fig = plt.figure(figsize=(12, 5.5))
+    fig = figure(figsize=(12, 5.5))
     fig.subplots_adjust(wspace=0.3)
     ax0 = fig.add_subplot(1, 2, 1)
     ax0.plot(x * 1e6, u * 1e3, color="k", lw=1.0, label="experiment (simulated drive)")
@@ -38,15 +40,15 @@ def plot_small_loop(t, x, u, fit: DahlFit, path: Path, title: str = "") -> Path:
     ax2.set_ylabel("residual (mA)")
     ax2.legend(fontsize=8, loc="upper right")
     ax2.grid(alpha=0.3)
-    return save_figure(fig, path)
+    return finish(fig, path)
 
 
-def plot_large_loop(x, u, slope: LSResult, path: Path, title: str = "") -> Path:
+def plot_large_loop(x, u, slope: LSResult, path: Path | None = None, title: str = "") -> Figure:
     """Large-range current vs position with the average line ``K*x + h0`` (eq. 11) and the
-    two sliding branches ``K*x + h0 +- Fc``."""
+    two sliding branches ``K*x + h0 +- Fc`` (``x`` m, ``u`` A).  Written to ``path`` when given."""
     K, h0, Fc = slope["K"], slope["h0"], slope["Fc"]
     xs = np.linspace(x.min(), x.max(), 50)
-    fig, ax = plt.subplots(figsize=(8, 5.5))
+    fig, ax = subplots(figsize=(8, 5.5))
     ax.plot(x * 1e3, u * 1e3, color="k", lw=0.8, label="experiment (simulated drive)")
     ax.plot(xs * 1e3, (K * xs + h0) * 1e3, color="tab:blue", lw=1.5,
             label=f"average: K*x + h0, K = {K:.4g} A/m, h0 = {h0 * 1e3:.4g} mA")  # fmt: skip
@@ -61,7 +63,7 @@ def plot_large_loop(x, u, slope: LSResult, path: Path, title: str = "") -> Path:
     ax.set_title(title or "Hysteresis loop in large range and its average slope (eq. 11)")
     ax.legend(fontsize=8, loc="upper left")
     ax.grid(alpha=0.3)
-    return save_figure(fig, path)
+    return finish(fig, path)
 
 
 __all__ = ["plot_large_loop", "plot_small_loop"]

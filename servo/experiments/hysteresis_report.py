@@ -26,8 +26,9 @@ def _write_fit(out: Path, t, x, v, u, fit: DahlFit) -> None:
 
 
 def run_hysteresis_recording(rec: Recording, out: Path, deadband: float, fit_alpha: bool, alpha: float,
-                             slope: bool) -> dict:  # fmt: skip
-    """Fit the Dahl model to the whole recording (and, if ``slope``, the average slope)."""
+                             slope: bool, provenance: dict | None = None) -> dict:  # fmt: skip
+    """Fit the Dahl model to the whole recording (and, if ``slope``, the average slope);
+    ``provenance`` goes into the summary as given."""
     if rec.v is None:
         raise IdentificationError("the Dahl fit needs the velocity direction: map a velocity column with --columns v=NAME")
     if not (np.isfinite(deadband) and deadband >= 0.0):
@@ -47,11 +48,13 @@ def run_hysteresis_recording(rec: Recording, out: Path, deadband: float, fit_alp
         summary["average_slope"] = avg.as_dict()
         plot_large_loop(rec.x, rec.u, avg, out / "hysteresis_large.png", title="Current vs position and its average slope")
         files.append("hysteresis_large.png")
-    return _finish(out, summary, files)
+    return _finish(out, summary, files, provenance)
 
 
-def run_hysteresis_simulated(cfg: Config, out: Path, exp: HysteresisExperiment, fit_alpha: bool = True) -> dict:
-    """The small-loop and large-loop experiments on the simulated drive, with the fit."""
+def run_hysteresis_simulated(cfg: Config, out: Path, exp: HysteresisExperiment, fit_alpha: bool = True,
+                             provenance: dict | None = None) -> dict:  # fmt: skip
+    """The small-loop and large-loop experiments on the simulated drive, with the fit;
+    ``provenance`` goes into the summary as given."""
     small = run_small_loop(cfg, exp)
     fit = fit_dahl(small["x"], small["v"], small["u"], deadband=cfg.controller.direction_deadband, fit_alpha=fit_alpha)
     large = run_large_loop(cfg, exp)
@@ -80,10 +83,12 @@ def run_hysteresis_simulated(cfg: Config, out: Path, exp: HysteresisExperiment, 
         },
     }
     files = ["recording_small.csv", "recording_large.csv", "dahl_fit.csv", "hysteresis_loop.png", "hysteresis_large.png"]
-    return _finish(out, summary, files)
+    return _finish(out, summary, files, provenance)
 
 
-def _finish(out: Path, summary: dict, files: list[str]) -> dict:
+def _finish(out: Path, summary: dict, files: list[str], provenance: dict | None = None) -> dict:
+    if provenance is not None:
+        summary["provenance"] = provenance
     summary["files"] = sorted(files + ["summary.json"])
     write_json(out / "summary.json", summary)
     return summary

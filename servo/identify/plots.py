@@ -5,9 +5,10 @@ from __future__ import annotations
 from pathlib import Path
 
 import numpy as np
+from matplotlib.figure import Figure
 
 from servo.identify.job import Identification
-from servo.io.plotting import plt, save_figure
+from servo.io.plotting import finish, subplots
 
 
 def estimated_acceleration(ident: Identification) -> np.ndarray:
@@ -25,14 +26,16 @@ def _zoom(t: np.ndarray, span: float) -> np.ndarray:
     return (t >= mid - span / 2) & (t <= mid + span / 2)
 
 
-def plot_acceleration(ident: Identification, path: Path, title: str = "", zoom_s: float | None = None) -> Path:
+def plot_acceleration(ident: Identification, path: Path | None = None, title: str = "",
+                      zoom_s: float | None = None) -> Figure:
     """Paper Fig. 5: the acceleration estimated from the force by the identified model
-    against the measured one (the regressor's ``x''`` column), whole record and a zoom."""
+    against the measured one (the regressor's ``x''`` column), whole record and a zoom of
+    ``zoom_s`` s (default a tenth of the record).  Written to ``path`` when given."""
     reg = ident.regression
     a_meas = reg.column("J")
     a_hat = estimated_acceleration(ident)
     t = reg.t
-    fig, ax = plt.subplots(2, 1, figsize=(10, 7))
+    fig, ax = subplots(2, 1, figsize=(10, 7))
     ax[0].plot(t, a_meas, color="k", lw=1.0, label="measured x''")
     ax[0].plot(t, a_hat, color="tab:red", lw=0.8, ls="--", label="estimated from the force, eq. (3)")
     m = _zoom(t, zoom_s or (t[-1] - t[0]) / 10)
@@ -46,15 +49,16 @@ def plot_acceleration(ident: Identification, path: Path, title: str = "", zoom_s
         x.grid(alpha=0.3)
         x.legend(fontsize=8, loc="upper right")
     ax[1].set_xlabel("time (s)")
-    return save_figure(fig, path)
+    return finish(fig, path)
 
 
-def plot_force_fit(ident: Identification, path: Path, force_unit: str = "A", title: str = "") -> Path:
+def plot_force_fit(ident: Identification, path: Path | None = None, force_unit: str = "A", title: str = "") -> Figure:
     """Force of the recording (after the path's filtering) vs the fitted force, and the
-    residual, over time."""
+    residual, over time (``force_unit``: the recording's, ``A`` drawn in mA).  Written to
+    ``path`` when given."""
     reg, fit = ident.regression, ident.fit
     scale, unit = (1e3, "m" + force_unit) if force_unit == "A" else (1.0, force_unit)
-    fig, ax = plt.subplots(2, 1, figsize=(10, 7), sharex=True)
+    fig, ax = subplots(2, 1, figsize=(10, 7), sharex=True)
     ax[0].plot(reg.t, reg.y * scale, color="tab:blue", lw=1.2, label="measured force")
     ax[0].plot(reg.t, fit.y_hat * scale, color="tab:red", lw=0.8, ls="--", label="fit, eq. (4)")
     ax[1].plot(reg.t, fit.residual * scale, color="k", lw=0.6, label="residual")
@@ -66,7 +70,7 @@ def plot_force_fit(ident: Identification, path: Path, force_unit: str = "A", tit
     for x in ax:
         x.grid(alpha=0.3)
         x.legend(fontsize=8, loc="upper right")
-    return save_figure(fig, path)
+    return finish(fig, path)
 
 
 __all__ = ["estimated_acceleration", "plot_acceleration", "plot_force_fit"]

@@ -1,24 +1,54 @@
-"""Matplotlib on the Agg backend, and atomic PNG writing."""
+"""Figures without global state, and atomic PNG writing.
+
+Every plot function of the package builds a :class:`matplotlib.figure.Figure` directly
+(not through ``pyplot``), returns it, and writes it only when given a path.  So importing
+the package or calling a plot function never selects a backend, never registers a figure
+with ``pyplot`` (no figure piles up in a long session, none is shown twice in a
+notebook) and works headless; a notebook displays the returned figure as the cell's
+value, ``fig.savefig(...)`` writes it anywhere.  Only the command line selects the Agg
+backend (:func:`servo.cli.main`).
+"""
 from __future__ import annotations
 
 from pathlib import Path
 
-import matplotlib
+from matplotlib import colormaps
+from matplotlib.figure import Figure
 
-matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
-
-from servo.io.atomic import atomic_write  # noqa: E402
+from servo.io.atomic import atomic_write
 
 
-def save_figure(fig, path: str | Path, dpi: int = 110) -> Path:
-    """Write ``fig`` as PNG to ``path`` atomically and close it."""
+def subplots(nrows: int = 1, ncols: int = 1, *, figsize=None, **kw):
+    """``(Figure, axes)`` like ``pyplot.subplots`` but without ``pyplot``: the figure
+    belongs to no backend and to no global registry.  ``kw`` goes to
+    :meth:`Figure.subplots` (``sharex``, ``squeeze``, ...)."""
+    fig = Figure(figsize=figsize)
+    return fig, fig.subplots(nrows, ncols, **kw)
+
+
+def figure(figsize=None) -> Figure:
+    """An empty :class:`Figure` outside ``pyplot`` (add axes with ``fig.add_subplot``)."""
+    return Figure(figsize=figsize)
+
+
+def colors(name: str, values):
+    """RGBA colours of the colormap ``name`` at ``values`` in [0, 1] (shape ``(n, 4)``)."""
+    return colormaps[name](values)
+
+
+def save_figure(fig: Figure, path: str | Path, dpi: int = 110) -> Path:
+    """Write ``fig`` as PNG to ``path`` atomically (never half a file); returns the path."""
     path = Path(path)
-    try:
-        atomic_write(path, lambda tmp: fig.savefig(tmp, dpi=dpi, format="png", bbox_inches="tight"))
-    finally:
-        plt.close(fig)
+    atomic_write(path, lambda tmp: fig.savefig(tmp, dpi=dpi, format="png", bbox_inches="tight"))
     return path
 
 
-__all__ = ["plt", "save_figure"]
+def finish(fig: Figure, path: str | Path | None = None, dpi: int = 110) -> Figure:
+    """The end of every plot function: write ``fig`` to ``path`` when one is given, and
+    return the figure either way."""
+    if path is not None:
+        save_figure(fig, path, dpi)
+    return fig
+
+
+__all__ = ["colors", "figure", "finish", "save_figure", "subplots"]

@@ -1,15 +1,25 @@
-"""Recordings: load and validate ``t, u, x[, v]`` from CSV, NPZ or MATLAB .mat.
+"""Recordings: load and validate ``t, u, x[, v][, r]`` from the files labs have.
 
 A recording is what a servo engineer brings from the lab (or a run log of this tool):
 time ``t`` (s), input ``u`` (A of VCM current, or any force unit after scaling), position
-``x`` (m), and velocity ``v`` (m/s) when it was measured.
+``x`` (m), velocity ``v`` (m/s) when it was measured, and the reference ``r`` (or an
+excitation injected in the loop) when the loop was closed: the instrument of a
+closed-loop frequency response (``servo frf --closed-loop``).
 
-* CSV: a header row naming the columns (``t,u,x`` at least, ``v`` optional; extra
-  columns are ignored, so a ``servo run`` log is a recording).
+Formats (read by :func:`servo.io.tables.read_table`, which its docstring details):
+
+* CSV and other delimited text (``.csv .tsv .txt .dat``): a header row naming the
+  columns (``t,u,x`` at least; extra columns are ignored, so a ``servo run`` log is a
+  recording); ``,`` ``;`` tab ``|`` or spaces; a byte-order mark, ``#`` comments, a
+  decimal comma (with another delimiter) and units in brackets (``x [m]``) are
+  understood.  Parsed by ``numpy.loadtxt``.
 * NPZ: one array per column (a ``servo run`` log NPZ is one).
-* MATLAB .mat (v5, via ``scipy.io.loadmat``): variables mapped to columns with
-  ``columns={"u": "vir", "x": "qm"}`` and scaled with ``scale={"u": "gtau"}`` (a number,
-  or the name of a scalar variable in the file).  The same mapping works for CSV/NPZ.
+* MATLAB .mat: v4-v7 via ``scipy.io.loadmat``, v7.3 (HDF5) via ``h5py``; struct fields
+  as ``struct.field``.  HDF5 (``.h5``, ``.hdf5``): datasets by path, ``group/name``.
+
+Variables are mapped to roles with ``columns={"u": "vir", "x": "qm"}`` and scaled with
+``scale={"u": "gtau"}`` (a number, or the name of a scalar variable in the file), in
+every format.
 
 Every problem is a :class:`~servo.errors.RecordingError` with one line that says what is
 wrong and where: unreadable file, missing column, unequal lengths, NaN/inf (first
@@ -18,7 +28,6 @@ samples.  Whether the data *excite* what a tool wants to identify is the tool's 
 """
 from __future__ import annotations
 
-import csv
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -26,9 +35,10 @@ import numpy as np
 
 from servo.config import MAGNITUDE_MAX
 from servo.errors import RecordingError
+from servo.io.tables import read_table
 
 REQUIRED = ("t", "u", "x")
-OPTIONAL = ("v",)
+OPTIONAL = ("v", "r")
 MIN_SAMPLES = 20
 #: sampling is "uniform" when every step is within this fraction of the median step
 UNIFORM_TOLERANCE = 0.01
@@ -36,7 +46,9 @@ UNIFORM_TOLERANCE = 0.01
 
 @dataclass
 class Recording:
-    """A validated recording; arrays are float64, shape (n,)."""
+    """A validated recording; arrays are float64, shape (n,): ``t`` s, ``u`` A (or the
+    force unit), ``x`` m, ``v`` m/s, ``r`` the reference or excitation (``None`` when
+    not recorded)."""
 
     t: np.ndarray
     u: np.ndarray
@@ -44,6 +56,7 @@ class Recording:
     v: np.ndarray | None = None
     source: str = ""
     meta: dict = field(default_factory=dict)
+    r: np.ndarray | None = None
 
     @property
     def n(self) -> int:
@@ -61,7 +74,8 @@ class Recording:
     def slice(self, start: int, stop: int) -> "Recording":
         """Samples ``start:stop`` as a new recording (e.g. a training or test block)."""
         v = None if self.v is None else self.v[start:stop]
-        return Recording(self.t[start:stop], self.u[start:stop], self.x[start:stop], v, self.source, dict(self.meta))
+        r = None if self.r is None else self.r[start:stop]
+        return Recording(self.t[start:stop], self.u[start:stop], self.x[start:stop], v, self.source, dict(self.meta), r)
 
 
 def parse_mapping(text: str | None, what: str) -> dict[str, str]:
@@ -75,50 +89,6 @@ def parse_mapping(text: str | None, what: str) -> dict[str, str]:
             raise RecordingError(f"{what}: expected NAME=VALUE pairs separated by commas, got {item!r}")
         out[key.strip()] = value.strip()
     return out
-
-
-def _read_table(path: Path) -> dict[str, np.ndarray]:
-    suffix = path.suffix.lower()
-    try:
-        if suffix == ".csv":
-            return _read_csv(path)
-        if suffix == ".npz":
-            with np.load(path, allow_pickle=False) as z:
-                return {k: np.asarray(z[k]) for k in z.files}
-        if suffix == ".mat":
-            from scipy.io import loadmat
-
-            return {k: np.asarray(v) for k, v in loadmat(str(path)).items() if not k.startswith("__")}
-    except RecordingError:
-        raise
-    except FileNotFoundError:
-        raise RecordingError(f"recording: no such file: {path}") from None
-    except Exception as exc:  # corrupt or foreign file: one line, whatever the reader raised
-        raise RecordingError(f"recording: cannot read {path} as {suffix[1:].upper()}: {exc}".splitlines()[0]) from None
-    raise RecordingError(f"recording: {path}: unknown format {suffix!r} (use .csv, .npz or .mat)")
-
-
-def _read_csv(path: Path) -> dict[str, np.ndarray]:
-    with open(path, newline="", encoding="utf-8-sig") as fh:  # -sig: a byte-order mark is not part of the header
-        reader = csv.reader(fh)
-        try:
-            header = [h.strip() for h in next(reader)]
-        except StopIteration:
-            raise RecordingError(f"recording: {path} is empty") from None
-        if not header or any(not h for h in header):
-            raise RecordingError(f"recording: {path}: the first row must name every column")
-        rows = []
-        for lineno, row in enumerate(reader, start=2):
-            if not row:
-                continue
-            if len(row) != len(header):
-                raise RecordingError(f"recording: {path} line {lineno}: {len(row)} fields, the header has {len(header)}")
-            try:
-                rows.append([float(c) for c in row])
-            except ValueError:
-                raise RecordingError(f"recording: {path} line {lineno}: not a number in {row!r}") from None
-    data = np.array(rows, dtype=float).reshape(-1, len(header))
-    return {name: data[:, i] for i, name in enumerate(header)}
 
 
 def _scale_factor(value: str, table: dict, path: Path) -> float:
@@ -140,11 +110,11 @@ def load_recording(path: str | Path, columns: dict[str, str] | None = None, scal
     (default: the same names); ``scale`` multiplies a column by a number or a scalar
     variable of the file (``{"u": "gtau"}``)."""
     path = Path(path)
-    table = _read_table(path)
+    table = read_table(path)
     columns = dict(columns or {})
     for key in columns:
         if key not in REQUIRED + OPTIONAL:
-            raise RecordingError(f"recording: unknown column role {key!r} (roles: t, u, x, v)")
+            raise RecordingError(f"recording: unknown column role {key!r} (roles: t, u, x, v, r)")
     arrays: dict[str, np.ndarray] = {}
     for role in REQUIRED + OPTIONAL:
         name = columns.get(role, role)
@@ -193,15 +163,18 @@ def load_recording(path: str | Path, columns: dict[str, str] | None = None, scal
             f"recording: {path.name}: irregular sampling at sample {i + 1}: step {dt[i]:.6g} s, the median is {step:.6g} s "
             f"({off.size} irregular steps; gaps must be filled or the recording split)"
         )
-    meta = {"columns": {r: columns.get(r, r) for r in arrays}, "scale": dict(scale or {})}
-    return Recording(arrays["t"], arrays["u"], arrays["x"], arrays.get("v"), str(path), meta)
+    meta = {"columns": {r: columns.get(r, r) for r in arrays}, "scale": dict(scale or {}), "format": table.format}
+    units = {r: table.units[columns.get(r, r)] for r in arrays if columns.get(r, r) in table.units}
+    if units:
+        meta["units"] = units
+    return Recording(arrays["t"], arrays["u"], arrays["x"], arrays.get("v"), str(path), meta, arrays.get("r"))
 
 
 def save_recording_csv(path: str | Path, rec: Recording) -> None:
-    """Write ``rec`` as a CSV recording (header ``t,u,x[,v]``, ``%.17g``), atomically."""
+    """Write ``rec`` as a CSV recording (header ``t,u,x[,v][,r]``, ``%.17g``), atomically."""
     from servo.io.runlog import write_csv
 
-    cols = ["t", "u", "x"] + (["v"] if rec.v is not None else [])
+    cols = ["t", "u", "x"] + [c for c in OPTIONAL if getattr(rec, c) is not None]
     data = np.column_stack([getattr(rec, c) for c in cols])
     write_csv(Path(path), cols, data)
 

@@ -110,14 +110,17 @@ def output_bytes(cfg: Config, runs: int, log_formats: tuple[str, ...]) -> float:
 
 def run_job(cfg: Config, out_dir: Path, compensation: str = "compare", fast: bool | None = None,
             make_driver: Callable[[Config, Inputs], Driver] | None = None, where: str | None = None,
-            realtime: RealtimeOptions | None = None, log_formats: tuple[str, ...] = FORMATS) -> dict:  # fmt: skip
+            realtime: RealtimeOptions | None = None, log_formats: tuple[str, ...] = FORMATS,
+            provenance: dict | None = None) -> dict:  # fmt: skip
     """Run the ``servo run`` job into ``out_dir``; returns the summary (also written as
     ``summary.json``).  ``make_driver(cfg, inputs)``: a fresh driver per run instead of the
     simulated drive (``where`` describes it, e.g. the serial URL).  ``realtime``: pace
     every tick of the simulated drive on the wall clock (implies the tick path; asking for
     the fast path as well, or pacing a board, which is its own clock, is an error).
-    ``log_formats``: ``npz`` and/or ``csv``.  Memory does not grow with the run's length;
-    the disk its logs need is checked first (one line if it is not there).  On a fault
+    ``log_formats``: ``npz`` and/or ``csv``; ``provenance``
+    (:func:`servo.io.provenance.provenance`) is recorded in the summary.  Memory does
+    not grow with the run's length; the disk its logs need is checked first (one line if
+    it is not there).  On a fault
     the drive is at zero current and the log of the interrupted run is kept."""
     check_realtime(realtime is not None, fast, make_driver is not None)
     if realtime is not None:
@@ -152,6 +155,7 @@ def run_job(cfg: Config, out_dir: Path, compensation: str = "compare", fast: boo
         "period_us": cfg.dt * 1e6,
         "startup_s": startup,
         "runs": runs,
+        "provenance": provenance,
         "files": sorted({p.name for p in out_dir.iterdir() if not p.name.startswith(".")} | {"summary.json"}),
     }
     write_json(out_dir / "summary.json", summary)

@@ -4,28 +4,33 @@ from __future__ import annotations
 from pathlib import Path
 
 import numpy as np
+from matplotlib.figure import Figure
 
 from kernels.loop import LOG_COLUMNS
 from servo.config import Config
-from servo.io.plotting import plt, save_figure
+from servo.io.plotting import finish, subplots
 from servo.runtime.scenario import segments
 
 COL = {c: i for i, c in enumerate(LOG_COLUMNS)}
 COLORS = {"compensated": "tab:blue", "uncompensated": "tab:orange"}
 
 
-def plot_run(cfg: Config, logs: dict, results: dict, out_dir: Path) -> list[Path]:
-    """Write the PNGs of a run into ``out_dir``; returns their paths."""
-    paths = [_tracking(cfg, logs, out_dir / "tracking.png"), _steps(cfg, logs, out_dir / "steps.png"),
-             _currents(logs, out_dir / "current.png")]  # fmt: skip
-    ticks = {k: r.timing for k, r in results.items() if r.timing is not None}
+def plot_run(cfg: Config, logs: dict, results: dict | None = None, out_dir: Path | None = None) -> dict[str, Figure]:
+    """The figures of a run, by file name: ``tracking.png``, ``steps.png``,
+    ``current.png``, and ``timing.png`` when ``results`` (label -> loop result) have tick
+    times (``timing``, :class:`~servo.runtime.durations.Durations`).  ``logs``: label
+    (``compensated``/``uncompensated``) -> log array ``(ticks, len(LOG_COLUMNS))``.
+    Each is written into ``out_dir`` when it is given."""
+    out = None if out_dir is None else Path(out_dir)
+    figs = {"tracking.png": _tracking(cfg, logs), "steps.png": _steps(cfg, logs), "current.png": _currents(logs)}
+    ticks = {k: r.timing for k, r in (results or {}).items() if r.timing is not None}
     if ticks:
-        paths.append(_timing(cfg, ticks, out_dir / "timing.png"))
-    return paths
+        figs["timing.png"] = _timing(cfg, ticks)
+    return {name: finish(fig, None if out is None else out / name) for name, fig in figs.items()}
 
 
-def _tracking(cfg, logs, path):
-    fig, ax = plt.subplots(2, 1, figsize=(10, 7), sharex=True)
+def _tracking(cfg, logs):
+    fig, ax = subplots(2, 1, figsize=(10, 7), sharex=True)
     for label, a in logs.items():
         t, x0 = a[:, COL["t"]], a[0, COL["r"]]
         ax[0].plot(t, (a[:, COL["x"]] - x0) * 1e6, color=COLORS[label], lw=0.8, label=f"position, {label}")
@@ -42,12 +47,12 @@ def _tracking(cfg, logs, path):
     for x in ax:
         x.grid(alpha=0.3)
         x.legend(fontsize=8, loc="upper left")
-    return save_figure(fig, path)
+    return fig
 
 
-def _steps(cfg, logs, path):
+def _steps(cfg, logs):
     """Each step normalised by its size: a linear plant gives the same curve at every size."""
-    fig, axes = plt.subplots(1, len(logs), figsize=(5.5 * len(logs), 4.2), sharey=True, squeeze=False)
+    fig, axes = subplots(1, len(logs), figsize=(5.5 * len(logs), 4.2), sharey=True, squeeze=False)
     times, pos = cfg.scenario.step_times, cfg.scenario.step_positions
     ends = {name: b for name, _, b in segments(cfg)}
     for ax, (label, a) in zip(axes[0], logs.items()):
@@ -71,11 +76,11 @@ def _steps(cfg, logs, path):
             ax.text(0.5, 0.5, "no step within the run", transform=ax.transAxes, ha="center", color="0.4")
     axes[0][0].set_ylabel("position change / step size")
     fig.suptitle("Normalised step responses (the band is +-5 %)")
-    return save_figure(fig, path)
+    return fig
 
 
-def _currents(logs, path):
-    fig, ax = plt.subplots(3, 1, figsize=(10, 8), sharex=True)
+def _currents(logs):
+    fig, ax = subplots(3, 1, figsize=(10, 8), sharex=True)
     for label, a in logs.items():
         t = a[:, COL["t"]]
         ax[0].plot(t, a[:, COL["u"]] * 1e3, color=COLORS[label], lw=0.8, label=f"u, {label}")
@@ -93,11 +98,11 @@ def _currents(logs, path):
         x.grid(alpha=0.3)
         if x.get_legend_handles_labels()[0]:
             x.legend(fontsize=8, loc="upper left")
-    return save_figure(fig, path)
+    return fig
 
 
-def _timing(cfg, ticks, path):
-    fig, ax = plt.subplots(figsize=(8, 4))
+def _timing(cfg, ticks):
+    fig, ax = subplots(figsize=(8, 4))
     period = cfg.dt * 1e6
     for label, durations in ticks.items():
         edges_ns, counts = durations.histogram()
@@ -111,4 +116,4 @@ def _timing(cfg, ticks, path):
     ax.set_ylabel("ticks")
     ax.legend(fontsize=8)
     ax.grid(alpha=0.3)
-    return save_figure(fig, path)
+    return fig

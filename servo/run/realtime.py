@@ -118,13 +118,14 @@ def lateness_line(label: str, rt: dict, period_us: float) -> str:
     )
 
 
-def plot_lateness(cfg: Config, lateness: dict[str, Durations], path: Path) -> Path:
-    """Histogram PNG of the lateness of every tick (us, log-log; lateness below 10 ns,
-    including 0, is counted in the first bin), one curve per run, with the period and
-    each run's p99.9 marked."""
-    from servo.io.plotting import plt, save_figure
+def plot_lateness(cfg: Config, lateness: dict[str, Durations], path: Path | None = None):
+    """Histogram (a Figure) of the lateness of every tick (us, log-log; lateness below
+    10 ns, including 0, is counted in the first bin), one curve per run, with the period
+    and each run's p99.9 marked.  ``lateness``: label -> lateness per tick (ns, as
+    :class:`~servo.runtime.durations.Durations`).  Written as PNG to ``path`` when given."""
+    from servo.io.plotting import finish, subplots
 
-    fig, ax = plt.subplots(figsize=(8, 4.2))
+    fig, ax = subplots(figsize=(8, 4.2))
     period = cfg.dt * 1e6
     colors = {"compensated": "tab:blue", "uncompensated": "tab:orange"}
     lo = 0.01
@@ -143,4 +144,4 @@ def plot_lateness(cfg: Config, lateness: dict[str, Durations], path: Path) -> Pa
     ax.set_title(f"Real-time pacing at {cfg.run.sample_rate_hz / 1e3:g} kHz: tick start lateness")
     ax.legend(fontsize=8)
     ax.grid(alpha=0.3)
-    return save_figure(fig, path)
+    return finish(fig, path)

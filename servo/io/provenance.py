@@ -1,0 +1,93 @@
+"""Provenance: what a result was computed with, for the ``summary.json`` of every job.
+
+The README's "same numbers on every rerun" holds for one config, one input, one set of
+library versions and one CPU (Numba compiles for the host); :func:`provenance` records
+exactly those, so a summary says what it can be compared with.
+"""
+from __future__ import annotations
+
+import hashlib
+import platform
+import sys
+import time
+from importlib import metadata
+from pathlib import Path
+
+#: distributions whose versions change numbers (or the files' format)
+LIBRARIES = ("numpy", "numba", "llvmlite", "scipy", "control", "matplotlib", "h5py")
+
+
+def package_version() -> str:
+    """The installed version of this package (``servo-vcm``), or ``servo.__version__``
+    when run from a source tree that was not installed."""
+    try:
+        return metadata.version("servo-vcm")
+    except metadata.PackageNotFoundError:
+        import servo
+
+        return servo.__version__
+
+
+def library_versions(names=LIBRARIES) -> dict[str, str | None]:
+    """``{distribution: version}`` from the installed metadata (nothing is imported);
+    ``None`` for one that is not installed."""
+    out = {}
+    for name in names:
+        try:
+            out[name] = metadata.version(name)
+        except metadata.PackageNotFoundError:
+            out[name] = None
+    return out
+
+
+def cpu_model(cpuinfo: str | Path = "/proc/cpuinfo") -> str:
+    """The CPU's model name (``model name`` of ``/proc/cpuinfo`` on Linux; else
+    ``platform.processor()`` or the machine type)."""
+    try:
+        for line in Path(cpuinfo).read_text(errors="replace").splitlines():
+            key, sep, value = line.partition(":")
+            if sep and key.strip() in ("model name", "Model", "Hardware", "cpu model") and value.strip():
+                return value.strip()
+    except OSError:
+        pass
+    return platform.processor() or platform.machine() or "unknown"
+
+
+def sha256_file(path: str | Path, block: int = 1 << 20) -> str:
+    """Hex SHA-256 of a file's bytes."""
+    h = hashlib.sha256()
+    with open(path, "rb") as fh:
+        while chunk := fh.read(block):
+            h.update(chunk)
+    return h.hexdigest()
+
+
+def config_hash(cfg) -> str:
+    """Hex SHA-256 of the config's canonical TOML (every field, no comments): equal for
+    equal configs however they were given (file, ``--set``, defaults)."""
+    from servo.config import to_toml
+
+    return hashlib.sha256(to_toml(cfg, comments=False).encode()).hexdigest()
+
+
+def provenance(config=None, inputs=(), argv: list[str] | None = None) -> dict:
+    """The provenance dict: package version, command line (``argv``, default
+    ``sys.argv``), config hash (when the job used a :class:`~servo.config.Config`),
+    SHA-256 of each input file, Python, the library versions, CPU model, OS, and the
+    UTC time it was made."""
+    argv = list(sys.argv if argv is None else argv)
+    out = {
+        "servo_version": package_version(),
+        "command": argv,
+        "config_sha256": None if config is None else config_hash(config),
+        "inputs": {str(p): sha256_file(p) for p in inputs if p is not None and Path(p).is_file()},
+        "python": f"{platform.python_implementation()} {platform.python_version()}",
+        "libraries": library_versions(),
+        "cpu": cpu_model(),
+        "platform": platform.platform(),
+        "created_utc": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime()),
+    }
+    return out
+
+
+__all__ = ["LIBRARIES", "config_hash", "cpu_model", "library_versions", "package_version", "provenance", "sha256_file"]

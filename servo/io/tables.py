@@ -1,0 +1,258 @@
+"""Named columns from the files labs have: delimited text, NPZ, MATLAB v4-v7 and v7.3, HDF5.
+
+:func:`read_table` returns ``{name: array}``; :mod:`servo.io.recording` maps the names to
+the roles ``t, u, x, v, r`` and validates.  Every problem is one
+:class:`~servo.errors.RecordingError` line naming the file and, for text, the line.
+
+* **Delimited text** (``.csv``, ``.tsv``, ``.txt``, ``.dat``): a header row naming the
+  columns, after any blank lines and ``#`` comment lines; the delimiter is found from the
+  header and the first data row (``,`` ``;`` tab ``|`` or runs of spaces); a byte-order
+  mark (UTF-8 or UTF-16, as spreadsheets write) is not part of the first name; a decimal
+  comma is read as a point when the delimiter is not a comma; quotes around names are
+  dropped and a unit in brackets after a name, ``x [m]`` or ``x (m)``, is split off
+  (kept in the table's ``units``).  The numbers are parsed by ``numpy.loadtxt`` straight
+  from the file; only when that fails is the file scanned row by row, to name the first
+  bad line.
+* **NPZ**: one array per name (no pickles).
+* **MATLAB** ``.mat``: v4-v7 through ``scipy.io.loadmat``, v7.3 (an HDF5 file) through
+  ``h5py``; fields of structs are named ``struct.field``; text, cell and empty
+  variables are left out.
+* **HDF5** (``.h5``, ``.hdf5``): every numeric dataset, named by its path without the
+  leading ``/`` (``group/dataset``).
+"""
+from __future__ import annotations
+
+import csv
+import re
+from pathlib import Path
+
+import numpy as np
+
+from servo.errors import RecordingError
+
+TEXT_SUFFIXES = (".csv", ".tsv", ".txt", ".dat")
+HDF5_SUFFIXES = (".h5", ".hdf5", ".he5")
+DELIMITERS = (",", ";", "\t", "|")
+_UNIT = re.compile(r"^(?P<name>.*?)\s*(?:\[(?P<u1>[^\]]*)\]|\((?P<u2>[^)]*)\))$")
+
+
+class Table(dict):
+    """``{name: array}`` with ``units`` (``{name: unit}``, from text headers) and the
+    ``format`` it was read from."""
+
+    def __init__(self, data=(), units: dict | None = None, format: str = ""):
+        super().__init__(data)
+        self.units = dict(units or {})
+        self.format = format
+
+
+def read_table(path: str | Path) -> Table:
+    """The named columns of ``path`` (format from the suffix; see the module docstring)."""
+    path = Path(path)
+    suffix = path.suffix.lower()
+    try:
+        if suffix in TEXT_SUFFIXES:
+            return _read_text(path)
+        if suffix == ".npz":
+            with np.load(path, allow_pickle=False) as z:
+                return Table({k: np.asarray(z[k]) for k in z.files}, format="npz")
+        if suffix == ".mat":
+            return _read_mat(path)
+        if suffix in HDF5_SUFFIXES:
+            return _read_hdf5(path, sep="/", fmt="hdf5")
+    except RecordingError:
+        raise
+    except FileNotFoundError:
+        raise RecordingError(f"recording: no such file: {path}") from None
+    except IsADirectoryError:
+        raise RecordingError(f"recording: {path} is a directory, not a file") from None
+    except Exception as exc:  # corrupt or foreign file: one line, whatever the reader raised
+        what = suffix[1:].upper() or "a recording"
+        raise RecordingError(f"recording: cannot read {path} as {what}: {exc}".splitlines()[0]) from None
+    known = ", ".join(TEXT_SUFFIXES + (".npz", ".mat") + HDF5_SUFFIXES)
+    raise RecordingError(f"recording: {path}: unknown format {suffix!r} (use {known}; export spreadsheets as CSV)")
+
+
+# -- delimited text ------------------------------------------------------------------
+
+
+def _encoding(path: Path) -> str:
+    with open(path, "rb") as fh:
+        head = fh.read(4)
+    if head[:2] in (b"\xff\xfe", b"\xfe\xff"):
+        return "utf-16"  # the BOM gives the byte order and is dropped
+    return "utf-8-sig"  # -sig: a UTF-8 byte-order mark is not part of the header
+
+
+def _is_comment(line: str) -> bool:
+    s = line.strip()
+    return not s or s.startswith("#")
+
+
+def _split(line: str, delim: str | None) -> list[str]:
+    if delim is None:
+        return line.split()
+    return next(csv.reader([line], delimiter=delim))
+
+
+def _delimiter(header: str, first: str | None) -> str | None:
+    """The delimiter that splits the header and the first data row alike (None: spaces)."""
+    for d in DELIMITERS:
+        n = len(_split(header, d))
+        if n > 1 and (first is None or len(_split(first, d)) == n):
+            return d
+    for d in DELIMITERS:  # the data row may be ragged: let the row check name it
+        if len(_split(header, d)) > 1:
+            return d
+    return None
+
+
+def _names(fields: list[str], path: Path) -> tuple[list[str], dict]:
+    names, units = [], {}
+    for f in fields:
+        f = f.strip().strip('"').strip("'").strip()
+        m = _UNIT.match(f)
+        if m and m.group("name"):
+            f, unit = m.group("name").strip(), (m.group("u1") if m.group("u1") is not None else m.group("u2")).strip()
+            units[f] = unit
+        names.append(f)
+    if not names or any(not n for n in names):
+        raise RecordingError(f"recording: {path}: the first row must name every column")
+    if all(_number(n) for n in names):
+        raise RecordingError(f"recording: {path}: no header row: the first row must name the columns (e.g. t,u,x)")
+    dup = sorted({n for n in names if names.count(n) > 1})
+    if dup:
+        raise RecordingError(f"recording: {path}: column {dup[0]!r} is named twice in the header")
+    return names, units
+
+
+def _number(s: str) -> bool:
+    try:
+        float(s)
+        return True
+    except ValueError:
+        return False
+
+
+def _read_text(path: Path) -> Table:
+    enc = _encoding(path)
+    with open(path, encoding=enc, newline="") as fh:
+        lineno, header, comment = 0, None, None
+        while line := fh.readline():
+            lineno += 1
+            if not _is_comment(line):
+                header = line.rstrip("\r\n")
+                break
+            if line.strip():
+                comment = line.strip()[1:].strip()
+        if header is None:
+            raise RecordingError(f"recording: {path} is empty")
+        start = fh.tell()
+        first = None
+        while line := fh.readline():
+            if not _is_comment(line):
+                first = line.rstrip("\r\n")
+                break
+        delim = _delimiter(header, first)
+        fields = _split(header, delim)
+        if comment is not None and all(_number(f) for f in fields if f.strip()):
+            # a header written as a comment ("# t u x"), then numbers from the first line on
+            cdelim = _delimiter(comment, header)
+            if len(_split(comment, cdelim)) == len(fields):
+                fields, start, lineno = _split(comment, cdelim), None, lineno - 1
+        trailing = len(fields) > 1 and not fields[-1].strip()  # "t,u,x," as some exporters write
+        names, units = _names(fields[:-1] if trailing else fields, path)
+        comma = delim not in (",", None) and first is not None and "," in first
+        if start is None:
+            fh.seek(0)
+            for _ in range(lineno):
+                fh.readline()
+        else:
+            fh.seek(start)
+        src = (line.replace(",", ".") for line in fh) if comma else fh
+        try:
+            data = np.loadtxt(src, delimiter=delim, comments="#", quotechar='"', ndmin=2, dtype=float,
+                              usecols=range(len(names)) if trailing else None)  # fmt: skip
+        except ValueError:
+            data = None
+    ncol = len(names)
+    if data is None or (data.size and data.shape[1] != ncol):
+        _first_bad_line(path, enc, lineno, delim, comma, ncol, trailing)
+        raise RecordingError(f"recording: {path}: not a table of numbers with {ncol} columns")
+    data = data.reshape(-1, ncol)
+    return Table({n: data[:, i] for i, n in enumerate(names)}, units, format="text")
+
+
+def _first_bad_line(path, enc, header_line, delim, comma, ncol, trailing=False) -> None:
+    """Raise the error of the first line that is not ``ncol`` numbers (then an empty
+    field if ``trailing``): the slow path, taken only when ``numpy.loadtxt`` failed."""
+    with open(path, encoding=enc, newline="") as fh:
+        for lineno, line in enumerate(fh, start=1):
+            if lineno <= header_line or _is_comment(line):
+                continue
+            text = line.split("#", 1)[0].rstrip("\r\n")
+            fields = _split(text.replace(",", ".") if comma else text, delim)
+            if len(fields) != ncol + trailing:
+                raise RecordingError(f"recording: {path} line {lineno}: {len(fields)} fields, the header has "
+                                     f"{ncol + trailing}")  # fmt: skip
+            for f in fields[:ncol]:
+                if not _number(f.strip()):
+                    hint = " (a decimal comma with a comma delimiter?)" if delim == "," else ""
+                    raise RecordingError(f"recording: {path} line {lineno}: not a number: {f.strip()!r}{hint}")
+
+
+# -- MATLAB and HDF5 -----------------------------------------------------------------
+
+
+def _read_mat(path: Path) -> Table:
+    import h5py
+
+    if h5py.is_hdf5(str(path)):
+        return _read_hdf5(path, sep=".", fmt="mat v7.3")
+    from scipy.io import loadmat
+
+    out: dict = {}
+    _flatten_mat(loadmat(str(path), simplify_cells=True), "", out)
+    return Table(out, format="mat")
+
+
+def _flatten_mat(obj: dict, prefix: str, out: dict) -> None:
+    for k, v in obj.items():
+        if k.startswith("__"):
+            continue
+        name = prefix + k
+        if isinstance(v, dict):
+            _flatten_mat(v, name + ".", out)
+            continue
+        a = np.asarray(v)
+        if a.dtype.kind in "fiub" and a.size:
+            out[name] = a
+
+
+def _read_hdf5(path: Path, sep: str, fmt: str) -> Table:
+    import h5py
+
+    out: dict = {}
+    with h5py.File(path, "r") as f:
+
+        def visit(group, prefix):
+            for key, item in group.items():
+                if key.startswith("#"):  # MATLAB's #refs# and #subsystem#
+                    continue
+                name = prefix + key
+                if isinstance(item, h5py.Group):
+                    visit(item, name + sep)
+                    continue
+                cls = item.attrs.get("MATLAB_class", b"")
+                cls = cls.decode() if isinstance(cls, bytes) else str(cls)
+                if cls in ("char", "cell") or item.attrs.get("MATLAB_empty", 0):
+                    continue
+                if item.dtype.kind not in "fiub" or item.size == 0:
+                    continue
+                out[name] = np.asarray(item[()])  # MATLAB's column-major order is moot for vectors
+
+        visit(f, "")
+    return Table(out, format=fmt)
+
+
+__all__ = ["Table", "read_table"]
