@@ -386,7 +386,10 @@ def diagnose(rec: Recording, opt: Options | None = None) -> Diagnosis:
         return verdict_mod.assess(design, r, J, tau_r, variables, opt.alpha, nrmse)
 
     base_checks, final_checks = checks(fits[0], r_before, nr[0]), checks(final, r_after, nr[-1])
-    scope = verdict_mod.out_of_scope(final.combined().get("inertia", {}).get("J"), errs[-1])
+    ji = next((i for i, t in enumerate(final.model.terms) if t.physics == "inertia"), None)
+    J_std = final.term_std(ji).get("J") if ji is not None and final.model.terms[ji].free else 0.0
+    scope = verdict_mod.out_of_scope(final.combined().get("inertia", {}).get("J"), J_std,
+                                     force_error_pct(design, final, design.train_valid))
     verdict = verdict_mod.decide(base_checks, final_checks, len(findings), scope, opt.force_unit)
     verdict.update(baseline_checks=base_checks, final_checks=final_checks)
 

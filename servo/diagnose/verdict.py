@@ -34,7 +34,8 @@ The verdict (:func:`decide`) is one of
 * ``unexplained``: the final model fails a check; the text says where and by how much,
   and that no vocabulary term accounted for it;
 * ``out_of_scope``: the recording is not described by the force balance the tool fits
-  (no positive inertia, or the fitted balance explains almost none of the force).
+  (no inertia significantly positive, or the fitted balance explains almost none of the
+  force on its own training rows).
 """
 from __future__ import annotations
 
@@ -58,6 +59,8 @@ N_WINDOWS = 20
 #: the force balance is out of scope when the final model's held-out force error is at
 #: least this (%): it explains under 10 % of the force's power
 OUT_OF_SCOPE_PCT = 95.0
+#: the fitted inertia must exceed this many of its standard deviations
+J_SIGMAS = 5.0
 
 
 def acceleration_noise_gain(settings, fs: float) -> float:
@@ -228,15 +231,20 @@ def _merge_spans(spans):
     return out
 
 
-def out_of_scope(J: float | None, test_force_pct: float | None) -> str:
-    """Why the force balance does not describe the recording ("" when it does)."""
-    if J is None or not J > 0:
-        jt = "none" if J is None else f"{J:.3g}"
+def out_of_scope(J: float | None, J_std: float | None, train_force_pct: float | None) -> str:
+    """Why the force balance does not describe the recording ("" when it does): the
+    fitted inertia is not positive beyond :data:`J_SIGMAS` standard deviations, or the
+    fitted balance explains almost none of the force on the rows it was fitted on (a
+    model that fits the training part and fails the test part is a located mismatch,
+    not this)."""
+    if J is None or not J > J_SIGMAS * (J_std or 0.0):
+        jt = "none" if J is None else f"{J:.3g} +- {J_std or 0.0:.2g}"
         return (f"the input does not accelerate the position as a mass would: the fitted inertia J is {jt}, not "
-                "positive (is u a force or current, x a position of the driven body?)")  # fmt: skip
-    if test_force_pct is not None and test_force_pct >= OUT_OF_SCOPE_PCT:
-        return (f"the fitted force balance explains almost none of the held-out force (error {test_force_pct:.3g} %): "
-                "the motion is not driven by the recorded input through a force balance of this form")  # fmt: skip
+                "positive beyond its uncertainty (is u a force or current, x a position of the driven body?)")  # fmt: skip
+    if train_force_pct is not None and train_force_pct >= OUT_OF_SCOPE_PCT:
+        return (f"the fitted force balance explains almost none of the force even where it was fitted (error "
+                f"{train_force_pct:.3g} %): the motion is not driven by the recorded input through a force balance "
+                "of this form")  # fmt: skip
     return ""
 
 
