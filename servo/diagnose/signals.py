@@ -237,12 +237,6 @@ def make_signals(rec: Recording, settings: RobustSettings | None = None) -> Sign
     noise_v = noise_x * velocity_noise_gain(s, fs)
     v_thr = DIRECTION_Z * noise_v
     uncertain = np.abs(vf) <= v_thr
-    # a reversal between two samples is uncertain too: a fast reversal (or a stick of a
-    # few samples) can jump over the band |x'| <= v_thr without a sample inside it, and
-    # the friction there is a constraint force no model of the state predicts
-    flip = np.flatnonzero(np.signbit(vf[1:]) != np.signbit(vf[:-1]))
-    uncertain[flip] = True
-    uncertain[flip + 1] = True
     # a row is unusable if its decimation filter reaches an uncertain sample
     reach = filter_reach(s)
     if np.any(uncertain):
