@@ -140,3 +140,23 @@ def test_bad_input_is_one_line_and_writes_nothing(tmp_path, capsys, case, extra,
     assert err.count("\n") == 1 and err.startswith("servo: error:"), err
     assert needle in err, err
     assert not out.exists()
+
+
+def test_the_summary_opens_with_the_verdict_and_prints_the_final_model_as_written(tmp_path, capsys):
+    """EMPS with J,B: the offset found second (-3.16 N) moves in the final refit; the
+    summary's final model holds the values of final_model.toml, and the verdict leads."""
+    import tomllib
+
+    out = tmp_path / "jb"
+    assert main(["diagnose", str(EMPS_MAT), *EMPS, "--baseline", "J,B", "--no-plots", "--out", str(out)]) == 0
+    text = capsys.readouterr().out.splitlines()
+    r = json.loads((out / "report.json").read_text())
+    assert r["verdict"] in ("consistent", "explained", "unexplained", "out_of_scope")
+    assert text[0] == f"verdict: {r['verdict']}: {r['verdict_text']}"
+    drive = tomllib.loads((out / "final_model.toml").read_text())["drive"]
+    i = text.index(next(s for s in text if s.strip().startswith("final model (as written to final_model.toml")))
+    final = {s.split(":")[0].strip(): s.split(":", 1)[1] for s in text[i + 1 :] if s.startswith("    ")}
+    for physics, key in (("inertia", "J"), ("viscous_friction", "B"), ("coulomb_friction", "Fc"), ("offset", "h0")):
+        printed = float(final[physics].split(key)[1].split()[0])
+        assert printed == pytest.approx(drive[key], rel=1e-5), (physics, printed, drive[key])
+    assert drive["current_limit"] >= 1e12  # no saturation found: no limit

@@ -24,10 +24,11 @@ import numpy as np
 
 from servo.diagnose import baseline as baseline_mod
 from servo.diagnose import locate
+from servo.diagnose import verdict as verdict_mod
 from servo.diagnose.fit import Fit, fit_model, force_error_pct
 from servo.diagnose.model import Design, Model, Term
 from servo.diagnose.quantization import Lattice, candidate_paths, improvement_test, lattice_test
-from servo.diagnose.select import ALPHA, N_BLOCKS, Grams, Score, Selector, make_blocks
+from servo.diagnose.select import ALPHA, N_BLOCKS, Grams, Score, Selector, integrated_time, make_blocks
 from servo.diagnose.signals import Signals, distance_since_reversal, make_signals
 from servo.diagnose.simulate import Prediction, Unsimulable, horizon_samples, predict, starts_in
 from servo.diagnose.terms import VOCABULARY
@@ -116,6 +117,8 @@ class Diagnosis:
     errors: dict
     lattice: Lattice
     simulate_note: str = ""
+    #: ``{"verdict", "text", "baseline_checks", "final_checks"}`` (:mod:`servo.diagnose.verdict`)
+    verdict: dict = field(default_factory=dict)
 
 
 def heldout_residual(design: Design, model: Model, blocks, test_rows: np.ndarray) -> np.ndarray:
@@ -316,6 +319,8 @@ def _prove(design: Design, base: Model, findings: list, test_rows: np.ndarray, s
         if bad is None:
             return fits, errs, nr, preds, unconfirmed, note
         f = findings.pop(bad - 1)
+        k = len(fits[bad].model.terms) - 1  # the dropped term, as fitted when it was tried
+        f.params, f.std = fits[bad].term_params(k), fits[bad].term_std(k)
         unconfirmed.append((f, {"force_rel_pct": errs[bad - 1], "output_nrmse": nr[bad - 1]},
                             {"force_rel_pct": errs[bad], "output_nrmse": nr[bad]}))  # fmt: skip
 
@@ -373,6 +378,21 @@ def diagnose(rec: Recording, opt: Options | None = None) -> Diagnosis:
     if qfind is not None:
         findings.insert(0, qfind)
 
+    def checks(fit, r, nrmse):
+        w = design.train_valid
+        first, last = np.flatnonzero(w)[[0, -1]]
+        tau_r = integrated_time(np.where(w, r, 0.0)[first : last + 1])
+        J = fit.combined().get("inertia", {}).get("J", 0.0)
+        return verdict_mod.assess(design, r, J, tau_r, variables, opt.alpha, nrmse)
+
+    base_checks, final_checks = checks(fits[0], r_before, nr[0]), checks(final, r_after, nr[-1])
+    ji = next((i for i, t in enumerate(final.model.terms) if t.physics == "inertia"), None)
+    J_std = final.term_std(ji).get("J") if ji is not None and final.model.terms[ji].free else 0.0
+    scope = verdict_mod.out_of_scope(final.combined().get("inertia", {}).get("J"), J_std,
+                                     force_error_pct(design, final, design.train_valid))
+    verdict = verdict_mod.decide(base_checks, final_checks, len(findings), scope, opt.force_unit)
+    verdict.update(baseline_checks=base_checks, final_checks=final_checks)
+
     base_err = {"force_rel_pct": errs[0], "output_nrmse": nr[0]}
     if qfind is not None:
         base_err = qfind.before
@@ -388,7 +408,7 @@ def diagnose(rec: Recording, opt: Options | None = None) -> Diagnosis:
         findings=findings, unconfirmed=unconfirmed, rounds=rounds, not_testable=not_testable, implausible=implausible,
         residual_before=r_before, residual_after=r_after, test_rows=test_rows, locate=loc, state=variables,
         pred_before=qfind.prediction if qfind is not None else preds[0], pred_after=preds[-1], errors=errors,
-        lattice=lattice,
+        lattice=lattice, verdict=verdict,
         simulate_note="; ".join(x for x in (note, qnote) if x),
     )  # fmt: skip
 

@@ -8,7 +8,7 @@ from pathlib import Path
 
 import numpy as np
 
-from servo.config import from_dict, to_toml
+from servo.config import MAGNITUDE_MAX, from_dict, to_toml
 from servo.diagnose.fit import Fit
 from servo.diagnose.job import Diagnosis, Finding
 from servo.diagnose.terms import VOCABULARY
@@ -103,8 +103,9 @@ def drive_section(fit: Fit, lattice_step: float | None) -> tuple[dict | None, st
             d["mode_gain"].append(q["gain"])
     if "time_delay" in p:
         d["input_delay_s"] = p["time_delay"]["delay_s"]
-    if "input_saturation" in p:
-        d["current_limit"] = p["input_saturation"]["level"]
+    # without a saturation finding the model has no limit: the config's largest magnitude
+    # (its default, 1 A, would clip a recording in N when the file is held against it)
+    d["current_limit"] = p["input_saturation"]["level"] if "input_saturation" in p else MAGNITUDE_MAX
     d = {k: (float(v) if not isinstance(v, list) else [float(x) for x in v]) for k, v in d.items()}
     try:
         from_dict({"drive": d})
@@ -124,8 +125,12 @@ def build_report(D: Diagnosis, files: list | None = None) -> dict:
                         "cv_improvement_pct": s.improvement_pct, "passed": s.passes(r["level"])}
                        for s in sorted(r["scores"], key=lambda s: s.p)])  # fmt: skip
     loc = D.locate
+    V = D.verdict
     report = {
         "schema": SCHEMA,
+        "verdict": V["verdict"],
+        "verdict_text": V["text"],
+        "checks": {"baseline": V["baseline_checks"], "final_model": V["final_checks"]},
         "recording": {"source": rec.source, "samples": rec.n, "sample_rate_hz": rec.sample_rate_hz,
                       "duration_s": float(rec.t[-1] - rec.t[0]), "force_unit": fu},
         "settings": {"baseline": None if D.opt.model else (D.opt.baseline or "J,B,Fc,K,h0"), "model": D.opt.model,
@@ -182,12 +187,12 @@ def write_drive_toml(report: dict, out: Path) -> bool:
     return True
 
 
-def _fmt_params(params: dict, units: dict, std: dict | None = None) -> str:
+def _fmt_params(params: dict, units: dict, std: dict | None = None, digits: int = 4) -> str:
     parts = []
     for k, v in params.items():
-        if k in ("a_sin", "a_cos"):
+        if k in ("a_sin", "a_cos") or v is None:
             continue
-        s = f"{k} {v:.4g}"
+        s = f"{k} {v:.{digits}g}"
         if std and std.get(k) is not None and math.isfinite(std[k]) and std[k] > 0:
             s += f" +- {std[k]:.2g}"
         u = units.get(k, "-")
@@ -212,6 +217,7 @@ def format_summary(report: dict, out: Path) -> str:
     """The human summary: recording, baseline, one line per finding, final model."""
     rc, rows, b, fm = report["recording"], report["rows"], report["baseline"], report["final_model"]
     lines = [
+        f"verdict: {report['verdict']}: {report['verdict_text']}",
         f"servo diagnose: {rc['source']} ({rc['samples']} samples at {rc['sample_rate_hz']:.6g} Hz, {rc['duration_s']:.3g} s)",
         f"  rows: {rows['total']} ({rows['train']} training, {rows['test']} held out for the proof), "
         f"{100 * rows['usable_fraction']:.0f} % usable (direction known)",
@@ -228,11 +234,15 @@ def format_summary(report: dict, out: Path) -> str:
             note = f" [{f['note']}]" if f.get("note") else ""
             lines.append(f"    {i}. {f['physics']}: {_fmt_params(f['params'], f['units'], f['std'])}{note}; "
                          f"where: {f['where'].get('text', '')}; {_change(f)}")  # fmt: skip
-    else:
-        lines.append(f"  no finding: nothing the baseline leaves out shows in these data "
+    elif report["verdict"] == "consistent":
+        lines.append(f"  no finding: the baseline explains these data to their noise "
                      f"(family-wise false-alarm level {100 * s['alpha']:.0f} %)")  # fmt: skip
+    else:
+        lines.append(f"  no finding: no vocabulary term lowers the held-out error enough to pass the test "
+                     f"(family-wise false-alarm level {100 * s['alpha']:.0f} %); see the verdict")  # fmt: skip
     for u in report["unconfirmed"]:
-        lines.append(f"  not confirmed on the held-out part (dropped): {u['physics']} ({_err(u['test_error_before'])} -> "
+        lines.append(f"  not confirmed on the held-out part (dropped): {u['physics']}: "
+                     f"{_fmt_params(u['params'], u['units'], u['std'])} ({_err(u['test_error_before'])} -> "
                      f"{_err(u['test_error_after'])})")  # fmt: skip
     for name, why in report["implausible"].items():
         lines.append(f"  not named: {name}: {why}")
@@ -240,6 +250,11 @@ def format_summary(report: dict, out: Path) -> str:
     lines.append(f"  final model: held-out force error {be['test_force_rel_pct']:.3g} % -> {fe['test_force_rel_pct']:.3g} %"
                  + (f", output NRMSE {be['test_output_nrmse']:.3g} -> {fe['test_output_nrmse']:.3g}"
                     if fe["test_output_nrmse"] is not None else f" ({report['simulation_note']})"))  # fmt: skip
+    where = "as written to final_model.toml" if fm["drive"] is not None else f"not a drive config: {fm['drive_note']}"
+    lines.append(f"  final model ({where}; the findings' parameters above are as fitted when each was added):")
+    for t in fm["terms"]:
+        lines.append(f"    {t['physics']}: {_fmt_params(t['params'], t['units'], t['std'], digits=6)}"
+                     + (" (fixed)" if t.get("fixed") else ""))  # fmt: skip
     lines.append(f"  wrote {out}/: " + ", ".join(report["files"]))
     return "\n".join(lines)
 
