@@ -19,7 +19,7 @@ import tomllib
 
 from servo.errors import ConfigError, ServoError
 
-COMMANDS = ("run", "config", "identify", "hysteresis", "bode", "paper", "emulate", "diagnose")
+COMMANDS = ("run", "config", "identify", "hysteresis", "bode", "paper", "emulate", "diagnose", "fleet")
 
 
 class UsageError(ServoError):
