@@ -73,7 +73,7 @@ def batches(tasks: list, size: int, workers: int) -> list[list]:
     than :data:`BATCHES_PER_WORKER` batches per worker."""
     if not tasks:
         return []
-    size = max(1, min(size, math.ceil(len(tasks) / (BATCHES_PER_WORKER * max(workers, 1)))))
+    size = max(1, min(size, len(tasks) // (BATCHES_PER_WORKER * max(workers, 1))))
     return [tasks[i : i + size] for i in range(0, len(tasks), size)]
 
 
