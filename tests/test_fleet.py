@@ -196,8 +196,9 @@ def test_the_in_memory_scenario_is_servo_runs_fast_path_bit_for_bit(tmp_path):
 
 def test_simulate_fleet_compensation_removes_the_hysteresis_tail_of_every_drawn_drive(tmp_path, capsys):
     out = tmp_path / "mc"
+    (tmp_path / "spread.toml").write_text('[drive]\nsigma = "normal(320, 10%)"\n')
     argv = ["fleet", "simulate", "--drives", "5", "--duration", "0.12", "--workers", "0", "--seed", "7",
-            "--vary", "drive.Ha=lognormal(1e-3, 20%)", "--vary", "drive.sigma=normal(320, 10%)", "--out", str(out)]  # fmt: skip
+            "--vary", "drive.Ha=lognormal(1e-3, 20%)", "--spread", str(tmp_path / "spread.toml"), "--out", str(out)]  # fmt: skip
     assert main(argv) == 0
     assert "5 drives, 5 ok" in capsys.readouterr().out
     rows = pq.read_table(out / "fleet.parquet").to_pylist()
@@ -231,6 +232,8 @@ def test_simulate_fleet_compensation_removes_the_hysteresis_tail_of_every_drawn_
     (["fleet", "simulate", "--vary", "drive.Fc=gauss(1, 2)"], "expected normal(A, B)"),
     (["fleet", "simulate", "--vary", "drive.Fc=normal(1e-3, 10%)"], "drive.Fs"),
     (["fleet", "simulate"], "nothing varies"),
+    (["fleet", "simulate", "--spread", "missing.toml"], "no such file"),
+    (["fleet", "simulate", "--spread", "x.csv"], "x.csv"),
     (["fleet", "simulate", "--vary", "drive.Ha=normal(1e-3, 10%)", "--workers", "-1"], "--workers"),
     (["fleet", "simulate", "--vary", "drive.Ha=normal(1e-3, 10%)", "--workers", "2", "--scheduler", "tcp://x:1"],
      "--scheduler"),

@@ -52,9 +52,11 @@ def run(drive: dict, s: dict) -> dict:
 
 
 def scored(columns: list[str]) -> list[str]:
-    """Columns scored for outliers and plotted as histograms: the figures of both runs
-    (the drawn fields are what was asked for, not findings)."""
-    return [c for c in columns if c.startswith(("comp_", "uncomp_"))]
+    """Columns scored for outliers and plotted as histograms: the main figures of both
+    runs, tracking error RMS, each step's overshoot and settling, the disturbance
+    segment's RMS (not the drawn fields: they are what was asked for)."""
+    ends = ("_error_rms_m", "_overshoot_pct", "_settling_ms", "_rms_disturbance_m")
+    return [c for c in columns if c.startswith(("comp_", "uncomp_")) and c.endswith(ends)]
 
 
 def pairs(columns: list[str]) -> list[tuple[str, str]]:
