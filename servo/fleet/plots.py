@@ -13,8 +13,9 @@ from pathlib import Path
 
 import numpy as np
 from matplotlib.figure import Figure
+from matplotlib.ticker import MaxNLocator
 
-from servo.fleet.outliers import THRESHOLD, robust_z
+from servo.fleet.outliers import MIN_DRIVES, THRESHOLD, robust_z
 from servo.io.atomic import atomic_write
 
 
@@ -38,17 +39,18 @@ def _grid(n: int, size=(3.2, 2.4)) -> tuple[Figure, list]:
 
 
 def histograms(rows: list[dict], columns: list[str]) -> Figure:
-    """One histogram per column, the median dashed, outliers' values as red ticks."""
+    """One histogram per column that at least :data:`~servo.fleet.outliers.MIN_DRIVES`
+    drives have a value in (a finding's parameters, on a few drives, are listed in the
+    report instead), the median dashed, outliers' values as red ticks."""
     good = _ok(rows)
+    columns = [c for c in columns if np.isfinite(_values(good, c)).sum() >= MIN_DRIVES]
     fig, axes = _grid(len(columns))
     for ax, c in zip(axes, columns):
         x = _values(good, c)
         x = x[np.isfinite(x)]
         ax.set_title(c, fontsize=8)
         ax.tick_params(labelsize=7)
-        if not x.size:
-            ax.text(0.5, 0.5, "no values", ha="center", va="center", transform=ax.transAxes, fontsize=8)
-            continue
+        ax.xaxis.set_major_locator(MaxNLocator(4))
         ax.hist(x, bins=min(40, max(5, int(math.sqrt(x.size)) + 1)), color="0.6")
         z, med, _ = robust_z(x)
         if math.isfinite(med):
@@ -70,6 +72,7 @@ def scatters(rows: list[dict], pairs: list[tuple[str, str]]) -> Figure:
         ax.set_xlabel(a, fontsize=8)
         ax.set_ylabel(b, fontsize=8)
         ax.tick_params(labelsize=7)
+        ax.xaxis.set_major_locator(MaxNLocator(4))
     fig.suptitle(f"fleet: {len(good)} drives, main pairs", fontsize=9)
     return fig
 
@@ -87,11 +90,13 @@ def findings(rows: list[dict]) -> Figure:
     ax1.set_xlabel("drive (table order)", fontsize=8)
     ax1.set_ylabel("findings", fontsize=8)
     ax1.tick_params(labelsize=7)
+    ax1.yaxis.set_major_locator(MaxNLocator(integer=True))
     counts = [sum(k in n for n in names) for k in kinds]
     ax2.barh(np.arange(len(kinds)), counts, color=[color[k] for k in kinds])
     ax2.set_yticks(np.arange(len(kinds)), kinds, fontsize=7)
     ax2.set_xlabel("drives", fontsize=8)
     ax2.tick_params(labelsize=7)
+    ax2.xaxis.set_major_locator(MaxNLocator(integer=True))
     flagged = sum(bool(n) for n in names)
     fig.suptitle(f"fleet diagnosis: {flagged} of {len(good)} drives with findings", fontsize=9)
     return fig
