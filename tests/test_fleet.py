@@ -167,6 +167,31 @@ def test_resume_skips_drives_already_done_by_content_and_settings(small_fleet, t
     assert go(fleet_identify.settings(force_lag_s=0.0))["resumed"] == 0
 
 
+def test_a_fleet_stopped_half_way_continues_with_resume(small_fleet, tmp_path, monkeypatch):
+    import servo.fleet.job as job_mod
+
+    d, truth = small_fleet
+    monkeypatch.setattr(job_mod, "CHECKPOINT_S", 0.0)  # a checkpoint after every drive
+    s = fleet_identify.settings(force_lag_s=LAG)
+    tasks = recording_tasks(sources([str(d / "drive*.npz")]), s)
+    seen = []
+
+    def stop_after_three(rows):
+        seen.extend(rows)
+        if len(seen) == 3:
+            raise KeyboardInterrupt  # Ctrl-C half-way
+
+    with pytest.raises(KeyboardInterrupt):
+        run_fleet("identify", tasks, s, tmp_path / "out", Where(workers=0), progress=stop_after_three)
+    partial = pq.read_table(tmp_path / "out" / "fleet.parquet").to_pylist()
+    assert [r["drive"] for r in partial] == sorted(truth)[:3]
+    summary = run_fleet("identify", tasks, s, tmp_path / "out", Where(workers=0), resume=True, plots=False)
+    assert (summary["resumed"], summary["ok"]) == (3, 6)
+    fresh = run_fleet("identify", tasks, s, tmp_path / "fresh", Where(workers=0), plots=False)
+    assert fresh["resumed"] == 0
+    assert pq.read_table(tmp_path / "out" / "fleet.parquet").equals(pq.read_table(tmp_path / "fresh" / "fleet.parquet"))
+
+
 # ---------------------------------------------------------------- diagnosis rows
 
 

@@ -40,11 +40,11 @@ class _Checkpoint:
 
     def __call__(self, rows: list[dict]) -> None:
         self.rows += rows
-        if self.then is not None:
-            self.then(rows)
         if time.perf_counter() - self.last >= self.every_s:
             table.write(self.path, self.rows)
             self.last = time.perf_counter()
+        if self.then is not None:
+            self.then(rows)
 
 
 def run_fleet(command: str, tasks: list[Task], settings: dict, out: str | Path, where: runner.Where = runner.Where(),
@@ -60,7 +60,7 @@ def run_fleet(command: str, tasks: list[Task], settings: dict, out: str | Path, 
     done = table.done_rows(path) if resume else {}
     kept = {t.key: {**done[t.key], "drive": t.drive, "source": t.source} for t in tasks if t.key in done}
     todo = [t for t in tasks if t.key not in kept]
-    if progress is not None and kept:
+    if kept and hasattr(progress, "total"):
         progress.total = len(todo)
     t0 = time.perf_counter()
     check = _Checkpoint(path, list(kept.values()), CHECKPOINT_S, progress)

@@ -47,7 +47,7 @@ def _population(rows: list[dict], columns: list[str]) -> list[str]:
 
 
 def _cut(lines: list[str], n: int) -> list[str]:
-    return lines if n <= MAX_LISTED else lines + [f"", f"({n - MAX_LISTED} more in the table)"]
+    return lines if n <= MAX_LISTED else lines + ["", f"({n - MAX_LISTED} more in the table)"]
 
 
 def format_report(summary: dict, rows: list[dict], scored: list[str], found: list[Outlier]) -> str:
