@@ -55,7 +55,6 @@ def run_fleet(command: str, tasks: list[Task], settings: dict, out: str | Path, 
     where.check()
     adapter = importlib.import_module(ADAPTERS[command])
     out = Path(out)
-    out.mkdir(parents=True, exist_ok=True)
     path = out / table.NAME
     done = table.done_rows(path) if resume else {}
     kept = {t.key: {**done[t.key], "drive": t.drive, "source": t.source} for t in tasks if t.key in done}
@@ -68,6 +67,7 @@ def run_fleet(command: str, tasks: list[Task], settings: dict, out: str | Path, 
     wall = time.perf_counter() - t0
     by_key = {**kept, **{r["key"]: r for r in new}}
     rows = [by_key[t.key] for t in tasks]
+    out.mkdir(parents=True, exist_ok=True)
     table.write(path, rows)
 
     cols = table.columns_of(rows)

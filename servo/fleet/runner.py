@@ -128,7 +128,8 @@ def _client(where: Where, n_tasks: int):
         try:
             return Client(where.scheduler, timeout=CONNECT_TIMEOUT_S), None
         except (OSError, TimeoutError, ValueError) as exc:
-            raise ConfigError(f"fleet: cannot reach the Dask scheduler at {where.scheduler}: {error_line(exc)}") from None
+            why = " ".join((str(exc) or type(exc).__name__).split())
+            raise ConfigError(f"fleet: cannot reach the Dask scheduler at {where.scheduler}: {why}") from None
     n = min(local_workers(where), n_tasks)
     cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=True, dashboard_address=None,
                            silence_logs=logging.ERROR)  # fmt: skip

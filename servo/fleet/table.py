@@ -40,6 +40,7 @@ def to_table(rows: list[dict]) -> pa.Table:
 def write(path: str | Path, rows: list[dict]) -> pa.Table:
     """Write ``rows`` as Parquet at ``path``, atomically; returns the table."""
     table = to_table(rows)
+    Path(path).parent.mkdir(parents=True, exist_ok=True)
     atomic_write(Path(path), lambda tmp: pq.write_table(table, tmp))
     return table
 
