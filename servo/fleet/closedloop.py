@@ -1,0 +1,69 @@
+"""One drive's ``servo run`` scenario on the all-compiled fast path, in memory, and its figures.
+
+The same closed loop as ``servo run --fast`` (:func:`servo.runtime.loop.run_closed_loop`
+with a :class:`~servo.runtime.simdriver.SimDriver` and the PI holding loop of
+:class:`~servo.runtime.controller.Controller`), but the log stays in memory
+(:class:`servo.experiments.sim.MemoryLog`): no journal, no NPZ or CSV per drive.  The
+figures are those of ``servo run``'s summary, from :mod:`servo.run.metrics`: tracking
+error RMS over the run and per scenario segment, overshoot and settling of every
+reference step (:class:`servo.run.reduce.RunFigures`).
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from servo.config import Config
+from servo.experiments.sim import MemoryLog
+from servo.run.reduce import RunFigures
+from servo.runtime.controller import Controller
+from servo.runtime.loop import log_rows, run_closed_loop
+from servo.runtime.scenario import scenario_inputs
+from servo.runtime.simdriver import SimDriver
+
+def run_scenario(cfg: Config, compensated: bool) -> np.ndarray:
+    """The log rows (rows, len(LOG_COLUMNS)) of the scenario of ``cfg`` on its simulated
+    drive, with or without the compensator.  A simulation whose state stops being finite
+    raises :class:`~servo.errors.DriverError`."""
+    inputs = scenario_inputs(cfg)
+    log = MemoryLog(log_rows(cfg))
+    driver = SimDriver(cfg, inputs)
+    try:
+        run_closed_loop(cfg, driver, Controller(cfg, compensation=compensated), inputs, log, fast=True, timing=False)
+    finally:
+        driver.close()
+    return log.data[: log.rows]
+
+
+def _slug(name: str) -> str:
+    return name.replace(" ", "")
+
+
+def figures(cfg: Config, log: np.ndarray) -> dict:
+    """Flat figures of one run's log, computed as ``servo run``'s summary computes them
+    (:class:`servo.run.reduce.RunFigures`): ``error_rms_m``, ``error_max_m``,
+    ``rms_<segment>_m`` (``hold``, ``step1``..., ``disturbance``), and per step ``i`` that
+    changes the reference ``step<i>_overshoot_pct`` and ``step<i>_settling_ms`` (None: not
+    settled within its segment)."""
+    reduce = RunFigures(cfg)
+    reduce(log)
+    f = reduce.result()
+    out = {"error_rms_m": f["error_rms_m"], "error_max_m": f["error_max_m"]}
+    out.update({f"rms_{_slug(name)}_m": v for name, v in f["error_rms_by_segment_m"].items()})
+    steps = {ts: st for ts, st in zip(cfg.scenario.step_times, range(1, len(cfg.scenario.step_times) + 1))}
+    for st in f["steps"]:
+        i = steps[st["t_s"]]
+        out[f"step{i}_overshoot_pct"] = st["overshoot_pct"]
+        out[f"step{i}_settling_ms"] = st["settling_ms"]
+    return out
+
+
+def compare(cfg: Config) -> dict:
+    """Figures with the compensator (``comp_*``) and without (``uncomp_*``) for the drive
+    of ``cfg`` (the compensator's own settings are those of ``cfg.compensator``)."""
+    out = {}
+    for label, on in (("comp", True), ("uncomp", False)):
+        out.update({f"{label}_{k}": v for k, v in figures(cfg, run_scenario(cfg, on)).items()})
+    return out
+
+
+__all__ = ["compare", "figures", "run_scenario"]

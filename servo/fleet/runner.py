@@ -1,0 +1,175 @@
+"""Run a fleet's tasks on Dask (``dask.distributed``), or in this process.
+
+Where the tasks run (:class:`Where`):
+
+* ``scheduler="tcp://HOST:PORT"``: an existing cluster (``dask scheduler`` and
+  ``dask worker`` processes that can import ``servo`` and read the recordings' paths);
+* otherwise, for more than :data:`IN_PROCESS_MAX` tasks, a local cluster of
+  ``workers`` processes (default: one per CPU), one thread each, started for the command
+  and stopped after it;
+* ``workers=0``, or a handful of tasks: this process, one after the other (no cluster
+  to start).
+
+Tasks go to the workers in batches (:func:`batches`: several drives per Dask task when
+each is tiny, but at least :data:`BATCHES_PER_WORKER` batches per worker so the load
+balances).  A task carries a recording's *path*, never its data: the workers read the
+recordings.  Each worker process imports the kernels once, from Numba's on-disk cache,
+and reuses them for every task.  A worker that dies mid-run loses nothing: the
+scheduler reruns its tasks elsewhere; a batch that keeps killing workers
+(``distributed``'s ``allowed-failures``) gets an error in each of its rows.  The rows
+come back in the tasks' order whatever the order of completion, so the table of a
+cluster run equals the table of a serial run row for row.
+"""
+from __future__ import annotations
+
+import logging
+import math
+import os
+import sys
+import time
+from dataclasses import dataclass
+from typing import Callable
+
+from servo.errors import ConfigError
+from servo.fleet.task import Task, error_line, failed_row, run_batch
+
+#: at most this many tasks run in this process when no cluster is named
+IN_PROCESS_MAX = 4
+BATCHES_PER_WORKER = 4
+CONNECT_TIMEOUT_S = 10
+
+
+@dataclass(frozen=True)
+class Where:
+    """Where to run: ``scheduler`` address of an existing cluster, or a local cluster
+    of ``workers`` processes (None: one per CPU; 0: this process); ``batch``: drives per
+    Dask task (None: the command's default)."""
+
+    scheduler: str | None = None
+    workers: int | None = None
+    batch: int | None = None
+
+    def check(self) -> None:
+        if self.workers is not None and self.workers < 0:
+            raise ConfigError(f"fleet: --workers {self.workers}: expected 0 (this process) or more")
+        if self.batch is not None and self.batch < 1:
+            raise ConfigError(f"fleet: --batch {self.batch}: expected at least 1")
+        if self.scheduler is not None and self.workers is not None:
+            raise ConfigError("fleet: --workers sizes a local cluster; with --scheduler the cluster has its own")
+
+
+def local_workers(where: Where) -> int:
+    """Size of the local cluster: ``where.workers`` or the CPUs this process may use."""
+    if where.workers is not None:
+        return where.workers
+    try:
+        return max(len(os.sched_getaffinity(0)), 1)
+    except AttributeError:
+        return os.cpu_count() or 1
+
+
+def batches(tasks: list, size: int, workers: int) -> list[list]:
+    """Consecutive groups of at most ``size`` tasks, smaller if that would leave fewer
+    than :data:`BATCHES_PER_WORKER` batches per worker."""
+    if not tasks:
+        return []
+    size = max(1, min(size, len(tasks) // (BATCHES_PER_WORKER * max(workers, 1))))
+    return [tasks[i : i + size] for i in range(0, len(tasks), size)]
+
+
+class Progress:
+    """Progress on a stream (stderr): drives done, failed, elapsed and remaining time;
+    one line at most every ``every_s`` seconds, and the last."""
+
+    def __init__(self, label: str, total: int, stream=None, every_s: float = 2.0):
+        self.label, self.total, self.every_s = label, total, every_s
+        self.stream = sys.stderr if stream is None else stream
+        self.done = self.failed = 0
+        self.t0 = time.perf_counter()
+        self.last = -math.inf
+
+    def __call__(self, rows: list) -> None:
+        self.done += len(rows)
+        self.failed += sum(r["status"] != "ok" for r in rows)
+        now = time.perf_counter()
+        if now - self.last >= self.every_s or self.done >= self.total:
+            self.last = now
+            el = now - self.t0
+            left = el / self.done * (self.total - self.done) if self.done else math.nan
+            eta = f", ~{left:.0f} s left" if self.done < self.total and math.isfinite(left) else ""
+            print(f"{self.label}: {self.done}/{self.total} drives, {self.failed} failed, {el:.1f} s{eta}",
+                  file=self.stream, flush=True)  # fmt: skip
+
+
+def describe(where: Where, n_tasks: int) -> str:
+    """Where ``n_tasks`` tasks will run, in words."""
+    if where.scheduler is not None:
+        return f"the Dask cluster at {where.scheduler}"
+    if where.workers == 0 or n_tasks <= IN_PROCESS_MAX:
+        return "this process"
+    n = min(local_workers(where), n_tasks)
+    return f"a local Dask cluster of {n} worker process{'es' if n != 1 else ''}"
+
+
+def _in_process(command, tasks, settings, on_rows) -> list[dict]:
+    rows = []
+    for t in tasks:
+        got = run_batch(command, [t], settings)
+        rows += got
+        on_rows(got)
+    return rows
+
+
+def _client(where: Where, n_tasks: int):
+    """A connected ``distributed.Client`` and the local cluster it owns (or None)."""
+    from distributed import Client, LocalCluster
+
+    if where.scheduler is not None:
+        try:
+            return Client(where.scheduler, timeout=CONNECT_TIMEOUT_S), None
+        except (OSError, TimeoutError, ValueError) as exc:
+            why = " ".join((str(exc) or type(exc).__name__).split())
+            raise ConfigError(f"fleet: cannot reach the Dask scheduler at {where.scheduler}: {why}") from None
+    n = min(local_workers(where), n_tasks)
+    cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=True, dashboard_address=None,
+                           silence_logs=logging.ERROR)  # fmt: skip
+    return Client(cluster), cluster
+
+
+def run(command: str, tasks: list[Task], settings: dict, where: Where = Where(), default_batch: int = 1,
+        on_rows: Callable[[list], None] | None = None) -> list[dict]:  # fmt: skip
+    """Rows of ``tasks`` (:func:`servo.fleet.task.run_batch`), in the tasks' order.
+    ``on_rows(rows)`` is called with each batch's rows as they complete (progress,
+    checkpoints)."""
+    where.check()
+    on_rows = on_rows or (lambda rows: None)
+    if not tasks:
+        return []
+    if where.scheduler is None and (where.workers == 0 or len(tasks) <= IN_PROCESS_MAX):
+        return _in_process(command, tasks, settings, on_rows)
+    from distributed import as_completed
+
+    client, cluster = _client(where, len(tasks))
+    try:
+        n_workers = max(len(client.scheduler_info().get("workers", {})), 1)
+        groups = batches(tasks, where.batch or default_batch, n_workers)
+        futures = {client.submit(run_batch, command, g, settings, pure=False): i for i, g in enumerate(groups)}
+        results: list = [None] * len(groups)
+        for fut in as_completed(futures):
+            i = futures[fut]
+            try:
+                rows = fut.result()
+            except Exception as exc:  # the batch could not run (its workers kept dying): its rows say so
+                why = f"worker failure: {error_line(exc)}"
+                rows = [failed_row(t, settings, why) for t in groups[i]]
+            results[i] = rows
+            on_rows(rows)
+            fut.release()
+        return [r for rows in results for r in rows]
+    finally:
+        client.close()
+        if cluster is not None:
+            cluster.close()
+
+
+__all__ = ["IN_PROCESS_MAX", "Progress", "Where", "batches", "describe", "local_workers", "run"]

@@ -1,0 +1,72 @@
+"""``servo fleet simulate``: one drawn drive's closed loop, compensator on and off, as one row.
+
+The payload is the drive's drawn ``[drive]`` fields; the settings carry the rest of the
+configuration (the base config as a document: the compensator keeps its own settings,
+so the fleet shows how one compensator tuned for the nominal drive does across the
+spread).  The row: the drawn fields as ``drive.<field>`` and the figures of
+:func:`servo.fleet.closedloop.compare` (``comp_*``, ``uncomp_*``).
+"""
+from __future__ import annotations
+
+import hashlib
+
+from servo.config import from_dict
+from servo.fleet.closedloop import compare
+from servo.fleet.task import Task, canonical, task_key
+
+#: drives per Dask task (a drive's two runs take a few tens of milliseconds)
+BATCH = 16
+
+
+def settings(base: dict, vary: dict, seed: int) -> dict:
+    """The settings of a Monte Carlo fleet: the base config document
+    (:func:`servo.config.to_dict`), the distributions' texts and the seed (JSON-able;
+    part of the resume key; the fleet's size is not, so a larger fleet of the same
+    seed resumes the drives of a smaller one)."""
+    return {"command": "simulate", "base": base, "vary": dict(vary), "seed": int(seed)}
+
+
+def drive_tasks(drives: list[dict], s: dict) -> list[Task]:
+    """One task per drawn drive, named ``drive-00000``...; its content hash is that of
+    its drawn fields."""
+    width = max(5, len(str(len(drives) - 1)))
+    out = []
+    for i, d in enumerate(drives):
+        h = hashlib.sha256(canonical(d).encode()).hexdigest()
+        out.append(Task(f"drive-{i:0{width}d}", task_key(h, s), f"simulated:{s['seed']}:{i}", h, d))
+    return out
+
+
+def config_of(drive: dict, s: dict):
+    """The validated config of one drive: the base with its drawn fields."""
+    data = {k: dict(v) for k, v in s["base"].items()}
+    data["drive"].update(drive)
+    return from_dict(data)
+
+
+def run(drive: dict, s: dict) -> dict:
+    """Columns of one drive (``{field: value}``)."""
+    out = {f"drive.{k}": float(v) for k, v in drive.items()}
+    out.update(compare(config_of(drive, s)))
+    return out
+
+
+def scored(columns: list[str]) -> list[str]:
+    """Columns scored for outliers and plotted as histograms: the main figures of both
+    runs, tracking error RMS, each step's overshoot and settling, the disturbance
+    segment's RMS (not the drawn fields: they are what was asked for)."""
+    ends = ("_error_rms_m", "_overshoot_pct", "_settling_ms", "_rms_disturbance_m")
+    return [c for c in columns if c.startswith(("comp_", "uncomp_")) and c.endswith(ends)]
+
+
+def pairs(columns: list[str]) -> list[tuple[str, str]]:
+    """The main pairs to scatter: each drawn field against the compensated run's error,
+    and settling with against without the compensator for each step."""
+    out = [(c, "comp_error_rms_m") for c in columns if c.startswith("drive.") and "comp_error_rms_m" in columns]
+    for c in columns:
+        if c.startswith("uncomp_step") and c.endswith("_settling_ms") and c[2:] in columns:
+            out.append((c, c[2:]))
+    return out
+
+
+__all__ = ["BATCH", "config_of", "drive_tasks", "pairs", "run", "scored", "settings"]
