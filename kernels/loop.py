@@ -17,6 +17,8 @@ from kernels.plant import plant_measure, plant_params_t, plant_state_t, plant_st
 #: Columns of a run log, in order.  Units: tick (-), t (s), r x (m), v (m/s),
 #: u u_n u_c u_exc h_hat (A), regime (0 SLOW / 1 FAST), e (m).
 LOG_COLUMNS = ("tick", "t", "r", "x", "v", "u", "u_n", "u_c", "u_exc", "h_hat", "regime", "e")
+#: The unit of each column of :data:`LOG_COLUMNS`.
+LOG_UNITS = dict(zip(LOG_COLUMNS, ("-", "s", "m", "m", "m/s", "A", "A", "A", "A", "A", "-", "m")))
 
 #: Accumulators of the tracking-error estimator: sum of e^2, count, max |e|.
 STATS_SIZE = 3

@@ -6,3 +6,12 @@ core (:mod:`kernels`).  Layers: ``kernels`` <- ``servo`` <- ``hil``; the CLI
 (:mod:`servo.cli`) sits on top.
 """
 __version__ = "0.1.0"
+
+
+def __getattr__(name: str):
+    """``servo.load_run``, imported when first used (``import servo`` stays light)."""
+    if name == "load_run":
+        from servo.io.runfolder import load_run
+
+        return load_run
+    raise AttributeError(f"module 'servo' has no attribute {name!r}")

@@ -10,7 +10,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from servo.diagnose.job import Options, diagnose
+from servo.diagnose.job import diagnose
 from servo.diagnose.proving import integrate as ig
 from servo.diagnose.proving.cases import Case, recording
 

@@ -35,6 +35,7 @@ from servo.diagnose.terms import VOCABULARY
 from servo.errors import ServoError
 from servo.identify.regressors import IdentificationError, RobustSettings
 from servo.io.recording import Recording
+from servo.io.resources import available_memory
 
 MIN_ROWS_PER_BLOCK = 20
 #: memory a diagnosis needs (:func:`memory_estimate`): bytes per full-rate sample (the
@@ -139,18 +140,6 @@ def memory_estimate(n: int, opt: Options) -> float:
     linear in the samples and in the rows (``n/decimate``)."""
     q = max(int(opt.settings.decimate), 1)
     return float(BYTES_PER_SAMPLE * n + BYTES_PER_ROW * (n / q))
-
-
-def available_memory() -> float | None:
-    """``MemAvailable`` of ``/proc/meminfo`` in bytes; None where it cannot be read."""
-    try:
-        with open("/proc/meminfo") as f:
-            for line in f:
-                if line.startswith("MemAvailable:"):
-                    return float(line.split()[1]) * 1024
-    except (OSError, ValueError, IndexError):
-        return None
-    return None
 
 
 def check_memory(n: int, opt: Options) -> None:

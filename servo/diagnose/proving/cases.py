@@ -27,7 +27,6 @@ the input), unrelated to the recorded input.
 """
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 
 import numpy as np

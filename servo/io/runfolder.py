@@ -1,0 +1,90 @@
+"""A ``servo run`` output folder loaded back: its logs with named columns and units, its
+config and its summary.
+
+``load_run(path)`` reads ``log_<label>.npz`` (or ``log_<label>.csv`` when a run wrote
+only CSV) for each run in the folder, ``config.toml`` and ``summary.json``.  A folder an
+interrupted run left (``OUT.incomplete/``) loads too: its summary is None.
+"""
+from __future__ import annotations
+
+import json
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from kernels.loop import LOG_COLUMNS, LOG_UNITS
+from servo.config import Config, load_config
+from servo.errors import RecordingError
+
+
+@dataclass
+class RunFolder:
+    """The contents of a ``servo run`` output folder.
+
+    ``logs``: label (``compensated``, ``uncompensated``) -> column name -> array
+    (rows,); ``units``: column -> unit; ``meta``: label -> the log's meta (rows, seed,
+    path...); ``config``: the run's effective :class:`~servo.config.Config` (rerun it for
+    the same bits); ``summary``: ``summary.json`` as a dict, None for an interrupted run.
+    """
+
+    path: Path
+    logs: dict[str, dict[str, np.ndarray]]
+    config: Config | None
+    summary: dict | None
+    meta: dict[str, dict] = field(default_factory=dict)
+    units: dict[str, str] = field(default_factory=lambda: dict(LOG_UNITS))
+
+    @property
+    def labels(self) -> list[str]:
+        return list(self.logs)
+
+    def rows(self, label: str) -> np.ndarray:
+        """The log of run ``label`` as one array (rows, len(LOG_COLUMNS)), in the column
+        order of :data:`kernels.loop.LOG_COLUMNS` (what :func:`servo.run.plots.plot_run`
+        takes)."""
+        log = self.logs[label]
+        return np.column_stack([log[c] for c in LOG_COLUMNS])
+
+
+def _read_log(npz: Path, csv: Path) -> tuple[dict[str, np.ndarray], dict]:
+    try:
+        if npz.exists():
+            with np.load(npz) as z:
+                meta = json.loads(str(z["meta"])) if "meta" in z.files else {}
+                return {c: z[c] for c in z.files if c != "meta"}, meta
+        with open(csv, encoding="ascii") as fh:
+            names = fh.readline().strip().split(",")
+        data = np.loadtxt(csv, delimiter=",", skiprows=1, ndmin=2)
+        return {c: data[:, i].copy() for i, c in enumerate(names)}, {}
+    except (OSError, ValueError, KeyError) as exc:
+        raise RecordingError(f"{npz if npz.exists() else csv}: not a readable run log ({exc})") from None
+
+
+def load_run(path: str | Path) -> RunFolder:
+    """Load the ``servo run`` output folder ``path`` (see :class:`RunFolder`)."""
+    path = Path(path)
+    if not path.is_dir():
+        raise RecordingError(f"{path}: no such run folder")
+    logs, metas = {}, {}
+    for label in ("compensated", "uncompensated"):
+        npz, csv = path / f"log_{label}.npz", path / f"log_{label}.csv"
+        if npz.exists() or csv.exists():
+            logs[label], metas[label] = _read_log(npz, csv)
+    if not logs:
+        journals = sorted(p.name for p in path.glob("*.journal"))
+        hint = f" (it has {', '.join(journals)}: `servo recover` them first)" if journals else ""
+        raise RecordingError(f"{path}: no run log (log_compensated/log_uncompensated .npz or .csv){hint}")
+    missing = [c for log in logs.values() for c in LOG_COLUMNS if c not in log]
+    if missing:
+        raise RecordingError(f"{path}: a run log lacks the columns {sorted(set(missing))}")
+    config = load_config(path / "config.toml") if (path / "config.toml").exists() else None
+    summary_path = path / "summary.json"
+    try:
+        summary = json.loads(summary_path.read_text()) if summary_path.exists() else None
+    except ValueError as exc:
+        raise RecordingError(f"{summary_path}: not JSON ({exc})") from None
+    return RunFolder(path, logs, config, summary, metas)
+
+
+__all__ = ["RunFolder", "load_run"]
