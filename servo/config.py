@@ -139,13 +139,24 @@ class CompensatorConfig:
 
 @dataclass
 class ScenarioConfig:
-    """The ``servo run`` scenario: hold, reference steps, a sinusoidal force disturbance."""
+    """The ``servo run`` scenario: hold, reference steps, a sinusoidal force disturbance,
+    and an optional excitation current for frequency-response measurements."""
 
     step_times: list = P([0.05, 0.12, 0.19, 0.28], "s", "times of the reference steps", 0.0)
     step_positions: list = P([0.3e-6, 0.0, 20e-6, 0.0], "m", "reference after each step, from the holding position", -0.015, 0.015)
     disturbance_amplitude: float = P(1e-3, "A", "sinusoidal disturbance force amplitude", 0.0)
     disturbance_hz: float = P(40.0, "Hz", "its frequency", 0.0)
     disturbance_start: float = P(0.37, "s", "when it starts", 0.0)
+    excitation: str = P("none", "-", "excitation current added to the controller's output (for servo frf): none, "
+                        "chirp (log sweep f_min to f_max over the rest of the run), multisine (Schroeder phases, "
+                        "lines 1/period apart in [f_min, f_max]) or prbs (flat to about f_max)",
+                        choices=("none", "chirp", "multisine", "prbs"))  # fmt: skip
+    excitation_amplitude: float = P(0.5e-3, "A", "its peak", 0.0)
+    excitation_f_min: float = P(10.0, "Hz", "lowest frequency (chirp start; multisine band)", 0.0, lo_open=True)
+    excitation_f_max: float = P(2000.0, "Hz", "highest frequency (chirp end; multisine band; prbs bit rate ~ f_max/0.44)",
+                                0.0, lo_open=True)  # fmt: skip
+    excitation_period: float = P(0.1, "s", "multisine and prbs period (their lines are 1/period apart)", 0.0, 10.0, lo_open=True)
+    excitation_start: float = P(0.0, "s", "when it starts; it runs to the end of the run", 0.0)
 
 
 SECTIONS = {

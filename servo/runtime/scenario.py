@@ -11,8 +11,11 @@ from __future__ import annotations
 from typing import Callable
 
 import numpy as np
+from scipy import signal
 
 from servo.config import Config
+from servo.errors import ConfigError
+from servo.runtime import excitation as excite
 
 #: Ticks per input window (the same as the simulated drive's noise blocks).
 BLOCK = 1024
@@ -65,9 +68,15 @@ class ArrayInputs(Inputs):
         return self._at(self.d, ticks)
 
 
+#: Most samples one period of a periodic excitation may hold (8 MB).
+MAX_PERIOD_SAMPLES = 1 << 20
+
+
 class ScenarioInputs(Inputs):
     """The ``servo run`` scenario of ``cfg.scenario``: hold, reference steps, then a
-    sinusoidal force disturbance; no excitation."""
+    sinusoidal force disturbance; and the excitation current of ``scenario.excitation``
+    (:mod:`servo.runtime.excitation`) from ``excitation_start`` on.  A periodic
+    excitation (multisine, prbs) keeps one period; a chirp is evaluated in closed form."""
 
     def __init__(self, cfg: Config):
         s = cfg.scenario
@@ -75,6 +84,40 @@ class ScenarioInputs(Inputs):
         self.step_ticks = np.array([int(round(t / cfg.dt)) for t in s.step_times], dtype=np.int64)
         self.step_positions = np.array(s.step_positions, dtype=float)
         self.amplitude, self.hz, self.start_s = s.disturbance_amplitude, s.disturbance_hz, s.disturbance_start
+        self.kind = s.excitation
+        self.exc_start = int(round(s.excitation_start / cfg.dt))
+        self.period = self._excitation_period(cfg) if self.kind in ("multisine", "prbs") else None
+        if self.kind == "chirp":
+            self.sweep_s = max((cfg.n_ticks - 1 - self.exc_start) * cfg.dt, cfg.dt)
+            excite.chirp(2, cfg.dt, s.excitation_f_min, s.excitation_f_max, s.excitation_amplitude)  # checks them
+        self.s = s
+
+    @staticmethod
+    def _excitation_period(cfg: Config) -> np.ndarray:
+        s, dt = cfg.scenario, cfg.dt
+        n = int(round(s.excitation_period / dt))
+        if n > MAX_PERIOD_SAMPLES:
+            raise ConfigError(f"config: scenario.excitation_period = {s.excitation_period:g} s is {n} samples at "
+                              f"{cfg.run.sample_rate_hz:g} Hz, more than {MAX_PERIOD_SAMPLES}; shorten it")  # fmt: skip
+        if s.excitation == "multisine":
+            return excite.multisine(n, dt, s.excitation_f_min, s.excitation_f_max, s.excitation_amplitude)
+        hold = max(1, int(0.44 / (s.excitation_f_max * dt)))
+        nbits = max(2, int(np.ceil(np.log2(n / hold + 1))))
+        return excite.prbs(excite.prbs_period(nbits, hold), dt, s.excitation_amplitude, nbits, hold)
+
+    def excitation(self, ticks):
+        """The excitation current (A) of ``scenario.excitation`` at ``ticks``."""
+        ticks = np.asarray(ticks)
+        if self.kind == "none":
+            return np.zeros(ticks.shape)
+        k = ticks - self.exc_start
+        if self.kind == "chirp":
+            s = self.s
+            u = s.excitation_amplitude * signal.chirp(k * self.dt, f0=s.excitation_f_min, t1=self.sweep_s,
+                                                      f1=s.excitation_f_max, method="logarithmic")  # fmt: skip
+        else:
+            u = self.period[np.maximum(k, 0) % self.period.shape[0]]
+        return np.where(k >= 0, u, 0.0)
 
     def reference(self, ticks):
         """Piecewise constant (m): ``step_positions[i]`` from ``step_times[i]`` on, 0 before."""
