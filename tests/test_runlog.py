@@ -201,3 +201,10 @@ def test_summaries_are_strict_json_a_nan_or_infinity_becomes_null(tmp_path):
     assert json.loads(text, parse_constant=lambda c: pytest.fail(f"non-JSON constant {c}")) == \
         {"a": None, "b": [None, 1.5], "c": [0, 1], "d": "x"}
     assert [q.name for q in tmp_path.iterdir()] == ["s.json"]
+
+
+def test_the_current_folder_is_refused_as_an_output_folder(tmp_path):
+    r = subprocess.run([sys.executable, "-m", "servo", "run", "--duration", "0.01", "--out", "."], cwd=tmp_path,
+                       capture_output=True, text=True)  # fmt: skip
+    assert r.returncode == 2 and r.stderr.count("\n") == 1 and "is the current folder" in r.stderr, r.stderr
+    assert list(tmp_path.iterdir()) == [] and not (tmp_path.parent / f"{tmp_path.name}.incomplete").exists()

@@ -26,14 +26,17 @@ class OutputError(ServoError):
 
 def staging_dir(final: str | Path) -> Path:
     """Where the outputs of ``final`` are written until they are complete."""
-    final = Path(final)
+    final = Path(os.path.abspath(final))  # "." and ".." have no name to suffix
     return final.with_name(final.name + SUFFIX)
 
 
 def check_output(final: str | Path) -> None:
     """Refuse (one line) an output folder that exists with content, or whose staging
     folder an interrupted command left behind."""
-    final = Path(final)
+    final = Path(os.path.abspath(final))
+    cwd = Path.cwd()
+    if final == cwd or final in cwd.parents:
+        raise OutputError(f"{final}: is the current folder (or holds it); give a new folder with --out")
     if final.exists() and not final.is_dir():
         raise OutputError(f"{final}: File exists (a file, not a folder); choose another --out")
     if final.exists() and any(final.iterdir()):
@@ -52,7 +55,7 @@ def staged(final: str | Path, keep_partial: bool = False):
     ``keep_partial`` and it holds files: then it stays and the error (a
     :class:`~servo.errors.ServoError`, or :class:`~servo.errors.Interrupted` for
     Ctrl-C) names it."""
-    final = Path(final)
+    final = Path(os.path.abspath(final))
     check_output(final)
     staging = staging_dir(final)
     staging.mkdir(parents=True)
