@@ -38,12 +38,20 @@ def cache_dir() -> Path:
     return Path(base) / source_hash()
 
 
+#: True when this process found the keyed cache directory empty or absent: importing the
+#: kernels compiled them (the first run after an install or an edit), rather than loading
+#: them.  None when the user's ``NUMBA_CACHE_DIR`` is used (not known).
+FRESH: bool | None = None
+
+
 def configure() -> None:
     """Point Numba's cache at :func:`cache_dir` unless ``NUMBA_CACHE_DIR`` is set or the
     directory cannot be created (then Numba's default, beside the sources, is used)."""
+    global FRESH
     if os.environ.get("NUMBA_CACHE_DIR"):
         return
     path = cache_dir()
+    FRESH = not (path.is_dir() and any(path.iterdir()))
     try:
         path.mkdir(parents=True, exist_ok=True)
     except OSError:

@@ -19,3 +19,20 @@ def test_any_kernel_edit_changes_the_cache_directory(tmp_path):
 def test_numba_caches_into_the_keyed_directory():
     assert config.CACHE_DIR == str(_cache.cache_dir())
     assert config.CACHE_DIR.endswith(_cache.source_hash())
+
+
+def test_the_first_run_says_it_compiled_the_kernels_and_the_second_that_it_loaded_them(tmp_path):
+    """Issue 12.6: the first run after an install said "cached kernels" while it compiled."""
+    import os
+    import subprocess
+    import sys
+
+    env = {**os.environ, "SERVO_NUMBA_CACHE": str(tmp_path / "cache")}
+    env.pop("NUMBA_CACHE_DIR", None)
+    said = []
+    for i in range(2):
+        r = subprocess.run([sys.executable, "-m", "servo", "run", "--duration", "0.01", "--fast", "--compensation", "on",
+                            "--out", str(tmp_path / f"r{i}")], capture_output=True, text=True, env=env)  # fmt: skip
+        assert r.returncode == 0, r.stderr
+        said.append(next(line for line in r.stdout.splitlines() if "startup:" in line))
+    assert "compiling the kernels" in said[0] and "cached kernels" in said[1]
