@@ -17,6 +17,8 @@ def test_npz_and_csv_folders_load_the_same_log(tmp_path):
     run_job(CFG, tmp_path / "npz", compensation="on", fast=True, log_formats=("npz",))
     run_job(CFG, tmp_path / "csv", compensation="on", fast=True, log_formats=("csv",))
     a, b = servo.load_run(tmp_path / "npz"), servo.load_run(tmp_path / "csv")
+    header = (tmp_path / "csv" / "log_compensated.csv").read_text().split("\n", 1)[0]
+    assert header.startswith("tick [-],t [s],r [m],x [m],v [m/s],u [A]")  # units in the CSV header
     assert a.labels == b.labels == ["compensated"]
     assert list(a.logs["compensated"]) == list(LOG_COLUMNS)
     for c in LOG_COLUMNS:

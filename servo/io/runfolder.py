@@ -54,7 +54,7 @@ def _read_log(npz: Path, csv: Path) -> tuple[dict[str, np.ndarray], dict]:
                 meta = json.loads(str(z["meta"])) if "meta" in z.files else {}
                 return {c: z[c] for c in z.files if c != "meta"}, meta
         with open(csv, encoding="ascii") as fh:
-            names = fh.readline().strip().split(",")
+            names = [n.split(" [")[0] for n in fh.readline().strip().split(",")]  # "t [s]" -> "t"
         data = np.loadtxt(csv, delimiter=",", skiprows=1, ndmin=2)
         return {c: data[:, i].copy() for i, c in enumerate(names)}, {}
     except (OSError, ValueError, KeyError) as exc:

@@ -18,7 +18,8 @@ memory.  The chunks also go to the caller's consumers (the run's summary and plo
 :func:`finalise_journal` turns it into the NPZ and CSV.
 
 NPZ: one float64 array per column (``t``, ``x``, ``u``...) plus ``meta`` (a JSON string).
-CSV: a header row of column names, then one row per sample, ``%.17g`` (exact round trip).
+CSV: a header row of column names with their units (``t [s]``, ``x [m]``: ``units``),
+then one row per sample, ``%.17g`` (exact round trip).
 """
 from __future__ import annotations
 
@@ -114,7 +115,8 @@ class RunLog:
     Fill rows of the current block in place (``data[rows]``), advance ``rows``, call
     :meth:`maybe_flush`; a caller may write up to ``headroom`` rows past ``block_rows``
     before it calls :meth:`maybe_flush` (the compiled loop writes a block of ticks per
-    call).  ``formats``: which of ``npz``/``csv`` :meth:`finalise` writes.  Use as a
+    call).  ``formats``: which of ``npz``/``csv`` :meth:`finalise` writes; ``units``:
+    column -> unit, for the CSV header.  Use as a
     context manager; :meth:`close` finalises whatever was recorded.
     """
 
@@ -124,7 +126,7 @@ class RunLog:
     BUFFER_BYTES = 8 << 20
 
     def __init__(self, out_dir: str | Path, name: str, columns, meta: dict | None = None, block_rows: int = 8192,
-                 headroom: int = 1024, formats: Iterable[str] = FORMATS):  # fmt: skip
+                 headroom: int = 1024, formats: Iterable[str] = FORMATS, units: dict[str, str] | None = None):  # fmt: skip
         self.dir = Path(out_dir)
         self.name = name
         self.columns = tuple(columns)
@@ -141,7 +143,7 @@ class RunLog:
         self.journal_path = self.dir / f"{name}.journal"
         self.dir.mkdir(parents=True, exist_ok=True)
         self._journal = open(self.journal_path, "wb")
-        header = {"columns": self.columns, "meta": self.meta}
+        header = {"columns": self.columns, "units": dict(units or {}), "meta": self.meta}
         self._journal.write((json.dumps(header) + "\n").encode())
         self._journal.flush()
         os.fsync(self._journal.fileno())
@@ -281,6 +283,14 @@ def _journal_header(fh) -> tuple[tuple[str, ...], dict]:
     return tuple(header["columns"]), header["meta"]
 
 
+def _csv_names(path) -> list[str]:
+    """The CSV header of a journal's columns: ``name [unit]`` where a unit is known."""
+    with open(path, "rb") as fh:
+        header = json.loads(fh.readline())
+    units = header.get("units") or {}
+    return [f"{c} [{units[c]}]" if units.get(c) else c for c in header["columns"]]
+
+
 def iter_journal(path: str | Path, chunk_rows: int = CHUNK_ROWS) -> Iterator[np.ndarray]:
     """The complete rows of a journal, in chunks of at most ``chunk_rows`` (rows, columns)."""
     with open(path, "rb") as fh:
@@ -332,7 +342,7 @@ def finalise_journal(path: str | Path, formats: Iterable[str] = FORMATS,
         csv_fh = open(csv_tmp, "w", encoding="ascii") if "csv" in formats else None
         try:
             if csv_fh:
-                csv_fh.write(",".join(cols) + "\n")
+                csv_fh.write(",".join(_csv_names(path)) + "\n")
             for chunk in iter_journal(path):
                 for i, f in enumerate(col_fh):
                     f.write(np.ascontiguousarray(chunk[:, i]).tobytes())

@@ -21,7 +21,7 @@ from typing import Callable
 import numpy as np
 
 from kernels import _cache
-from kernels.loop import LOG_COLUMNS
+from kernels.loop import LOG_COLUMNS, LOG_UNITS
 from servo.config import Config, to_toml
 from servo.io.atomic import atomic_write, write_json
 from servo.io.resources import check_disk
@@ -72,7 +72,7 @@ def run_simulated(cfg: Config, out_dir: Path, compensated: bool, fast: bool,
     section = realtime_section(realtime.cpu, realtime.fifo_priority, realtime.lock_memory) if realtime else nullcontext()
     block = REALTIME_LOG_BLOCK if (realtime or make_driver is not None) else LOG_BLOCK
     figures, plot_rows = RunFigures(cfg), PlotRows(log_rows(cfg))
-    log = RunLog(out_dir, f"log_{label}", LOG_COLUMNS, meta, block, formats=log_formats)
+    log = RunLog(out_dir, f"log_{label}", LOG_COLUMNS, meta, block, formats=log_formats, units=LOG_UNITS)
     try:
         with driver:
             with section as grant:  # only around configure and the loop: the log is finalised outside
