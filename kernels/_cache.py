@@ -38,20 +38,12 @@ def cache_dir() -> Path:
     return Path(base) / source_hash()
 
 
-#: True when this process found the keyed cache directory empty or absent: importing the
-#: kernels compiled them (the first run after an install or an edit), rather than loading
-#: them.  None when the user's ``NUMBA_CACHE_DIR`` is used (not known).
-FRESH: bool | None = None
-
-
 def configure() -> None:
     """Point Numba's cache at :func:`cache_dir` unless ``NUMBA_CACHE_DIR`` is set or the
     directory cannot be created (then Numba's default, beside the sources, is used)."""
-    global FRESH
     if os.environ.get("NUMBA_CACHE_DIR"):
         return
     path = cache_dir()
-    FRESH = not (path.is_dir() and any(path.iterdir()))
     try:
         path.mkdir(parents=True, exist_ok=True)
     except OSError:
@@ -60,3 +52,19 @@ def configure() -> None:
 
 
 configure()
+
+
+def compiled_here() -> bool:
+    """Whether this process compiled any kernel rather than loading it from the cache (the
+    first run after an install, an edit, or a checkout at a new path: Numba's index is
+    keyed by the source file's path and time as well)."""
+    import sys
+
+    from numba.core.registry import CPUDispatcher
+
+    for name, mod in list(sys.modules.items()):
+        if name == "kernels" or name.startswith("kernels."):
+            for obj in vars(mod).values():
+                if isinstance(obj, CPUDispatcher) and sum(obj.stats.cache_misses.values()) > 0:
+                    return True
+    return False

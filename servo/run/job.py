@@ -155,7 +155,7 @@ def run_job(cfg: Config, out_dir: Path, compensation: str = "compare", fast: boo
         "realtime": realtime is not None,
         "period_us": cfg.dt * 1e6,
         "startup_s": startup,
-        "kernels_compiled": _cache.FRESH,
+        "kernels_compiled": _cache.compiled_here(),
         "runs": runs,
         "provenance": provenance,
         "files": sorted({p.name for p in out_dir.iterdir() if not p.name.startswith(".")} | {"summary.json"}),
@@ -197,7 +197,7 @@ def format_summary(summary: dict, out_dir: Path) -> str:
         else:
             lines.append(f"  compute ({lab}): {r['per_sample_us']:.3f} us/sample (controller + simulated drive, average)")
     if summary.get("startup_s") is not None:
-        kernels = ("compiling the kernels: the first run after an install or an edit" if summary.get("kernels_compiled")
+        kernels = ("compiling the kernels: the first run after an install, an edit or a move" if summary.get("kernels_compiled")
                    else "cached kernels")  # fmt: skip
         lines.append(f"  startup: {summary['startup_s']:.2f} s from process start to the first tick "
                      f"(interpreter, imports, {kernels}, configure)")  # fmt: skip
