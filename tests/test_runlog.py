@@ -185,7 +185,7 @@ def test_memory_does_not_grow_with_the_run(tmp_path):
         assert r.returncode == 0, r.stderr
         peak[d] = int(r.stdout.split()[-1])
         assert np.load(out / "log_compensated.npz")["t"].shape == (int(d * 50_000),)
-    assert peak[40.0] - peak[8.0] < 40e6, peak  # measured: ~11 MB (the plots' envelope, bounded by pixels)
+    assert peak[40.0] - peak[8.0] < 40e6, peak  # measured: +25 MB (mostly drawing the plots' envelope)
 
 
 def test_summaries_are_strict_json_a_nan_or_infinity_becomes_null(tmp_path):
