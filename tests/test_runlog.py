@@ -114,6 +114,23 @@ def test_ctrl_c_stops_cleanly_and_keeps_everything(tmp_path):
     assert not out.exists()
 
 
+def test_a_ctrl_c_inside_a_block_hand_over_neither_loses_nor_doubles_a_block(tmp_path):
+    """Seen under load: Ctrl-C landed after a block was queued and before the log reset
+    its row count, so the closing flush queued it again and the log held it twice."""
+    log = RunLog(tmp_path, "l", ("tick",), block_rows=4, headroom=0)
+    for k in range(6):
+        if log.rows == 4:
+            # the hand-over, interrupted right after it queued the block
+            log._writer.todo.put((log.data, log.rows, log.total))
+            break
+        log.data[log.rows, 0] = k
+        log.rows += 1
+    log.close()  # the closing flush hands the same block over again
+    _, rows, _ = read_journal(tmp_path / "l.journal") if (tmp_path / "l.journal").exists() else (None, None, None)
+    got = np.load(tmp_path / "l.npz")["tick"] if rows is None else rows[:, 0]
+    np.testing.assert_array_equal(got, [0, 1, 2, 3])
+
+
 def test_a_second_ctrl_c_during_finalisation_still_leaves_complete_files(tmp_path):
     proc, out = _start_run(tmp_path, "--fast", rows=300_000)
     proc.send_signal(signal.SIGINT)
@@ -125,6 +142,7 @@ def test_a_second_ctrl_c_during_finalisation_still_leaves_complete_files(tmp_pat
     n = np.load(staging / "log_compensated.npz")["tick"].shape[0]
     csv = np.loadtxt(staging / "log_compensated.csv", delimiter=",", skiprows=1, usecols=0)
     assert n >= 300_000 and np.array_equal(csv, np.arange(n))
+    np.testing.assert_array_equal(np.load(staging / "log_compensated.npz")["tick"], np.arange(n))
     assert not any(p.name.startswith(".") or p.suffix == ".journal" for p in staging.iterdir())
 
 

@@ -72,7 +72,12 @@ def write_csv(path: Path, columns, data: np.ndarray) -> None:
 
 
 class _Writer(threading.Thread):
-    """Appends blocks to the journal and fsyncs each; returns the buffers for reuse."""
+    """Appends blocks to the journal and fsyncs each; returns the buffers for reuse.
+
+    A block is ``(buffer, rows, first_row)``.  A block whose rows the journal already
+    holds is skipped: a Ctrl-C that lands inside :meth:`RunLog._hand_over`, after the
+    block was queued and before the log knew it, makes the closing flush queue it again.
+    """
 
     def __init__(self, fh, free: queue.Queue):
         super().__init__(name="runlog-journal", daemon=True)
@@ -80,6 +85,7 @@ class _Writer(threading.Thread):
         self.todo: queue.Queue = queue.Queue()
         self.error: OSError | None = None
         self.synced_rows = 0
+        self.queued_rows = 0  # rows written or about to be: the next block's first row
 
     def run(self) -> None:
         while True:
@@ -90,18 +96,22 @@ class _Writer(threading.Thread):
                 except queue.Empty:
                     break
             stop = items[-1] is None
-            blocks = [it for it in items if it is not None]
+            blocks = []
+            for it in items:
+                if it is not None and it[2] >= self.queued_rows:  # else already journalled
+                    blocks.append(it)
+                    self.queued_rows = it[2] + it[1]
             try:
                 if self.error is None and blocks:
-                    for buf, n in blocks:
+                    for buf, n, _ in blocks:
                         self.fh.write(buf[:n].astype("<f8", copy=False).tobytes())
                     self.fh.flush()
                     os.fsync(self.fh.fileno())
-                    self.synced_rows += sum(n for _, n in blocks)
+                    self.synced_rows += sum(n for _, n, _ in blocks)
             except OSError as exc:
                 self.error = exc
             finally:
-                for buf, _ in blocks:
+                for buf, _, _ in blocks:
                     self.free.put(buf)
                 for _ in items:
                     self.todo.task_done()
@@ -183,10 +193,14 @@ class RunLog:
         self._check()
 
     def _hand_over(self) -> None:
+        # Ordered so that a KeyboardInterrupt between any two lines neither loses nor
+        # doubles a block: queued but not yet reset, the closing flush queues the same
+        # (buffer, rows, first row) again and the writer skips it.
         self._check()
-        self._writer.todo.put((self.data, self.rows))
-        self.total += self.rows
+        n, first = self.rows, self.total
+        self._writer.todo.put((self.data, n, first))
         self.rows = 0
+        self.total = first + n
         self.data = self._free.get()  # waits only if BUFFER_BYTES are waiting for the disk
 
     def _check(self) -> None:
