@@ -28,7 +28,7 @@ import time
 from pathlib import Path
 
 from hil.serialdriver import SerialDriver
-from kernels.loop import LOG_COLUMNS
+from kernels.compose import LOG_COLUMNS
 from servo.config import Config, to_toml
 from servo.errors import DriverError
 from servo.io.runlog import RunLog

@@ -9,14 +9,20 @@ Kernel state (Dahl turnaround, integrator, plant) is carried from sample to samp
 a run.  Explicit signatures and ``cache=True``, like the kernels: importing this module
 compiles (or loads) every loop before any timing starts.
 """
-from numba import float64, int64, njit
+from numba import float64, from_dtype, int64, njit
 
 from kernels.compensator import compensate
-from kernels.controller import controller_tick, ctrl_params_t, ctrl_state_t
 from kernels.dahl import dahl_update
 from kernels.delay import shift_in
 from kernels.holding import holding_pi
 from kernels.plant import plant_measure, plant_params_t, plant_state_t, plant_step
+from kernels.stage import stage_params_t, stage_state_t
+from servo.controllers import pi
+
+#: The PI kind's tick on its stage, on the records (:mod:`kernels.compose`), and its
+#: record array types.
+controller_step = pi.PI.kernels().servo_step
+pi_state_t, pi_params_t = from_dtype(pi.STATE)[::1], from_dtype(pi.PARAMS)[::1]
 
 #: Rows of an input table (a power of two: the row of sample k is ``k & (M - 1)``).
 M = 4096
@@ -61,15 +67,16 @@ def loop_holding_pi(n, xin, g):
     return acc
 
 
-@njit(float64(int64, float64[:, ::1], ctrl_state_t, ctrl_params_t), cache=True)
-def loop_controller_tick(n, xin, cs, cp):
+@njit(float64(int64, float64[:, ::1], stage_state_t, stage_params_t, pi_state_t, pi_params_t), cache=True)
+def loop_controller_tick(n, xin, ss, sp, cs, cp):
     """The full controller tick (Dahl update + compensator + PI + limits) on rows
     ``(x, v_meas, r, u_exc)``.  Returns the sum of commands (A)."""
     mask = xin.shape[0] - 1
+    s, p, c, q = ss[0], sp[0], cs[0], cp[0]  # the records, as the fast path passes them
     acc = 0.0
     for k in range(n):
         j = k & mask
-        acc += controller_tick(cs, cp, xin[j, 0], xin[j, 1], xin[j, 2], xin[j, 3])
+        acc += controller_step(s, p, c, q, xin[j, 0], xin[j, 1], xin[j, 2], xin[j, 3])
     return acc
 
 
@@ -115,19 +122,20 @@ def loop_shift_in(n, uin, buf):
     float64(
         int64, float64[:, ::1], float64[:, ::1],
         plant_state_t, plant_params_t, float64[:, ::1], float64[:, :, ::1], float64[::1], float64[::1],
-        ctrl_state_t, ctrl_params_t,
+        stage_state_t, stage_params_t, pi_state_t, pi_params_t,
     ),
     cache=True,
 )  # fmt: skip
-def loop_closed(n, ref, noise, ps, pp, q, mab, gain, ubuf, cs, cp):
+def loop_closed(n, ref, noise, ps, pp, q, mab, gain, ubuf, ss, sp, cs, cp):
     """Closed loop without logging: ``plant_measure -> controller_tick -> plant_step``;
     ``ref`` rows ``(r, u_exc, d)``.  Returns the sum of commands (A)."""
     mask = ref.shape[0] - 1
+    s, sp0, c, cp0 = ss[0], sp[0], cs[0], cp[0]
     acc = 0.0
     for k in range(n):
         j = k & mask
         x, v = plant_measure(ps, pp, q, gain, noise[j, 0], noise[j, 1])
-        u = controller_tick(cs, cp, x, v, ref[j, 0], ref[j, 1])
+        u = controller_step(s, sp0, c, cp0, x, v, ref[j, 0], ref[j, 1])
         plant_step(ps, pp, q, mab, ubuf, u, ref[j, 2])
         acc += u
     return acc

@@ -23,7 +23,7 @@ def main() -> int:
     t2 = time.perf_counter()
     from numba.core.registry import CPUDispatcher
 
-    from kernels.loop import LOG_COLUMNS
+    from kernels.compose import LOG_COLUMNS
     from servo.config import Config
     from servo.io.runlog import RunLog
     from servo.runtime.controller import Controller

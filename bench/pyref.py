@@ -3,9 +3,9 @@ and :mod:`math`, same operations in the same order (so the same numbers, checked
 ``bench/test_reference.py``).  It measures what compiling the kernels buys: the
 Python/Numba ratio of the benchmarks.
 
-State and parameters are plain objects whose attributes are the fields of
-:data:`~kernels.controller.CTRL_STATE` / :data:`~kernels.controller.CTRL_PARAMS`
-(SI units, currents in A).
+State and parameters are plain objects whose attributes are the fields of the records
+(:data:`~kernels.stage.STAGE_STATE`, :data:`~kernels.stage.STAGE_PARAMS`, the PI kind's
+``STATE`` and ``PARAMS``; SI units, currents in A).
 """
 from __future__ import annotations
 
@@ -119,9 +119,10 @@ def _compensation(c, p, x):
     return compensate(int(c.regime), x, c.v, c.s, c.H_dahl, p.B, p.Fc, p.K, p.h0)
 
 
-def controller_tick(c, p, x, v_meas, r, u_exc):
-    """One sample of :func:`kernels.controller.controller_tick`; ``c``/``p`` are
-    :class:`Record` objects.  Returns the current command (A)."""
+def controller_tick(c, p, ci, cp, x, v_meas, r, u_exc):
+    """One sample of the PI kind on its stage (:mod:`kernels.compose`); ``c``/``p`` the
+    stage's state and parameters, ``ci``/``cp`` the PI's, all :class:`Record` objects.
+    Returns the current command (A)."""
     if p.use_measured_v != 0.0 and not math.isnan(v_meas):
         v = v_meas
     else:
@@ -135,11 +136,11 @@ def controller_tick(c, p, x, v_meas, r, u_exc):
     c.regime = float(regime_switch(int(c.regime), v, c.s * (x - c.x_r), turned, p.v_on, p.v_off, p.xi_on))
     u_c = _compensation(c, p, x)
 
-    lo = max(-p.u_n_max, -p.u_max - u_c)
-    hi = min(p.u_n_max, p.u_max - u_c)
+    lo = max(-cp.u_n_max, -p.u_max - u_c)
+    hi = min(cp.u_n_max, p.u_max - u_c)
     e = (c.r_base + r) - x
-    e_p = (c.r_base + p.b * r) - x
-    u_n, c.integ = holding_pi(e, e_p, v, c.integ, u_exc, p.kp, p.ki, p.kd, p.dt, lo, hi)
+    e_p = (c.r_base + cp.b * r) - x
+    u_n, ci.integ = holding_pi(e, e_p, v, ci.integ, u_exc, cp.kp, cp.ki, cp.kd, cp.dt, lo, hi)
     u = u_n + u_c
     u = min(max(u, -p.u_max), p.u_max)
     c.e = e
@@ -149,13 +150,14 @@ def controller_tick(c, p, x, v_meas, r, u_exc):
     return u
 
 
-def loop_controller_tick(n, xin, c, p):
+def loop_controller_tick(n, xin, recs):
     """:func:`bench.loops.loop_controller_tick` in Python: rows ``(x, v_meas, r, u_exc)``
-    of ``xin`` (a list of tuples of floats, length a power of two)."""
+    of ``xin`` (a list of tuples of floats, length a power of two); ``recs`` the four
+    :class:`Record` objects of :func:`controller_tick`."""
     mask = len(xin) - 1
     acc = 0.0
     tick = controller_tick
     for k in range(n):
         x, v, r, u_exc = xin[k & mask]
-        acc += tick(c, p, x, v, r, u_exc)
+        acc += tick(*recs, x, v, r, u_exc)
     return acc

@@ -22,7 +22,7 @@ def _assert_budget(cfg, name, ns, budget):
 def test_controller_tick(benchmark, cfg, record):
     """Dahl update + compensator + PI holding loop + limits, compensator on."""
     ctl, xin, n = w.controller(cfg), w.controller_inputs(cfg), 100_000
-    ns = per_sample_ns(benchmark, loops.loop_controller_tick, n, ROUNDS, setup=lambda: ((n, xin, ctl.state, ctl.params), {}))
+    ns = per_sample_ns(benchmark, loops.loop_controller_tick, n, ROUNDS, setup=lambda: ((n, xin, *ctl.records()), {}))
     record.figure("controller_tick", ns, "controller_tick")
     _assert_budget(cfg, "controller tick", ns, "controller_tick")
 
@@ -30,7 +30,7 @@ def test_controller_tick(benchmark, cfg, record):
 def test_controller_tick_uncompensated(benchmark, cfg, record):
     """The same tick with the compensator off (the PI loop alone, plus the Dahl update)."""
     ctl, xin, n = w.controller(cfg, compensation=False), w.controller_inputs(cfg), 100_000
-    ns = per_sample_ns(benchmark, loops.loop_controller_tick, n, ROUNDS, setup=lambda: ((n, xin, ctl.state, ctl.params), {}))
+    ns = per_sample_ns(benchmark, loops.loop_controller_tick, n, ROUNDS, setup=lambda: ((n, xin, *ctl.records()), {}))
     record.figure("controller_tick_uncompensated", ns, "controller_tick")
     _assert_budget(cfg, "controller tick (uncompensated)", ns, "controller_tick")
 
@@ -56,7 +56,7 @@ def test_compensate(benchmark, cfg, record):
 
 
 def test_holding_pi(benchmark, cfg, record):
-    m, c, n = w.motion(cfg), cfg.controller, 1_000_000
+    m, c, n = w.motion(cfg), cfg.controller.pi, 1_000_000
     xin = np.ascontiguousarray(np.column_stack([-m.x, -c.setpoint_weight * m.x, m.v]))
     g = np.array([c.kp, c.ki, c.kd, cfg.dt, -c.holding_limit, c.holding_limit])
     ns = per_sample_ns(benchmark, loops.loop_holding_pi, n, ROUNDS, setup=lambda: ((n, xin, g), {}))

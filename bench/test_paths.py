@@ -7,7 +7,7 @@ standard tasks (excitation, estimator, log) and a run log on disk, as a user run
 
 from bench.budgets import BUDGETS
 from bench.timing import per_sample_ns
-from kernels.loop import LOG_COLUMNS
+from kernels.compose import LOG_COLUMNS
 from servo.io.runlog import RunLog
 from servo.runtime.controller import Controller
 from servo.runtime.durations import Durations

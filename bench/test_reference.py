@@ -24,7 +24,7 @@ CASES = {
                                       "controller": {"velocity_source": "estimated", "direction_deadband": 5e-5}},
     "alpha 0.6, no velocity sensor": {"drive": {"alpha": 0.6, "measures_velocity": False}, "compensator": {"alpha": 0.6}},
     "compensator off, tight limits": {"compensator": {"enabled": False},
-                                      "controller": {"holding_limit": 2e-3, "current_limit": 3e-3}},
+                                      "controller": {"pi": {"holding_limit": 2e-3}, "current_limit": 3e-3}},
     "Coulomb/Stribeck, cogging, kf, delay 2.25 samples, stops": {
         "drive": {"Fc": 1e-3, "Fs": 1.5e-3, "fc_asymmetry": 0.2, "b_asymmetry": -0.1, "cogging": 1e-4,
                   "kf_linear": 0.05, "kf_quadratic": -0.1, "input_delay_s": 45e-6, "stroke": 25e-6,
@@ -56,16 +56,15 @@ def test_c_computes_what_numba_computes(cref_lib, record, case):
     worst = 0.0
     xin = w.controller_inputs(cfg)
     a, b = w.controller(cfg), w.controller(cfg)
-    worst = max(worst, same(loops.loop_controller_tick(20_000, xin, a.state, a.params),
-                            cref_lib.loop_controller_tick(20_000, xin, b.state, b.params)))  # fmt: skip
-    worst = max(worst, same(records(a.state), records(b.state)))
+    worst = max(worst, same(loops.loop_controller_tick(20_000, xin, *a.records()),
+                            cref_lib.loop_controller_tick(20_000, xin, *b.records())))  # fmt: skip
+    worst = max(worst, same(records(a.stage_state), records(b.stage_state)), same(records(a.state), records(b.state)))
     uin = w.plant_inputs(cfg)
     pa, pb = w.plant(cfg), w.plant(cfg)
     worst = max(worst, same(loops.loop_plant_step(20_000, uin, pa.state, pa.params, pa.q, pa.mab, pa.ubuf),
                             cref_lib.loop_plant_step(20_000, uin, pb)))  # fmt: skip
     worst = max(worst, same(records(pa.state), records(pb.state)), same(pa.q, pb.q), same(pa.ubuf, pb.ubuf))
     # the closed loop, sample by sample through the single-step entry points
-    from kernels.controller import controller_tick
     from kernels.plant import plant_measure, plant_step
 
     ref, noise = w.closed_loop_inputs(cfg), w.noise()
@@ -74,14 +73,15 @@ def test_c_computes_what_numba_computes(cref_lib, record, case):
     for k in range(20_000):
         j = k % ref.shape[0]
         x, v = plant_measure(pa.state, pa.params, pa.q, pa.gain, noise[j, 0], noise[j, 1])
-        u = controller_tick(a.state, a.params, x, v, ref[j, 0], ref[j, 1])
+        u = a.tick(x, v, ref[j, 0], ref[j, 1])
         plant_step(pa.state, pa.params, pa.q, pa.mab, pa.ubuf, u, ref[j, 2])
         out[0, k] = x, v, u
         x, v = cref_lib.plant_measure(pb, noise[j, 0], noise[j, 1])
-        u = cref_lib.controller_tick(b.state, b.params, x, v, ref[j, 0], ref[j, 1])
+        u = cref_lib.controller_tick(b, x, v, ref[j, 0], ref[j, 1])
         cref_lib.plant_step(pb, u, ref[j, 2])
         out[1, k] = x, v, u
-    worst = max(worst, same(out[0], out[1]), same(records(a.state), records(b.state)))
+    worst = max(worst, same(out[0], out[1]), same(records(a.stage_state), records(b.stage_state)),
+                same(records(a.state), records(b.state)))
     assert np.ptp(out[0, :, 0]) > 1e-6  # the loop moved the arm
     record.check(f"C == Numba: {case}", max_relative_difference=worst, bitwise=worst == 0.0)
 
@@ -91,10 +91,11 @@ def test_python_computes_what_numba_computes(record, case):
     cfg = Config().replace(**CASES[case])
     xin = w.controller_inputs(cfg)
     a, b = w.controller(cfg), w.controller(cfg)
-    c, p = pyref.Record(b.state), pyref.Record(b.params)
+    recs = [pyref.Record(r) for r in b.records()]
     rows = [tuple(map(float, r)) for r in xin]
-    worst = same(loops.loop_controller_tick(10_000, xin, a.state, a.params), pyref.loop_controller_tick(10_000, rows, c, p))
-    worst = max(worst, same(records(a.state), records(c.to_array(a.state))))
+    worst = same(loops.loop_controller_tick(10_000, xin, *a.records()), pyref.loop_controller_tick(10_000, rows, recs))
+    worst = max(worst, same(records(a.stage_state), records(recs[0].to_array(a.stage_state))),
+                same(records(a.state), records(recs[2].to_array(a.state))))
     record.check(f"Python == Numba: {case}", max_relative_difference=worst, bitwise=worst == 0.0)
 
 
@@ -103,7 +104,7 @@ def test_python_computes_what_numba_computes(record, case):
 
 def test_controller_tick_c(benchmark, cfg, cref_lib, record):
     ctl, xin, n = w.controller(cfg), w.controller_inputs(cfg), 100_000
-    ns = per_sample_ns(benchmark, cref_lib.loop_controller_tick, n, ROUNDS, setup=lambda: ((n, xin, ctl.state, ctl.params), {}))
+    ns = per_sample_ns(benchmark, cref_lib.loop_controller_tick, n, ROUNDS, setup=lambda: ((n, xin, *ctl.records()), {}))
     record.figure("controller_tick_c", ns)
 
 
@@ -119,7 +120,7 @@ def test_closed_loop_kernels(benchmark, cfg, record):
 
     def setup():
         p, c = w.plant(cfg), w.controller(cfg)
-        return (n, ref, noise, p.state, p.params, p.q, p.mab, p.gain, p.ubuf, c.state, c.params), {}
+        return (n, ref, noise, p.state, p.params, p.q, p.mab, p.gain, p.ubuf, *c.records()), {}
 
     record.figure("closed_loop_kernels", per_sample_ns(benchmark, loops.loop_closed, n, ROUNDS, setup=setup))
 
@@ -129,7 +130,7 @@ def test_closed_loop_c(benchmark, cfg, cref_lib, record):
 
     def setup():
         c = w.controller(cfg)
-        return (n, ref, noise, w.plant(cfg), c.state, c.params), {}
+        return (n, ref, noise, w.plant(cfg), *c.records()), {}
 
     record.figure("closed_loop_c", per_sample_ns(benchmark, cref_lib.loop_closed, n, ROUNDS, setup=setup))
 
@@ -139,7 +140,7 @@ def test_controller_tick_python(benchmark, cfg, record):
     rows = [tuple(map(float, r)) for r in w.controller_inputs(cfg)]
 
     def setup():
-        return (n, rows, pyref.Record(ctl.state), pyref.Record(ctl.params)), {}
+        return (n, rows, [pyref.Record(r) for r in ctl.records()]), {}
 
     record.figure("controller_tick_python", per_sample_ns(benchmark, pyref.loop_controller_tick, n, 9, setup=setup))
 
@@ -150,16 +151,16 @@ def test_controller_tick_python(benchmark, cfg, record):
 def _numba_c(cfg, cref_lib, what):
     if what == "controller_tick":
         xin, a, b, n = w.controller_inputs(cfg), w.controller(cfg), w.controller(cfg), 5_000
-        return (lambda: loops.loop_controller_tick(n, xin, a.state, a.params),
-                lambda: cref_lib.loop_controller_tick(n, xin, b.state, b.params), n)  # fmt: skip
+        return (lambda: loops.loop_controller_tick(n, xin, *a.records()),
+                lambda: cref_lib.loop_controller_tick(n, xin, *b.records()), n)  # fmt: skip
     if what == "plant_step":
         uin, pa, pb, n = w.plant_inputs(cfg), w.plant(cfg), w.plant(cfg), 1_000
         return (lambda: loops.loop_plant_step(n, uin, pa.state, pa.params, pa.q, pa.mab, pa.ubuf),
                 lambda: cref_lib.loop_plant_step(n, uin, pb), n)  # fmt: skip
     ref, noise, n = w.closed_loop_inputs(cfg), w.noise(), 1_000
     pa, pb, a, b = w.plant(cfg), w.plant(cfg), w.controller(cfg), w.controller(cfg)
-    return (lambda: loops.loop_closed(n, ref, noise, pa.state, pa.params, pa.q, pa.mab, pa.gain, pa.ubuf, a.state, a.params),
-            lambda: cref_lib.loop_closed(n, ref, noise, pb, b.state, b.params), n)  # fmt: skip
+    return (lambda: loops.loop_closed(n, ref, noise, pa.state, pa.params, pa.q, pa.mab, pa.gain, pa.ubuf, *a.records()),
+            lambda: cref_lib.loop_closed(n, ref, noise, pb, *b.records()), n)  # fmt: skip
 
 
 @pytest.mark.parametrize("what", ["controller_tick", "plant_step", "closed_loop"])
@@ -176,11 +177,11 @@ def test_python_over_numba_ratio(cfg, record):
     """Pure Python/Numba per-sample time ratio of the controller tick: at least 20."""
     xin, a = w.controller_inputs(cfg), w.controller(cfg)
     rows = [tuple(map(float, r)) for r in xin]
-    c, p = pyref.Record(a.state), pyref.Record(a.params)
+    recs = [pyref.Record(r) for r in a.records()]
     b = w.controller(cfg)
     n_py, n_nb = 200, 20_000
-    r = paired(lambda: pyref.loop_controller_tick(n_py, rows, c, p),
-               lambda: loops.loop_controller_tick(n_nb, xin, b.state, b.params), pairs=61)  # fmt: skip
+    r = paired(lambda: pyref.loop_controller_tick(n_py, rows, recs),
+               lambda: loops.loop_controller_tick(n_nb, xin, *b.records()), pairs=61)  # fmt: skip
     ratio = (r.a_ns / n_py) / (r.b_ns / n_nb)
     record.ratio("python_over_numba_controller_tick", ratio, f">= {PYTHON_OVER_NUMBA_MIN:g}",
                  python_ns=r.a_ns / n_py, numba_ns=r.b_ns / n_nb)  # fmt: skip

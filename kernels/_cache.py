@@ -3,8 +3,9 @@
 Numba's on-disk cache (``cache=True``) checks only the timestamp of the file that defines
 each function.  A kernel that calls (and inlines) a kernel of another file keeps its
 cached machine code when only the callee's file changes: after editing ``dahl.py`` the
-cached ``controller_tick`` would still run the old Dahl model.  Keying the cache
-directory on a hash of every kernel source file makes any edit start a fresh cache.
+cached controller tick would still run the old Dahl model.  Keying the cache directory
+on a hash of every kernel source file (``kernels/`` and ``servo/controllers/``) makes
+any edit start a fresh cache.
 
 The directory is ``$SERVO_NUMBA_CACHE`` or ``~/.cache/servo-numba`` (``$XDG_CACHE_HOME``
 if set), then ``<hash>/``.  ``NUMBA_CACHE_DIR``, if the user set it, is respected as is.
@@ -21,12 +22,19 @@ from numba.core import config
 HERE = Path(__file__).resolve().parent
 
 
-def source_hash(folder: Path = HERE) -> str:
-    """First 16 hex digits of the SHA-256 of every ``*.py`` in ``folder`` (name, content)."""
+#: The folders whose kernels are hashed: ``kernels/`` and the built-in controller kinds
+#: (``servo/controllers/``, whose kernels the composed loops of :mod:`kernels.compose` and
+#: the benchmark loops inline).
+FOLDERS = (HERE, HERE.parent / "servo" / "controllers")
+
+
+def source_hash(folders=FOLDERS) -> str:
+    """First 16 hex digits of the SHA-256 of every ``*.py`` in ``folders`` (name, content)."""
     h = hashlib.sha256()
-    for path in sorted(Path(folder).glob("*.py")):
-        h.update(path.name.encode())
-        h.update(path.read_bytes())
+    for folder in [folders] if isinstance(folders, (str, Path)) else folders:
+        for path in sorted(Path(folder).glob("*.py")):
+            h.update(path.name.encode())
+            h.update(path.read_bytes())
     return h.hexdigest()[:16]
 
 
@@ -55,16 +63,18 @@ configure()
 
 
 def compiled_here() -> bool:
-    """Whether this process compiled any kernel rather than loading it from the cache (the
+    """Whether this process compiled any kernel (of kernels/, of servo's controller kinds,
+    or composed for a kind) rather than loading it from the cache (the
     first run after an install, an edit, or a checkout at a new path: Numba's index is
     keyed by the source file's path and time as well)."""
     import sys
 
     from numba.core.registry import CPUDispatcher
 
+    from kernels.compose import composed_kernels
+
+    found = list(composed_kernels())
     for name, mod in list(sys.modules.items()):
-        if name == "kernels" or name.startswith("kernels."):
-            for obj in vars(mod).values():
-                if isinstance(obj, CPUDispatcher) and sum(obj.stats.cache_misses.values()) > 0:
-                    return True
-    return False
+        if name.split(".")[0] in ("kernels", "servo", "bench"):  # controller kinds live in servo/
+            found += [obj for obj in vars(mod).values() if isinstance(obj, CPUDispatcher)]
+    return any(sum(k.stats.cache_misses.values()) > 0 for k in found)

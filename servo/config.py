@@ -31,6 +31,7 @@ from servo.errors import ConfigError
 def P(default, unit: str, doc: str, lo=None, hi=None, lo_open=False, hi_open=False, choices=None):
     """A documented config field: default, unit, one-line doc, valid range or choices."""
     meta = dict(unit=unit, doc=doc, lo=lo, hi=hi, lo_open=lo_open, hi_open=hi_open, choices=choices)
+    # choices: a tuple, or a function returning one (the registered controller kinds)
     if isinstance(default, list):
         return field(default_factory=lambda d=tuple(default): list(d), metadata=meta)
     return field(default=default, metadata=meta)
@@ -102,22 +103,42 @@ class LinkConfig:
                       50, 100_000_000)
 
 
+def _kind_names() -> tuple[str, ...]:
+    from servo.controllers import kind_names  # the kinds import P from here: a late import
+
+    return kind_names()
+
+
+def _kind_sections() -> dict:
+    from servo.controllers import KINDS
+
+    return {name: kind.Section() for name, kind in KINDS.items()}
+
+
 @dataclass
 class ControllerConfig:
-    """The PI holding loop (with rate feedback) and the velocity/direction signals.  The
-    default gains place the loop at 100 Hz on the compensated plant J*x'' = u_n (damping
-    0.7); the flexible modes leave a gain margin of about 2 (the loop goes unstable near
-    2.5x these gains)."""
+    """Which controller runs, the command limit and the motion signals every controller and
+    the compensator share.  Each kind's own parameters are in its section
+    ``[controller.<kind>]`` (docs/controllers.md)."""
 
-    kp: float = P(394.8, "A/m", "proportional gain (J*w^2, w = 2*pi*100 Hz)", 0.0)
-    ki: float = P(4.961e4, "A/(m*s)", "integral gain (J*w^3/5)", 0.0)
-    kd: float = P(0.8796, "A*s/m", "rate feedback gain (2*0.7*J*w)", 0.0)
-    setpoint_weight: float = P(0.6, "-", "weight of the reference in the proportional term (2-DOF PID)", 0.0, 1.0)
-    holding_limit: float = P(1.0, "A", "holding loop output limit", 0.0, None, lo_open=True)
+    kind: str = P("pi", "-", "the controller that runs (a registered kind, docs/controllers.md)", choices=_kind_names)
     current_limit: float = P(1.0, "A", "total command limit", 0.0, None, lo_open=True)
     velocity_source: str = P("auto", "-", "'auto': measured if the drive has it, else estimated", choices=("auto", "estimated"))
     velocity_cutoff_hz: float = P(2000.0, "Hz", "cutoff of the velocity estimator", 0.0, None, lo_open=True)
     direction_deadband: float = P(5e-6, "m/s", "speed needed to declare a direction change", 0.0)
+    kinds: dict = field(default_factory=_kind_sections, repr=False)  # kind name -> its section
+
+    def __getattr__(self, name: str):
+        """``cfg.controller.pi``: the section of kind ``pi``."""
+        kinds = self.__dict__.get("kinds")
+        if kinds is not None and name in kinds:
+            return kinds[name]
+        raise AttributeError(f"'ControllerConfig' has no attribute or kind section {name!r}")
+
+    @property
+    def section(self):
+        """The section of the kind that runs."""
+        return self.kinds[self.kind]
 
 
 @dataclass
@@ -194,7 +215,12 @@ class Config:
         """A copy with some fields changed: ``cfg.replace(run={"duration_s": 1.0})``."""
         data = to_dict(self)
         for name, values in sections.items():
-            data.setdefault(name, {}).update(values)
+            into = data.setdefault(name, {})
+            for k, v in values.items():  # a kind's section is updated, not replaced
+                if isinstance(v, dict) and isinstance(into.get(k), dict):
+                    into[k] = {**into[k], **v}
+                else:
+                    into[k] = v
         return from_dict(data)
 
 
@@ -203,20 +229,31 @@ class Config:
 
 def _check_value(key: str, value: Any, f: dataclasses.Field) -> Any:
     m = f.metadata
-    kind = f.type
+    kind = f.type if isinstance(f.type, str) else f.type.__name__
     if kind == "bool":
         if not isinstance(value, bool):
             raise ConfigError(f"config: {key} must be true or false, got {value!r}")
         return value
     if kind == "str":
-        if not isinstance(value, str) or value not in m["choices"]:
-            raise ConfigError(f"config: {key} must be one of {', '.join(m['choices'])}, got {value!r}")
+        choices = _choices(m)
+        if not isinstance(value, str) or value not in choices:
+            raise ConfigError(f"config: {key} must be one of {', '.join(choices)}, got {value!r}")
         return value
     if kind == "list":
         if not isinstance(value, list):
             raise ConfigError(f"config: {key} must be a list of numbers, got {value!r}")
         return [_check_number(f"{key}[{i}]", v, m, float) for i, v in enumerate(value)]
     return _check_number(key, value, m, int if kind == "int" else float)
+
+
+def _choices(m: dict) -> tuple:
+    c = m["choices"]
+    return tuple(c() if callable(c) else c)
+
+
+def documented(cls) -> list[dataclasses.Field]:
+    """The :func:`P` fields of a section dataclass (not the controller's ``kinds``)."""
+    return [f for f in fields(cls) if "unit" in f.metadata]
 
 
 def _check_number(key: str, value: Any, m: dict, kind: type) -> Any:
@@ -268,17 +305,43 @@ def from_dict(data: dict) -> Config:
             raise _unknown("section", name, SECTIONS)
         if not isinstance(values, dict):
             raise ConfigError(f"config: [{name}] must be a table")
-        cls = SECTIONS[name]
-        by_name = {f.name: f for f in fields(cls)}
-        kwargs = {}
-        for key, value in values.items():
-            if key not in by_name:
-                raise _unknown("key", f"{name}.{key}", by_name)
-            kwargs[key] = _check_value(f"{name}.{key}", value, by_name[key])
-        sections[name] = cls(**kwargs)
+        if name == "controller":
+            sections[name] = _controller_section(values)
+        else:
+            sections[name] = _section(name, SECTIONS[name], values)
     cfg = Config(**sections)
     _check_consistency(cfg)
     return cfg
+
+
+def _section(key: str, cls: type, values: dict, extra=()):
+    """An instance of section ``cls`` from its TOML table ``values``, validated."""
+    by_name = {f.name: f for f in documented(cls)}
+    kwargs = {}
+    for k, value in values.items():
+        if k not in by_name:
+            raise _unknown("key", f"{key}.{k}", [*by_name, *extra])
+        kwargs[k] = _check_value(f"{key}.{k}", value, by_name[k])
+    return cls(**kwargs)
+
+
+def _controller_section(values: dict) -> "ControllerConfig":
+    """``[controller]``: its own keys, and one sub-table ``[controller.<kind>]`` per kind."""
+    from servo.controllers import KINDS
+
+    own = {k: v for k, v in values.items() if not isinstance(v, dict)}
+    for k in own:
+        homes = [n for n, kind in KINDS.items() if k in {f.name for f in documented(kind.Section)}]
+        if k not in {f.name for f in documented(ControllerConfig)} and homes:
+            raise ConfigError(f"config: controller.{k} belongs to the controller kind's section: "
+                              f"write it under [controller.{homes[0]}]")  # fmt: skip
+    c = _section("controller", ControllerConfig, own, extra=KINDS)
+    for k, v in values.items():
+        if isinstance(v, dict):
+            if k not in KINDS:
+                raise _unknown("controller kind section", f"controller.{k}", KINDS)
+            c.kinds[k] = _section(f"controller.{k}", KINDS[k].Section, v)
+    return c
 
 
 def _check_consistency(cfg: Config) -> None:
@@ -302,6 +365,9 @@ def _check_consistency(cfg: Config) -> None:
                           "needs the commands of the frame before)")
     if abs(d.initial_position) >= d.stroke:
         raise ConfigError("config: drive.initial_position must lie inside +-drive.stroke")
+    from servo.controllers import KINDS
+
+    KINDS[cfg.controller.kind].check(cfg.controller.section, cfg)  # only the kind that runs
 
 
 def load_config(path: str | Path | None = None) -> Config:
@@ -324,7 +390,17 @@ def load_config(path: str | Path | None = None) -> Config:
 
 def to_dict(cfg: Config) -> dict:
     """Nested dicts of every field (a complete, loadable document)."""
-    return {name: dataclasses.asdict(getattr(cfg, name)) for name in SECTIONS}
+    out = {}
+    for name in SECTIONS:
+        section = getattr(cfg, name)
+        out[name] = {f.name: _plain(getattr(section, f.name)) for f in documented(type(section))}
+    for kind, section in cfg.controller.kinds.items():
+        out["controller"][kind] = dataclasses.asdict(section)
+    return out
+
+
+def _plain(v: Any) -> Any:
+    return list(v) if isinstance(v, list) else v
 
 
 # ------------------------------------------------------------------------ documenting
@@ -346,19 +422,28 @@ def to_toml(cfg: Config | None = None, comments: bool = True) -> str:
     """The config as a TOML document, each field preceded by its doc, unit and range."""
     cfg = cfg or Config()
     out = []
-    for name, cls in SECTIONS.items():
-        section = getattr(cfg, name)
+    for name, section in _all_sections(cfg):
+        cls = type(section)
         if comments:
             out.append(f"# {cls.__doc__.splitlines()[0]}")
         out.append(f"[{name}]")
-        for f in fields(cls):
+        for f in documented(cls):
             m = f.metadata
             if comments:
-                rng = f"one of {', '.join(m['choices'])}" if m["choices"] else _range_text(m, f.type != "bool")
+                rng = f"one of {', '.join(_choices(m))}" if m["choices"] else _range_text(m, f.type != "bool")
                 out.append(f"# {m['doc']} [{m['unit']}] ({rng})")
             out.append(f"{f.name} = {_toml_value(getattr(section, f.name))}")
         out.append("")
     return "\n".join(out)
+
+
+def _all_sections(cfg: Config):
+    """``(toml name, section)`` of every section, each controller kind's after [controller]."""
+    for name in SECTIONS:
+        yield name, getattr(cfg, name)
+        if name == "controller":
+            for kind, section in cfg.controller.kinds.items():
+                yield f"controller.{kind}", section
 
 
 def to_markdown() -> str:
@@ -371,13 +456,13 @@ def to_markdown() -> str:
         "fields it changes; unknown keys and out-of-range values are errors naming the key.",
         "",
     ]
-    for name, cls in SECTIONS.items():
+    for name, default in _all_sections(Config()):
+        cls = type(default)
         out += [f"## [{name}]", "", cls.__doc__.strip().replace("\n    ", " "), ""]
         out += ["| key | default | unit | range | meaning |", "|---|---|---|---|---|"]
-        default = cls()
-        for f in fields(cls):
+        for f in documented(cls):
             m = f.metadata
-            rng = " / ".join(m["choices"]) if m["choices"] else _range_text(m, f.type != "bool")
+            rng = " / ".join(_choices(m)) if m["choices"] else _range_text(m, f.type != "bool")
             out.append(
                 f"| `{f.name}` | `{_toml_value(getattr(default, f.name))}` | {m['unit']} | {rng} | {m['doc']} |"
             )

@@ -44,7 +44,7 @@ def test_compensated_plant_is_a_double_integrator_at_every_level(sweeps):
 def test_sine_point_matches_a_known_linear_plant():
     """On a linear drive (pivot made negligible, no modes, no noise) the estimate equals
     the exact double integrator with its delay, and the coherence is 1."""
-    cfg = quiet_config(**NO_MODES, Ha=1e-8, sigma=1e-3, K=0.0, B=0.0).replace(controller=dict(kp=50.0, ki=100.0, kd=0.5))
+    cfg = quiet_config(**NO_MODES, Ha=1e-8, sigma=1e-3, K=0.0, B=0.0).replace(controller={"pi": dict(kp=50.0, ki=100.0, kd=0.5)})
     s = SweepSettings(periods=4, settle_periods=3)
     f, H, std, coh, _ = sine_point(cfg, 200.0, 1e-3, s, compensation=False)
     w = 2 * np.pi * f

@@ -2,7 +2,6 @@
 import numpy as np
 import pytest
 
-from kernels.controller import controller_start, controller_tick
 from kernels.plant import plant_measure, plant_step
 from servo.runtime.controller import Controller
 from servo.runtime.simplant import build_plant
@@ -13,17 +12,17 @@ def drive_open_loop(u_n: np.ndarray, compensation: bool):
     """Apply the nominal input ``u_n`` (A) through the controller with the holding loop
     switched off (gains 0) to a noise-free drive without modes or delay.  Returns the
     measured positions (n+1,) and the nominal inputs the controller actually applied."""
-    cfg = quiet_config(**NO_MODES, input_delay_s=0.0).replace(controller=dict(kp=0.0, ki=0.0, kd=0.0))
+    cfg = quiet_config(**NO_MODES, input_delay_s=0.0).replace(controller={"pi": dict(kp=0.0, ki=0.0, kd=0.0)})
     p = build_plant(cfg.drive, cfg.dt)
     ctl = Controller(cfg, compensation=compensation)
     xs, un = np.zeros(len(u_n) + 1), np.zeros(len(u_n))
     for k in range(len(u_n)):
         x, v = plant_measure(p.state, p.params, p.q, p.gain, 0.0, 0.0)
         if k == 0:
-            controller_start(ctl.state, ctl.params, x, v, p.u_hold)
+            ctl.start(x, v, p.u_hold)
         xs[k] = x
-        u = controller_tick(ctl.state, ctl.params, x, v, 0.0, u_n[k])
-        un[k] = ctl.state[0]["u_n"] - ctl.state[0]["integ"]  # the excitation part of u_n
+        u = ctl.tick(x, v, 0.0, u_n[k])
+        un[k] = ctl.stage_state[0]["u_n"] - ctl.state[0]["integ"]  # the excitation part of u_n
         plant_step(p.state, p.params, p.q, p.mab, p.ubuf, u, 0.0)
     xs[-1] = plant_measure(p.state, p.params, p.q, p.gain, 0.0, 0.0)[0]
     return xs, un, cfg

@@ -21,9 +21,39 @@ def test_default_is_the_paper_drive_at_50_khz():
 
 
 def test_every_field_has_a_unit_and_a_doc():
-    for cls in SECTIONS.values():
+    from servo.controllers import KINDS
+
+    for cls in [*SECTIONS.values(), *(k.Section for k in KINDS.values())]:
+        assert cls.__doc__.strip()
         for f in fields(cls):
+            if f.name == "kinds":  # the controller's kind sections, each checked here
+                continue
             assert f.metadata["unit"] and f.metadata["doc"], f.name
+
+
+def test_each_controller_kind_has_its_own_section():
+    cfg = from_dict({"controller": {"kind": "pi", "current_limit": 0.5, "pi": {"kp": 100.0}}})
+    assert cfg.controller.pi.kp == 100.0 and cfg.controller.section.kp == 100.0
+    assert cfg.controller.pi.ki == Config().controller.pi.ki  # the rest stays default
+    assert cfg.replace(controller={"pi": {"ki": 1.0}}).controller.pi.kp == 100.0  # replace merges a kind's section
+    assert "[controller.pi]" in to_toml(cfg) and "kp = 100.0" in to_toml(cfg)
+    assert to_dict(cfg)["controller"]["pi"]["kp"] == 100.0
+
+
+@pytest.mark.parametrize(
+    "data, message",
+    [
+        ({"controller": {"kp": 1.0}}, "controller.kp belongs to the controller kind's section: write it under [controller.pi]"),
+        ({"controller": {"kind": "fuzzy"}}, "controller.kind must be one of pi"),
+        ({"controller": {"pid": {"kp": 1.0}}}, "unknown controller kind section 'controller.pid' (did you mean 'pi'?)"),
+        ({"controller": {"pi": {"kpp": 1.0}}}, "unknown key 'controller.pi.kpp' (did you mean 'kp'?)"),
+        ({"controller": {"pi": {"kp": -1.0}}}, "controller.pi.kp = -1.0 is out of range"),
+    ],
+)
+def test_controller_sections_are_validated(data, message):
+    with pytest.raises(ConfigError) as err:
+        from_dict(data)
+    assert message in str(err.value)
 
 
 def test_documented_toml_round_trips():

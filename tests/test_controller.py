@@ -5,7 +5,6 @@ import numpy as np
 import pytest
 
 from kernels.compensator import FAST, SLOW, compensate, direction, regime_switch, velocity_estimate
-from kernels.controller import controller_tick
 from kernels.holding import holding_pi, holding_pi_bumpless
 from servo.config import Config
 from servo.runtime.controller import Controller
@@ -108,5 +107,5 @@ def test_controller_uses_the_estimator_when_the_drive_has_no_velocity():
     ctl.start(0.0, math.nan, 0.0)
     dt = cfg.dt
     for k in range(1, 2000):
-        controller_tick(ctl.state, ctl.params, 1e-3 * k * dt, math.nan, 0.0, 0.0)
-    assert ctl.state[0]["v"] == pytest.approx(1e-3, rel=1e-9)
+        ctl.tick(1e-3 * k * dt, math.nan, 0.0, 0.0)
+    assert ctl.stage_state[0]["v"] == pytest.approx(1e-3, rel=1e-9)

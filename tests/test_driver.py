@@ -4,7 +4,7 @@ import math
 import numpy as np
 import pytest
 
-from kernels.loop import LOG_COLUMNS
+from kernels.compose import LOG_COLUMNS
 from servo.config import Config
 from servo.errors import DriverError, LifecycleError
 from servo.io.runlog import RunLog
@@ -111,7 +111,7 @@ def test_a_simulation_that_diverges_is_a_fault_with_the_drive_safe_and_the_log_k
     """Issue 9.5: a non-finite plant state ran on and was summarised as a result."""
     import math
 
-    from kernels.loop import LOG_COLUMNS
+    from kernels.compose import LOG_COLUMNS
     from servo.config import Config
     from servo.errors import DriverError
     from servo.io.runlog import RunLog

@@ -13,7 +13,7 @@ from servo.diagnose.job import Options, diagnose
 from servo.diagnose.report import build_report
 from servo.errors import ConfigError
 from servo.fleet import identify as fleet_identify
-from kernels.loop import LOG_COLUMNS
+from kernels.compose import LOG_COLUMNS
 from servo.fleet.closedloop import run_scenario
 from servo.run.reduce import COL
 from servo.fleet.diagnose import row_of_report

@@ -25,7 +25,7 @@ from hil.board import ACTIVE, FAULTED, HELLO, Board
 from hil import protocol as P
 from hil.emulator import start_in_thread
 from hil.serialdriver import SerialDriver
-from kernels.loop import LOG_COLUMNS
+from kernels.compose import LOG_COLUMNS
 from servo.config import Config, to_toml
 from servo.errors import DriverError
 from servo.io.runlog import RunLog

@@ -7,13 +7,21 @@ from kernels import _cache
 
 
 def test_any_kernel_edit_changes_the_cache_directory(tmp_path):
-    for f in _cache.HERE.glob("*.py"):
-        shutil.copy(f, tmp_path / f.name)
-    before = _cache.source_hash(tmp_path)
+    copies = []
+    for i, folder in enumerate(_cache.FOLDERS):  # kernels/ and the built-in controller kinds
+        (tmp_path / str(i)).mkdir()
+        for f in folder.glob("*.py"):
+            shutil.copy(f, tmp_path / str(i) / f.name)
+        copies.append(tmp_path / str(i))
+    before = _cache.source_hash(copies)
     assert before == _cache.source_hash()
-    dahl = tmp_path / "dahl.py"
+    dahl = copies[0] / "dahl.py"
     dahl.write_text(dahl.read_text().replace("math.exp(-sigma * xi / Ha)", "math.exp(-sigma * xi / Ha) * 1.0"))
-    assert _cache.source_hash(tmp_path) != before
+    edited = _cache.source_hash(copies)
+    assert edited != before
+    pi = copies[1] / "pi.py"
+    pi.write_text(pi.read_text().replace("e_p = (r_base + p.b * r) - x", "e_p = (r_base + p.b * r) - x + 0.0"))
+    assert _cache.source_hash(copies) != edited
 
 
 def test_numba_caches_into_the_keyed_directory():

@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 
 import servo
-from kernels.loop import LOG_COLUMNS
+from kernels.compose import LOG_COLUMNS
 from servo.config import Config
 from servo.errors import RecordingError
 from servo.run.job import run_job

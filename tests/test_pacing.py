@@ -10,7 +10,7 @@ import time
 import numpy as np
 import pytest
 
-from kernels.loop import LOG_COLUMNS
+from kernels.compose import LOG_COLUMNS
 from servo.config import Config
 from servo.io.runlog import RunLog
 from servo.runtime.controller import Controller

@@ -3,7 +3,7 @@ paths, bit for bit; and what they are for, a frequency response of the drive."""
 import numpy as np
 import pytest
 
-from kernels.loop import LOG_COLUMNS
+from kernels.compose import LOG_COLUMNS
 from servo.config import Config
 from servo.errors import ConfigError
 from servo.experiments.sim import MemoryLog

@@ -4,7 +4,7 @@ import math
 import numpy as np
 import pytest
 
-from kernels.loop import LOG_COLUMNS
+from kernels.compose import LOG_COLUMNS
 from servo.config import Config
 from servo.io.runlog import RunLog
 from servo.runtime.controller import Controller

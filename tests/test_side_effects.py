@@ -90,7 +90,7 @@ def test_the_command_line_selects_agg_and_only_it():
 
 
 def _fake_logs(cfg, n=400):
-    from kernels.loop import LOG_COLUMNS
+    from kernels.compose import LOG_COLUMNS
 
     col = {c: i for i, c in enumerate(LOG_COLUMNS)}
     a = np.zeros((n, len(LOG_COLUMNS)))

@@ -36,7 +36,8 @@ class Parser(argparse.ArgumentParser):
 
 
 def parse_set(items: list[str] | None) -> dict:
-    """``--set section.key=value`` options (TOML values) as nested dicts."""
+    """``--set section.key=value`` options (TOML values) as nested dicts; a controller
+    kind's field is ``controller.<kind>.key``."""
     out: dict = {}
     for item in items or []:
         key, sep, value = item.partition("=")
@@ -47,7 +48,12 @@ def parse_set(items: list[str] | None) -> dict:
             parsed = tomllib.loads(f"v = {value.strip()}")["v"]
         except tomllib.TOMLDecodeError:
             parsed = value.strip()  # a bare word: a string
-        out.setdefault(section, {})[name] = parsed
+        into = out.setdefault(section, {})
+        sub, dot, leaf = name.partition(".")
+        if dot:
+            into.setdefault(sub, {})[leaf] = parsed
+        else:
+            into[name] = parsed
     return out
 
 

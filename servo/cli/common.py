@@ -10,14 +10,48 @@ from servo.config import Config, from_dict, load_config, to_dict
 def add_config_options(p: argparse.ArgumentParser) -> None:
     p.add_argument("--config", metavar="FILE", help="TOML config (default: the built-in default drive and scenario)")
     p.add_argument("--set", metavar="SECTION.KEY=VALUE", action="append", help="override one config field (repeatable)")
+    p.add_argument("--plugin", metavar="MODULE", action="append",
+                   help="import MODULE and register the controller kinds it defines (repeatable; docs/controllers.md)")
+
+
+def load_plugins(modules: list[str] | None) -> None:
+    """Import each module and register every :class:`ControllerKind` subclass it defines."""
+    import importlib
+    import inspect
+
+    from servo.controllers import ControllerKind, register
+    from servo.errors import ConfigError
+
+    import os
+    import sys
+
+    if modules and os.getcwd() not in sys.path:
+        sys.path.insert(0, os.getcwd())  # a plugin in the current folder, as `python -m` would find it
+    for name in modules or []:
+        try:
+            mod = importlib.import_module(name)
+        except ImportError as exc:
+            raise ConfigError(f"--plugin {name}: cannot import it ({exc})") from None
+        kinds = [k for k in vars(mod).values() if inspect.isclass(k) and issubclass(k, ControllerKind)
+                 and k.__module__ == mod.__name__ and "name" in vars(k)]  # fmt: skip
+        if not kinds:
+            raise ConfigError(f"--plugin {name}: it defines no controller kind (a ControllerKind subclass with a name)")
+        for k in kinds:
+            try:
+                register(k)
+            except TypeError as exc:
+                raise ConfigError(f"--plugin {name}: {exc}") from None
 
 
 def config_from_args(args: argparse.Namespace, **sections: dict) -> Config:
     """The config of ``--config`` and ``--set``, then the given section overrides."""
+    load_plugins(getattr(args, "plugin", None))
     cfg = load_config(args.config)
     data = to_dict(cfg)
     for name, values in parse_set(args.set).items():
-        data.setdefault(name, {}).update(values)
+        into = data.setdefault(name, {})
+        for k, v in values.items():  # a kind's section is updated, not replaced
+            into[k] = {**into[k], **v} if isinstance(v, dict) and isinstance(into.get(k), dict) else v
     for name, values in sections.items():
         data.setdefault(name, {}).update({k: v for k, v in values.items() if v is not None})
     return from_dict(data)

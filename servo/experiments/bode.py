@@ -102,7 +102,7 @@ def check_holding_loop(cfg: Config, seconds: float = 2.0, name: str = "the drive
             raise ConfigError(
                 f"the PI holding loop is unstable on {name} (compensation {'on' if comp else 'off'}): the position RMS "
                 f"grows from {first * 1e9:.3g} nm to {last * 1e9:.3g} nm in {seconds:g} s, oscillating at {f:.0f} Hz; "
-                "lower controller.kp/ki/kd or change the drive's modes"
+                "lower controller.pi.kp/ki/kd or change the drive's modes"
             )
 
 

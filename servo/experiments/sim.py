@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from kernels.loop import LOG_COLUMNS
+from kernels.compose import LOG_COLUMNS
 from servo.config import Config
 from servo.runtime.controller import Controller
 from servo.runtime.loop import log_rows, run_closed_loop
@@ -18,11 +18,12 @@ from servo.runtime.simdriver import SimDriver
 
 
 class MemoryLog:
-    """A run log that stays in memory: rows of :data:`kernels.loop.LOG_COLUMNS`."""
+    """A run log that stays in memory: rows of ``columns`` (a controller's
+    ``log_columns``; :data:`kernels.compose.LOG_COLUMNS` then the kind's own)."""
 
-    def __init__(self, n_rows: int):
-        self.columns = LOG_COLUMNS
-        self.data = np.full((n_rows, len(LOG_COLUMNS)), np.nan)
+    def __init__(self, n_rows: int, columns: tuple[str, ...] = LOG_COLUMNS):
+        self.columns = tuple(columns)
+        self.data = np.full((n_rows, len(self.columns)), np.nan)
         self.rows = 0
 
     def maybe_flush(self) -> None:
@@ -50,10 +51,11 @@ def simulate(cfg: Config, u_exc: np.ndarray, r: np.ndarray | None = None, compen
     if cfg.n_ticks != n:  # rounding of duration_s * rate
         raise ValueError(f"tick count mismatch: {cfg.n_ticks} != {n}")
     inputs = ArrayInputs(r=r, u_exc=u_exc, d=d)
-    log = MemoryLog(log_rows(cfg))
+    controller = Controller(cfg, compensation=compensation)
+    log = MemoryLog(log_rows(cfg), controller.log_columns)
     driver = SimDriver(cfg, inputs)
     try:
-        run_closed_loop(cfg, driver, Controller(cfg, compensation=compensation), inputs, log, fast=True, timing=False)
+        run_closed_loop(cfg, driver, controller, inputs, log, fast=True, timing=False)
     finally:
         driver.close()
     return log.as_dict()

@@ -55,7 +55,7 @@ def square_wave(n: int, dt: float, amplitude: float, hz: float) -> np.ndarray:
 
 def run_square_wave(cfg: Config, sw: SquareWave = SquareWave()) -> tuple[Recording, dict]:
     """Simulate the experiment (compensator off).  Returns the recording and the log."""
-    c = cfg.replace(controller=holding_gains(cfg.drive.J, sw.holding_hz))
+    c = cfg.replace(controller={"kind": "pi", "pi": holding_gains(cfg.drive.J, sw.holding_hz)})
     n = int(round(sw.duration_s / c.dt))
     log = simulate(c, square_wave(n, c.dt, sw.amplitude, sw.hz), compensation=False)
     rec = Recording(log["t"], log["u"], log["x"], log["v"] if cfg.drive.measures_velocity else None,

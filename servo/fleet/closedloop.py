@@ -25,10 +25,11 @@ def run_scenario(cfg: Config, compensated: bool) -> np.ndarray:
     drive, with or without the compensator.  A simulation whose state stops being finite
     raises :class:`~servo.errors.DriverError`."""
     inputs = scenario_inputs(cfg)
-    log = MemoryLog(log_rows(cfg))
+    controller = Controller(cfg, compensation=compensated)
+    log = MemoryLog(log_rows(cfg), controller.log_columns)
     driver = SimDriver(cfg, inputs)
     try:
-        run_closed_loop(cfg, driver, Controller(cfg, compensation=compensated), inputs, log, fast=True, timing=False)
+        run_closed_loop(cfg, driver, controller, inputs, log, fast=True, timing=False)
     finally:
         driver.close()
     return log.data[: log.rows]

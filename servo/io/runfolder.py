@@ -13,7 +13,7 @@ from pathlib import Path
 
 import numpy as np
 
-from kernels.loop import LOG_COLUMNS, LOG_UNITS
+from kernels.compose import LOG_COLUMNS, LOG_UNITS
 from servo.config import Config, load_config
 from servo.errors import RecordingError
 
@@ -41,7 +41,7 @@ class RunFolder:
 
     def rows(self, label: str) -> np.ndarray:
         """The log of run ``label`` as one array (rows, len(LOG_COLUMNS)), in the column
-        order of :data:`kernels.loop.LOG_COLUMNS` (what :func:`servo.run.plots.plot_run`
+        order of :data:`kernels.compose.LOG_COLUMNS` (what :func:`servo.run.plots.plot_run`
         takes)."""
         log = self.logs[label]
         return np.column_stack([log[c] for c in LOG_COLUMNS])

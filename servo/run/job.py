@@ -21,8 +21,9 @@ from typing import Callable
 import numpy as np
 
 from kernels import _cache
-from kernels.loop import LOG_COLUMNS, LOG_UNITS
+from kernels.compose import LOG_COLUMNS
 from servo.config import Config, to_toml
+from servo.controllers import get_kind
 from servo.io.atomic import atomic_write, write_json
 from servo.io.resources import check_disk
 from servo.io.runlog import FORMATS, RunLog
@@ -71,12 +72,15 @@ def run_simulated(cfg: Config, out_dir: Path, compensated: bool, fast: bool,
     pacer = make_pacer(cfg, realtime) if realtime else None
     section = realtime_section(realtime.cpu, realtime.fifo_priority, realtime.lock_memory) if realtime else nullcontext()
     block = REALTIME_LOG_BLOCK if (realtime or make_driver is not None) else LOG_BLOCK
+    controller = Controller(cfg, compensation=compensated)
+    meta["controller"] = cfg.controller.kind
     figures, plot_rows = RunFigures(cfg), PlotRows(log_rows(cfg))
-    log = RunLog(out_dir, f"log_{label}", LOG_COLUMNS, meta, block, formats=log_formats, units=LOG_UNITS)
+    log = RunLog(out_dir, f"log_{label}", controller.log_columns, meta, block, formats=log_formats,
+                 units=controller.log_units)  # fmt: skip
     try:
         with driver:
             with section as grant:  # only around configure and the loop: the log is finalised outside
-                result = run_closed_loop(cfg, driver, Controller(cfg, compensation=compensated), inputs, log, fast=fast, pacer=pacer)
+                result = run_closed_loop(cfg, driver, controller, inputs, log, fast=fast, pacer=pacer)
     except BaseException:
         log.close_after_fault()
         raise
@@ -104,7 +108,7 @@ def summarise(cfg: Config, figures: dict, result: LoopResult) -> dict:
 def output_bytes(cfg: Config, runs: int, log_formats: tuple[str, ...]) -> float:
     """Disk bytes the logs of ``runs`` runs of ``cfg`` need at their peak (journal, NPZ
     column temporaries and NPZ, CSV at ~25 characters a value)."""
-    values = log_rows(cfg) * len(LOG_COLUMNS)
+    values = log_rows(cfg) * (len(LOG_COLUMNS) + len(get_kind(cfg.controller.kind).log_columns))
     per_value = 8 + (16 if "npz" in log_formats else 0) + (25 if "csv" in log_formats else 0)
     return float(runs * values * per_value)
 

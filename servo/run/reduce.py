@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from kernels.loop import LOG_COLUMNS
+from kernels.compose import LOG_COLUMNS
 from servo.config import Config
 from servo.run.metrics import StepResponse
 from servo.runtime.scenario import segments

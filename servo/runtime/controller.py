@@ -1,7 +1,9 @@
-"""The controller a run steps every tick: PI holding loop plus the paper's compensator.
+"""The controller a run steps every tick: the configured kind on the compensator stage.
 
-A thin owner of the :data:`~kernels.controller.CTRL_STATE` / ``CTRL_PARAMS`` records; the
-arithmetic is in :mod:`kernels.controller`.
+``[controller] kind`` picks a registered kind (:mod:`servo.controllers`); it sits on the
+stage of :mod:`kernels.stage` (motion signals, the paper's compensator, the current
+limit).  This class owns the four records (stage and kind, state and parameters) and the
+kind's composed kernels (:mod:`kernels.compose`); the arithmetic is in the kernels.
 """
 from __future__ import annotations
 
@@ -9,18 +11,20 @@ import math
 
 import numpy as np
 
-from kernels.controller import CTRL_PARAMS, CTRL_STATE, controller_start, controller_tick
+from kernels.compose import LOG_COLUMNS, LOG_UNITS
+from kernels.stage import STAGE_PARAMS, STAGE_STATE
 from servo.config import Config
+from servo.controllers import get_kind
 
 
-def controller_params(cfg: Config, compensation: bool | None = None) -> np.ndarray:
-    """The :data:`~kernels.controller.CTRL_PARAMS` record of ``cfg``; ``compensation``
+def stage_params(cfg: Config, compensation: bool | None = None) -> np.ndarray:
+    """The :data:`~kernels.stage.STAGE_PARAMS` record of ``cfg``; ``compensation``
     overrides ``cfg.compensator.enabled`` when given."""
     c, k = cfg.controller, cfg.compensator
     on = k.enabled if compensation is None else compensation
-    p = np.zeros(1, CTRL_PARAMS)
+    p = np.zeros(1, STAGE_PARAMS)
     values = dict(
-        dt=cfg.dt, kp=c.kp, ki=c.ki, kd=c.kd, b=c.setpoint_weight, u_n_max=c.holding_limit, u_max=c.current_limit,
+        dt=cfg.dt, u_max=c.current_limit,
         use_measured_v=1.0 if c.velocity_source == "auto" else 0.0,
         v_alpha=math.exp(-2.0 * math.pi * c.velocity_cutoff_hz * cfg.dt),
         v_deadband=c.direction_deadband, comp_on=1.0 if on else 0.0,
@@ -33,25 +37,52 @@ def controller_params(cfg: Config, compensation: bool | None = None) -> np.ndarr
 
 
 class Controller:
-    """State and parameters of one controller; :meth:`start` then :meth:`tick` per sample."""
+    """State and parameters of the configured controller on its stage; :meth:`start`,
+    then :meth:`tick` once per sample.
+
+    ``stage_state``/``stage_params``: the stage's records; ``state``/``params``: the
+    kind's; ``kernels``: the kind's composed kernels; ``log_columns``/``log_units``: the
+    columns of a run log of this controller (the common ones, then the kind's).
+    """
 
     def __init__(self, cfg: Config, compensation: bool | None = None):
-        self.params = controller_params(cfg, compensation)
-        self.state = np.zeros(1, CTRL_STATE)
+        self.kind = get_kind(cfg.controller.kind)
+        self.stage_params = stage_params(cfg, compensation)
+        self.stage_state = np.zeros(1, STAGE_STATE)
+        self.params = self.kind.params(cfg.controller.section, cfg)
+        self.state = np.zeros(1, self.kind.STATE)
+        self.kernels = self.kind.kernels()
+        self.log_columns = LOG_COLUMNS + tuple(self.kind.log_columns)
+        self.log_units = {**LOG_UNITS, **self.kind.log_units}
+
+    def records(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """``(stage_state, stage_params, state, params)``, the kernels' first arguments."""
+        return self.stage_state, self.stage_params, self.state, self.params
 
     def warm_up(self) -> None:
         """Call the kernels once on scratch copies, so that the first tick of a run pays
         no first-call cost (the first dispatch on these record types takes ~0.2 ms)."""
-        state, params = self.state.copy(), self.params.copy()
-        controller_start(state, params, 0.0, 0.0, 0.0)
-        controller_tick(state, params, 0.0, 0.0, 0.0, 0.0)
+        scratch = [a.copy() for a in self.records()]
+        self.kernels.servo_start(*scratch, 0.0, 0.0, 0.0)
+        self.kernels.servo_tick(*scratch, 0.0, 0.0, 0.0, 0.0)
+        self.kernels.log_row(np.empty(len(self.log_columns)), 0, 1.0, 0.0, 0.0, scratch[0], scratch[2])
 
     def start(self, x: float, v: float, u_now: float) -> None:
         """Take over bumplessly at position ``x`` (m), velocity ``v`` (m/s, NaN if not
         measured) with ``u_now`` (A) applied."""
-        controller_start(self.state, self.params, x, v, u_now)
+        self.kernels.servo_start(self.stage_state, self.stage_params, self.state, self.params, x, v, u_now)
 
     def tick(self, x: float, v: float, r: float, u_exc: float) -> float:
-        """One sample; returns the current command (A).  See
-        :func:`kernels.controller.controller_tick`."""
-        return controller_tick(self.state, self.params, x, v, r, u_exc)
+        """One sample at measured ``x`` (m), ``v`` (m/s, NaN if not measured), reference
+        ``r`` (m, from the holding position), excitation ``u_exc`` (A); returns the
+        current command (A)."""
+        return self.kernels.servo_tick(self.stage_state, self.stage_params, self.state, self.params, x, v, r, u_exc)
+
+    def log_row(self, row: np.ndarray, k: int, dt: float, x: float, u_exc: float) -> None:
+        """Fill ``row`` (length ``len(log_columns)``) for tick ``k``."""
+        self.kernels.log_row(row, k, dt, x, u_exc, self.stage_state, self.state)
+
+    @property
+    def e(self) -> float:
+        """The latest position error (m)."""
+        return float(self.stage_state[0]["e"])

@@ -1,13 +1,14 @@
 """The closed loop of a run: the standard tasks, tick by tick or all compiled.
 
-Both paths perform the same operations in the same order (see :mod:`kernels.loop`), so
+Both paths perform the same operations in the same order (see :mod:`kernels.compose`), so
 for the simulated drive they produce the same log, bit for bit:
 
 * before the controller: ``excitation`` every ``run.excitation_every`` ticks (reference
   and excitation values of that tick, held until its next run);
 * after the command: ``estimator`` every ``run.estimator_every`` ticks (tracking-error
-  statistics, :func:`kernels.loop.error_stats`), then ``log`` every ``run.log_every``
-  ticks (one row of :data:`kernels.loop.LOG_COLUMNS`).
+  statistics, :func:`kernels.compose.error_stats`), then ``log`` every ``run.log_every``
+  ticks (one row of the controller's ``log_columns``: :data:`kernels.compose.LOG_COLUMNS`
+  then the kind's own).
 
 Nothing compiles or warms up inside the loop: the driver warms its kernels at
 ``configure``, the controller and the log/estimator kernels are called once on scratch
@@ -23,7 +24,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from kernels.loop import LOG_COLUMNS, STATS_SIZE, closed_loop, error_stats, log_row
+from kernels.compose import LOG_COLUMNS, STATS_SIZE, error_stats
 from servo.config import Config
 from servo.io.runlog import RunLog
 from servo.runtime.controller import Controller
@@ -110,19 +111,15 @@ def run_closed_loop(
 
 
 def _warm_up(controller, log: RunLog) -> None:
-    """First calls of the controller and the log/estimator kernels, on scratch copies."""
-    warm = getattr(controller, "warm_up", None)
-    if warm is not None:
-        warm()
-    state = getattr(controller, "state", None)
-    if state is not None:
-        log_row(np.empty(len(LOG_COLUMNS)), 0, 1.0, 0.0, 0.0, state.copy())
+    """First calls of the controller (and its log row) and the estimator, on scratch copies."""
+    controller.warm_up()
     error_stats(np.zeros(STATS_SIZE), 0.0)
 
 
 def _run_ticks(cfg, driver, controller, inputs, log, stats, pacer, durations) -> None:
     dt = cfg.dt
-    state = controller.state
+    state = controller.stage_state
+    log_row, ss, cs = controller.kernels.log_row, controller.stage_state, controller.state
     r, u_exc = Window(inputs.reference), Window(inputs.excitation)
     r.load(0), u_exc.load(0)  # the first windows now, not on the first tick
 
@@ -137,7 +134,7 @@ def _run_ticks(cfg, driver, controller, inputs, log, stats, pacer, durations) ->
         error_stats(stats, state[0]["e"])
 
     def logger(k: int) -> None:
-        log_row(log.data[log.rows], k, dt, data.x, data.u_exc, state)
+        log_row(log.data[log.rows], k, dt, data.x, data.u_exc, ss, cs)
         log.rows += 1
         log.maybe_flush()
 
@@ -157,6 +154,7 @@ def _run_fast(cfg, driver: SimDriver, controller, inputs, log, stats) -> None:
     every = cfg.run.excitation_every
     r, u_exc = Window(inputs.reference, every), Window(inputs.excitation, every)
     u_start = driver.applied_current
+    closed_loop = controller.kernels.closed_loop
     k = first = driver.tick
     while k < n:
         m = min(BLOCK - k % BLOCK, n - k)  # one input and noise block
@@ -164,7 +162,7 @@ def _run_fast(cfg, driver: SimDriver, controller, inputs, log, stats) -> None:
         u_exc.load(k)
         log.rows = closed_loop(
             p.state, p.params, p.q, p.mab, p.gain, p.ubuf, driver.latency,
-            controller.state, controller.params,
+            *controller.records(),
             r.values[i : i + m], u_exc.values[i : i + m], driver.disturbance(k, m), driver.noise(k, m),
             k, m, cfg.run.estimator_every, cfg.run.log_every,
             stats, log.data, log.rows, 1 if k == first else 0, u_start,

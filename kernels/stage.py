@@ -1,0 +1,142 @@
+"""The stage every controller sits on: motion signals, the paper's compensator, the limit.
+
+A controller kind (:mod:`servo.controllers`) computes the nominal input ``u_n`` from the
+position error; this stage wraps it, the same for every kind::
+
+    v, s, H_hat, regime  <- x, v_meas       velocity, direction, Dahl update (eq. 6-7)
+    u_c = B*v + Fc*sgn(v) + H_hat           eq. (9), 0 when the compensator is off
+    [lo, hi] = [-u_max - u_c, u_max - u_c]  the room left for u_n under the current limit
+    u_n = controller(x, v, r, u_exc, lo, hi)
+    u = clip(u_n + u_c, -u_max, u_max)      eq. (8)
+
+so that with exact estimates the plant any controller sees is ``J*x'' = u_n`` (eq. 10).
+The reference ``r`` (m) is relative to the *holding position* ``r_base``: where the arm
+was when the loop took over.  State and parameters are one-element record arrays
+(:data:`STAGE_STATE`, :data:`STAGE_PARAMS`) so that a call allocates nothing; the kernels
+take the records themselves (``ss[0]``).
+"""
+import math
+
+import numpy as np
+from numba import float64, from_dtype, njit
+from numba.types import UniTuple
+
+from kernels.compensator import SLOW, compensate, direction, regime_switch, velocity_estimate
+from kernels.dahl import dahl_update
+
+STAGE_PARAMS = np.dtype(
+    [
+        ("dt", "f8"),  # sample period, s
+        ("u_max", "f8"),  # total command limit, A
+        ("use_measured_v", "f8"),  # 1: use the drive's velocity when it has one
+        ("v_alpha", "f8"),  # velocity estimator pole, exp(-2*pi*f_c*dt)
+        ("v_deadband", "f8"),  # direction deadband, m/s
+        ("comp_on", "f8"),  # 1: compensator on
+        ("B", "f8"),  # compensator viscous friction, A*s/m
+        ("Fc", "f8"),  # compensator Coulomb friction, A
+        ("K", "f8"),  # compensator bias stiffness, A/m
+        ("h0", "f8"),  # compensator bias offset, A
+        ("sigma", "f8"),  # compensator Dahl slope, A/m
+        ("Ha", "f8"),  # compensator Dahl asymptote, A
+        ("alpha", "f8"),  # compensator Dahl exponent
+        ("v_on", "f8"),  # SLOW -> FAST speed, m/s
+        ("v_off", "f8"),  # FAST -> SLOW speed, m/s
+        ("xi_on", "f8"),  # SLOW -> FAST distance since the latest turnaround, m
+    ]
+)
+STAGE_STATE = np.dtype(
+    [
+        ("r_base", "f8"),  # holding position: where the arm was when the loop took over, m
+        ("x_prev", "f8"),  # previous measured position, m
+        ("v", "f8"),  # velocity used this sample (measured or estimated), m/s
+        ("s", "f8"),  # direction of motion, +1/-1
+        ("x_r", "f8"),  # latest turnaround position, m
+        ("H_r", "f8"),  # Dahl estimate at the latest turnaround, A
+        ("x_ext", "f8"),  # furthest position since the turnaround, m
+        ("H_dahl", "f8"),  # Dahl estimate, A
+        ("regime", "f8"),  # 0 SLOW (Dahl), 1 FAST (eq. 3)
+        ("e", "f8"),  # position error (r_base + r) - x, m
+        ("u", "f8"),  # total command, A
+        ("u_n", "f8"),  # nominal input (the controller's output), A
+        ("u_c", "f8"),  # compensation current, A
+    ]
+)
+stage_params_t = from_dtype(STAGE_PARAMS)[::1]
+stage_state_t = from_dtype(STAGE_STATE)[::1]
+# The kernels below take the records themselves (``ss[0]``), which numba passes by
+# reference: no reference counting per call, as an array argument would cost.
+stage_params_rec_t = from_dtype(STAGE_PARAMS)
+stage_state_rec_t = from_dtype(STAGE_STATE)
+
+
+@njit(float64(stage_state_rec_t, stage_params_rec_t, float64), cache=True)
+def _compensation(c, p, x):
+    if p.comp_on == 0.0:
+        return 0.0
+    return compensate(int(c.regime), x, c.v, c.s, c.H_dahl, p.B, p.Fc, p.K, p.h0)
+
+
+@njit(float64(stage_state_rec_t, stage_params_rec_t, float64, float64, float64), cache=True)
+def stage_start(c, p, x, v_meas, u_now):
+    """Take over at position ``x`` (m), velocity ``v_meas`` (m/s, NaN if not measured) with
+    ``u_now`` (A) applied: hold ``x``, reset the signals (the pivot's hysteresis state is
+    unknown: the Dahl estimate starts at the loop's centre), and return the nominal input
+    ``u_now - u_c`` (A) the controller must take over from for a bumpless start."""
+    v = v_meas if (p.use_measured_v != 0.0 and not math.isnan(v_meas)) else 0.0
+    c.r_base = x
+    c.x_prev = x
+    c.v = v
+    c.s = 1.0
+    c.x_r = x
+    c.H_r = 0.0
+    c.x_ext = x
+    c.H_dahl = 0.0
+    c.regime = float(SLOW)
+    c.e = 0.0
+    u_c = _compensation(c, p, x)
+    c.u_c = u_c
+    c.u_n = u_now - u_c
+    c.u = u_now
+    return u_now - u_c
+
+
+@njit(float64(stage_state_rec_t, stage_params_rec_t, float64, float64), cache=True)
+def stage_update(c, p, x, v_meas):
+    """The signals of one sample at measured position ``x`` (m) and velocity ``v_meas``
+    (m/s, NaN if not measured): velocity, direction, Dahl estimate (eq. 6-7), regime;
+    returns the compensation current ``u_c`` (A, eq. 9)."""
+    if p.use_measured_v != 0.0 and not math.isnan(v_meas):
+        v = v_meas
+    else:
+        v = velocity_estimate(c.v, x, c.x_prev, p.dt, p.v_alpha)
+    c.v = v
+    c.x_prev = x
+
+    s_new = direction(c.s, v, p.v_deadband)
+    turned = 1.0 if s_new != c.s else 0.0
+    c.s, c.x_r, c.H_r, c.x_ext, c.H_dahl = dahl_update(
+        x, s_new, c.s, c.x_r, c.H_r, c.x_ext, p.sigma, p.Ha, p.alpha
+    )  # eq. (6-7)
+    c.regime = float(
+        regime_switch(int(c.regime), v, c.s * (x - c.x_r), turned, p.v_on, p.v_off, p.xi_on)
+    )
+    return _compensation(c, p, x)  # eq. (9)
+
+
+@njit(UniTuple(float64, 2)(stage_params_rec_t, float64), cache=True)
+def stage_room(p, u_c):
+    """``(lo, hi)`` (A): the range of ``u_n`` that keeps ``u_n + u_c`` within the limit."""
+    return -p.u_max - u_c, p.u_max - u_c
+
+
+@njit(float64(stage_state_rec_t, stage_params_rec_t, float64, float64, float64, float64), cache=True)
+def stage_output(c, p, x, r, u_n, u_c):
+    """The command ``u = clip(u_n + u_c)`` (A, eq. 8) for the controller's ``u_n`` (A);
+    records the error ``(r_base + r) - x`` (m) and the three currents."""
+    u = u_n + u_c  # eq. (8)
+    u = min(max(u, -p.u_max), p.u_max)
+    c.e = (c.r_base + r) - x
+    c.u_n = u_n
+    c.u_c = u_c
+    c.u = u
+    return u

@@ -1,0 +1,89 @@
+"""The controller interface: a kind is one module plus one registration; docs/controllers.md
+is executed (its worked example saved as a module, then run on both paths)."""
+from __future__ import annotations
+
+import re
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from servo.config import Config
+from servo.controllers import KINDS, ControllerKind, register
+
+ROOT = Path(__file__).resolve().parents[1]
+DOC = ROOT / "docs" / "controllers.md"
+
+
+@pytest.fixture
+def kinds_restored():
+    before = dict(KINDS)
+    yield
+    KINDS.clear()
+    KINDS.update(before)
+
+
+def test_the_worked_example_in_the_docs_runs(tmp_path, monkeypatch, kinds_restored):
+    blocks = re.findall(r"^```python\n(.*?)^```", DOC.read_text(), flags=re.S | re.M)
+    assert len(blocks) >= 2
+    (tmp_path / "my_pd.py").write_text(blocks[0])
+    monkeypatch.syspath_prepend(str(tmp_path))
+    monkeypatch.chdir(tmp_path)
+    ns: dict = {"__name__": "controllers_doc"}
+    for i, block in enumerate(blocks[1:], start=2):
+        try:
+            exec(compile(block, f"docs/controllers.md block {i}", "exec"), ns)
+        except Exception as exc:
+            raise AssertionError(f"docs/controllers.md block {i} failed: {type(exc).__name__}: {exc}") from exc
+    log = ns["log"]
+    assert list(log)[-1] == "de_dt"  # the kind's own column, after the common ones
+    # the PD followed the 0.3 um step and back: 30 ms after the last, its error is well under the step
+    assert np.ptp(log["r"]) >= 0.3e-6 and np.ptp(log["x"]) > 0.2e-6 and abs(log["e"][-1]) < 0.1e-6
+    # and the same module through the command line, as a plugin
+    r = subprocess.run([sys.executable, "-m", "servo", "run", "--plugin", "my_pd", "--set", "controller.kind=pd",
+                        "--set", "run.duration_s=0.05", "--fast", "--out", str(tmp_path / "cli")],
+                       capture_output=True, text=True, cwd=tmp_path)  # fmt: skip
+    assert r.returncode == 0, r.stderr
+    assert "de_dt" in np.load(tmp_path / "cli" / "log_compensated.npz").files
+
+
+def test_a_plugin_that_is_not_there_is_one_line(tmp_path):
+    r = subprocess.run([sys.executable, "-m", "servo", "run", "--plugin", "no_such_module_here", "--out", str(tmp_path / "o")],
+                       capture_output=True, text=True, cwd=tmp_path)  # fmt: skip
+    assert r.returncode == 2 and r.stderr.count("\n") == 1 and "Traceback" not in r.stderr
+    assert "--plugin no_such_module_here: cannot import it" in r.stderr
+
+
+def test_an_incomplete_kind_is_refused_at_registration(kinds_restored):
+    class Half(ControllerKind):
+        name = "half"
+        STATE = PARAMS = np.dtype([("a", "f8")])
+
+    with pytest.raises(TypeError, match="missing Section"):
+        register(Half)
+    assert "half" not in KINDS
+
+
+@pytest.mark.parametrize("kind", sorted(KINDS))
+def test_every_kind_runs_the_same_bits_on_the_tick_and_the_fast_path(tmp_path, kind):
+    from servo.experiments.sim import MemoryLog
+    from servo.runtime.controller import Controller
+    from servo.runtime.loop import log_rows, run_closed_loop
+    from servo.runtime.scenario import scenario_inputs
+    from servo.runtime.simdriver import SimDriver
+
+    cfg = Config().replace(controller={"kind": kind}, run={"duration_s": 0.06})
+    logs = []
+    for fast in (False, True):
+        ctl = Controller(cfg)
+        log = MemoryLog(log_rows(cfg), ctl.log_columns)
+        inputs = scenario_inputs(cfg)
+        with SimDriver(cfg, inputs) as drv:
+            run_closed_loop(cfg, drv, ctl, inputs, log, fast=fast, timing=False)
+        logs.append(log.data[: log.rows])
+    assert logs[0].shape == (cfg.n_ticks, len(ctl.log_columns))
+    assert np.array_equal(logs[0], logs[1])
+    x = logs[0][:, ctl.log_columns.index("x")]
+    assert np.isfinite(logs[0]).all() and np.ptp(x) > 0.1e-6  # the loop moved (the 0.3 um step at 50 ms)
