@@ -1,0 +1,103 @@
+"""Track-following design on the double integrator ``J*s^2``: lead-lag (PID) with an
+integrator, notches at the flexible modes, a low-pass; discretised to two cascades.
+
+The design is continuous (:mod:`servo.design.analog`); its one free choice, the lead ratio,
+and its gain are then set on the *exact discrete loop* (:func:`servo.design.loop.open_loop`
+with the double integrator, the hold between the rates, the zero-order hold and an
+optional input delay), so that the loop the controller will run crosses over at
+``crossover_hz`` with ``phase_margin_deg``: the integrator's lag, the notches' and the
+low-pass's lag at the crossover, the sample-and-hold and the delay are all paid for by the
+lead.
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from scipy.optimize import brentq
+
+from servo.design import analog, discretise, loop
+from servo.design.design import Design
+
+#: Largest lead ratio the design will use (about 78 degrees of lead).
+MAX_LEAD_RATIO = 100.0
+
+
+def _build(J, fs, pes_every, method, slow_block, fast_blocks, info):
+    slow = discretise.sos(slow_block, fs / pes_every, method)
+    fast = [discretise.sos(b, fs, method) for b in fast_blocks]
+    fast = np.vstack(fast) if fast else np.zeros((0, 6))
+    return Design(slow, fast, fs, pes_every, integrators=1 if slow_block.params.get("integrator_ratio") else 0,
+                  blocks=(slow_block, *fast_blocks), method=method, info=info)  # fmt: skip
+
+
+def track_following(
+    J: float,
+    fs: float,
+    crossover_hz: float,
+    phase_margin_deg: float | None = 40.0,
+    *,
+    lead_ratio: float | None = None,
+    integrator_ratio: float | None = 5.0,
+    notches=(),
+    lowpass_hz: float | None = None,
+    lowpass_zeta: float = 0.7,
+    pes_every: int = 1,
+    method: str = "bilinear",
+    delay_s: float = 0.0,
+) -> Design:
+    """A track-following :class:`Design` for the plant ``J*x'' = u``.
+
+    ``J``: inertia (A*s^2/m); ``fs``: tick rate (Hz); ``crossover_hz``: open-loop gain
+    crossover (Hz); ``phase_margin_deg``: phase margin (deg) the lead ratio is solved for
+    on the discrete loop, or ``lead_ratio`` (``wp/wz >= 1``) given instead (then
+    ``phase_margin_deg`` is ignored); ``integrator_ratio``: ``crossover / integrator
+    corner`` (None: no integrator); ``notches``: ``(f_hz, depth_db, width)`` triples
+    (:func:`servo.design.analog.notch`: depth in dB at the centre, relative width);
+    ``lowpass_hz``/``lowpass_zeta``: a second-order low-pass (None: none); ``pes_every``:
+    ticks per PES sample (the slow cascade runs at ``fs/pes_every``, notches and low-pass
+    at ``fs``); ``method``: "bilinear" (prewarped at the crossover for the lead-lag, at each
+    notch's centre and the low-pass corner), "matched" or "zoh"
+    (:mod:`servo.design.discretise`); ``delay_s``: plant input delay (s) the phase margin
+    accounts for.
+
+    The gain puts the discrete loop's gain crossover exactly at ``crossover_hz``.  Raises
+    ValueError when the requested phase margin needs more than :data:`MAX_LEAD_RATIO` of
+    lead, a notch or the low-pass sits at or above Nyquist of the tick rate, the crossover
+    above the PES Nyquist, or a cascade is too long or unstable.
+    """
+    if not (J > 0 and fs > 0 and 0 < crossover_hz < fs / pes_every / 2):
+        raise ValueError(f"need J > 0, fs > 0 and 0 < crossover_hz < PES Nyquist ({fs / pes_every / 2:g} Hz)")
+    if integrator_ratio is not None and not integrator_ratio > 1:
+        raise ValueError(f"integrator_ratio = {integrator_ratio}: must be > 1 (the integrator's corner below the crossover)")
+    fast_blocks = [analog.notch(*n) for n in notches]
+    if lowpass_hz is not None:
+        fast_blocks.append(analog.lowpass(lowpass_hz, lowpass_zeta))
+    plant = loop.double_integrator(J)
+    wc = 2 * math.pi * crossover_hz
+
+    def unit_loop(a):
+        slow = analog.lead_integrator(crossover_hz, a, integrator_ratio, 1.0)
+        d = _build(J, fs, pes_every, method, slow, fast_blocks, {})
+        L = loop.open_loop(d, plant, delay_s)
+        return complex(L(np.exp(1j * wc / d.fs_pes))), slow
+
+    def phase_margin(a):
+        return math.degrees(np.angle(unit_loop(a)[0])) % 360.0 - 180.0
+
+    if lead_ratio is None:
+        if phase_margin_deg is None:
+            raise ValueError("give phase_margin_deg or lead_ratio")
+        lo, hi = 1.0, MAX_LEAD_RATIO
+        pm_lo, pm_hi = phase_margin(lo) - phase_margin_deg, phase_margin(hi) - phase_margin_deg
+        if pm_hi < 0:
+            raise ValueError(f"a {phase_margin_deg:g} deg phase margin at {crossover_hz:g} Hz needs more than a "
+                             f"{MAX_LEAD_RATIO:g}:1 lead (it gives {pm_hi + phase_margin_deg:.1f} deg)")  # fmt: skip
+        lead_ratio = lo if pm_lo >= 0 else brentq(lambda a: phase_margin(a) - phase_margin_deg, lo, hi, xtol=1e-10)
+    h, _ = unit_loop(lead_ratio)
+    gain = 1.0 / abs(h)
+    slow = analog.lead_integrator(crossover_hz, lead_ratio, integrator_ratio, gain)
+    info = dict(kind="track_following", J=J, crossover_hz=crossover_hz, phase_margin_deg=phase_margin(lead_ratio),
+                lead_ratio=lead_ratio, integrator_ratio=integrator_ratio, delay_s=delay_s,
+                notches=[list(n) for n in notches], lowpass_hz=lowpass_hz, lowpass_zeta=lowpass_zeta)  # fmt: skip
+    return _build(J, fs, pes_every, method, slow, fast_blocks, info)

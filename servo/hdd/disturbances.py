@@ -1,0 +1,130 @@
+"""The benchmark's disturbances as arrays for a run of ``n`` ticks, and as run inputs.
+
+How the benchmark scales its noise (``scl = sqrt(2*Ts)``), as implemented here:
+
+The benchmark generates each random signal as ``whitenoise(N, T) * Amp`` where
+``whitenoise`` makes a white sequence of *unit one-sided power spectral density* at
+sample period ``T`` (standard deviation ``1/sqrt(2*T)``: variance = PSD * bandwidth
+``1/(2T)``) and ``Amp = value * scl``, ``scl = sqrt(2*Ts)``.  So every ``Amp`` is an
+amplitude spectral density (unit/sqrt(Hz), one-sided), independent of the rate the signal
+is generated at, and the "1 sigma" values of the parameter files are the standard
+deviations *when sampled at the PES period Ts* (the force disturbance's comment says so:
+"1 sigma ... with sampling Ts").  Then:
+
+* sensor noise, generated at ``Ts``: 1 sigma = 1.5e-2 track = 3.81 nm per PES sample;
+* force disturbance, generated at the input period ``Tu = Ts/2``: ASD ``1e-4*scl``
+  A/sqrt(Hz), 1 sigma = ``1e-4*sqrt(Ts/Tu)`` = 1.41e-4 A per tick (1e-4 A at ``Ts``);
+* flutter: nine resonances ``Amp_i*2*zeta_i*w_i^2 / (s^2 + 2*zeta_i*w_i*s + w_i^2)``
+  driven by unit-PSD white noise at ``Ty = Ts`` (zero-order hold, exact discretisation,
+  from rest as the benchmark's ``lsim``): ``Amp_i`` (tracks * scl) is the peak of each
+  resonance's ASD;
+* RRO: harmonics 1, 2, 3 of the spindle (120, 240, 360 Hz) of 0.15, 0.03, 0.006 track
+  with uniformly random phases, repeated exactly every revolution (220 PES samples).
+
+(The alternative reading, unit *two-sided* PSD, would make every random level sqrt(2)
+larger; the benchmark's own numbers for its reference design, NRPE 3 sigma 7-10 % of a
+track on version 1, agree with this one: :mod:`servo.hdd.evaluate` reproduces them.)
+
+Signs: the benchmark's PES is ``y + flutter + RRO + noise`` and its controller acts on
+``-PES``.  Here the runout ``flutter + RRO`` is the track's motion seen by the head; a run
+gets it as the reference ``r = -(flutter + RRO)``, so ``e = r - y_meas = -PES``.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from scipy import signal
+
+from servo.hdd.benchmark import Benchmark, benchmark
+from servo.runtime.scenario import ArrayInputs
+
+
+@dataclass(frozen=True)
+class Disturbances:
+    """One realisation.  PES-rate arrays ``(n_pes,)`` in m: ``rro``, ``flutter``, ``noise``
+    (the sensor noise, for a linear simulation; a run draws its own from
+    ``drive.position_noise = noise_std``); tick-rate ``force`` ``(n_ticks,)`` in A;
+    ``fs`` tick rate (Hz), ``pes_every`` ticks per PES sample; ``rro_phases`` (rad)."""
+
+    fs: float
+    pes_every: int
+    rro: np.ndarray
+    flutter: np.ndarray
+    noise: np.ndarray
+    force: np.ndarray
+    noise_std: float
+    force_std: float
+    rro_phases: np.ndarray
+
+    @property
+    def runout(self) -> np.ndarray:
+        """Track runout seen by the head at the PES rate (m): RRO + flutter."""
+        return self.rro + self.flutter
+
+    def held(self, x: np.ndarray) -> np.ndarray:
+        """A PES-rate array at the tick rate (each value held ``pes_every`` ticks), ``(n_ticks,)``."""
+        return np.repeat(x, self.pes_every)[: self.force.shape[0]]
+
+    def reference(self) -> np.ndarray:
+        """The run's reference (m) at the tick rate: ``-(RRO + flutter)``, held between PES samples."""
+        return -self.held(self.runout)
+
+
+def flutter_filters(bench: Benchmark):
+    """``(b, a)`` of each flutter resonance discretised with a zero-order hold at ``Ts``,
+    input: unit-PSD white noise (its samples of std ``1/sqrt(2*Ts)``), output in tracks."""
+    out = []
+    for f, z, a in zip(bench.flutter_hz, bench.flutter_zeta, bench.flutter_amp):
+        w = 2 * np.pi * f
+        pk = a * bench.scl
+        b, den, _ = signal.cont2discrete(([pk * 2 * z * w * w], [1.0, 2 * z * w, w * w]), bench.Ts, method="zoh")
+        out.append((np.ravel(b), np.ravel(den)))
+    return out
+
+
+def generate(n_ticks: int, version: int = 2, seed: int = 0, fs: float | None = None) -> Disturbances:
+    """The benchmark's disturbances for ``n_ticks`` ticks at ``fs`` (Hz, default ``2/Ts``;
+    ``fs*Ts`` must be a whole number of ticks per PES sample).  Deterministic in ``seed``:
+    each source draws from its own stream of ``numpy.random.SeedSequence(seed)``."""
+    b = benchmark(version)
+    fs = 2.0 / b.Ts if fs is None else float(fs)
+    pes_every = int(round(fs * b.Ts))
+    if pes_every < 1 or abs(fs * b.Ts - pes_every) > 1e-9:
+        raise ValueError(f"fs = {fs:g} Hz: need a whole number of ticks per PES period Ts = {b.Ts:.6g} s")
+    if n_ticks < 1:
+        raise ValueError("n_ticks must be >= 1")
+    n_pes = -(-n_ticks // pes_every)
+    g_force, g_noise, g_flutter, g_rro = (np.random.default_rng(s) for s in np.random.SeedSequence(seed).spawn(4))
+    Tp, Ts = b.Tp, b.Ts
+    noise_std = b.sensor_noise * b.scl / np.sqrt(2 * Ts) * Tp
+    force_std = b.force_noise * b.scl / np.sqrt(2 / fs)
+    force = g_force.standard_normal(n_ticks) * force_std
+    noise = g_noise.standard_normal(n_pes) * noise_std
+    flutter = np.zeros(n_pes)
+    for num, den in flutter_filters(b):
+        flutter += signal.lfilter(num, den, g_flutter.standard_normal(n_pes) / np.sqrt(2 * Ts))
+    flutter *= Tp
+    phases = g_rro.uniform(0.0, 2 * np.pi, len(b.rro_harmonics))
+    k = np.arange(n_pes) % b.sectors  # exactly periodic per revolution
+    t = k * Ts
+    rro = sum(a * np.sin(2 * np.pi * h * b.spindle_hz * t + ph) for h, a, ph in zip(b.rro_harmonics, b.rro_amp, phases))
+    return Disturbances(fs, pes_every, np.asarray(rro * Tp, float), flutter, noise, force, float(noise_std),
+                        float(force_std), phases)  # fmt: skip
+
+
+class BenchmarkInputs(ArrayInputs):
+    """A run's inputs (:class:`servo.runtime.scenario.Inputs`) from :class:`Disturbances`:
+    reference ``-(RRO + flutter)`` held between PES samples; the force disturbance as the
+    excitation current (``force_as="excitation"``, the default: added to the controller's
+    command, it goes through the input delay and excites the flexible modes, as the
+    benchmark's force disturbance does) or as the drive's disturbance force
+    (``"disturbance"``: on the rigid body only, undelayed).  Sensor noise is the drive's
+    ``position_noise`` (:func:`servo.hdd.drive.benchmark_drive` sets it)."""
+
+    def __init__(self, dist: Disturbances, force_as: str = "excitation"):
+        if force_as not in ("excitation", "disturbance"):
+            raise ValueError(f"force_as = {force_as!r}: 'excitation' or 'disturbance'")
+        kw = {"u_exc" if force_as == "excitation" else "d": dist.force}
+        super().__init__(r=dist.reference(), **kw)
+        self.dist = dist

@@ -1,0 +1,161 @@
+"""The benchmark's evaluation of a :class:`~servo.design.design.Design`, linear and
+independent of the project's runtime: ``python -m servo.hdd.evaluate``.
+
+For every perturbed plant (54 in version 2: 18 mechanical x 3 force constants): the
+exact multirate open loop at the PES rate (:func:`servo.design.loop.open_loop`): closed-loop
+stability, gain and phase margins and crossover (``control.stability_margins``); then, if
+stable, the PES of a linear simulation of the loop over the benchmark's 1000 revolutions
+with its disturbances (:mod:`servo.hdd.linsim`; the same disturbance record for every
+plant, as the benchmark does), the first 10 ms ignored, and its figures
+(:mod:`servo.hdd.pes`): RRO peak-to-peak and NRRO 3 sigma in tracks; beside them the
+stationary NRRO 3 sigma the disturbance models imply (Lyapunov), which the simulation
+estimates.
+
+    python -m servo.hdd.evaluate [--version 2] [--revolutions 1000] [--seed 0]
+                                 [--designs reference,own] [--out DIR]
+
+prints the table of ``docs/hdd.md``; ``--out`` (new or empty) also writes
+``evaluation.json`` and ``pes_<design>.png`` (the nominal plant's PES figures).
+"""
+from __future__ import annotations
+
+import argparse
+import math
+import sys
+from dataclasses import dataclass
+
+import numpy as np
+
+from servo.design import loop
+from servo.design.design import Design
+from servo.hdd import designs, linsim
+from servo.hdd.benchmark import Benchmark, benchmark
+from servo.hdd.disturbances import Disturbances, generate
+from servo.hdd.pes import PesFigures, pes_figures
+from servo.hdd.plant import plants
+
+
+@dataclass
+class PlantResult:
+    """One perturbed plant: ``margins`` (:func:`servo.design.loop.margins`), and when
+    stable the PES ``figures`` (tracks), the stationary NRRO (``theory``: 1 sigma, m, by
+    source) and the steady RRO peak-to-peak (``rro_pp_theory``, tracks)."""
+
+    name: str
+    margins: dict
+    figures: PesFigures | None = None
+    theory: dict | None = None
+    rro_pp_theory: float = math.nan
+
+    def row(self) -> dict:
+        m = self.margins
+        out = dict(plant=self.name, stable=m["stable"], gain_margin_db=m["gain_margin_db"],
+                   phase_margin_deg=m["phase_margin_deg"], crossover_hz=m["crossover_hz"])  # fmt: skip
+        if self.figures is not None:
+            out.update(rro_pp=self.figures.rro_pp, nrro_3sigma=self.figures.nrro_3sigma, sigma3=self.figures.sigma3,
+                       nrro_3sigma_theory=3 * self.theory["total"] / TP, rro_pp_theory=self.rro_pp_theory)  # fmt: skip
+        return out
+
+
+TP = 2.54e-7  # overwritten per benchmark in evaluate(); both versions share it
+
+
+def evaluate_plant(design: Design, bench: Benchmark, name: str, plant, dist: Disturbances, U) -> PlantResult:
+    """:class:`PlantResult` of ``design`` on one plant under the disturbance record ``U``."""
+    m = loop.margins(loop.open_loop(design, plant, bench.Td))
+    res = PlantResult(name, m)
+    if not m["stable"]:
+        return res
+    cl = linsim.closed_loop(design, plant, bench.Td)
+    pes = linsim.simulate(cl, U) / bench.Tp
+    skip = int(math.ceil(bench.skip_s / bench.Ts))
+    res.figures = pes_figures(pes, bench.sectors, 1.0 / bench.Ts, skip=skip, hist_range=0.5)
+    res.theory = linsim.stationary_nrro(cl, bench, dist)
+    rro = linsim.rro_response(cl, bench, dist, 1.0 / bench.Ts) / bench.Tp
+    res.rro_pp_theory = float(rro.max() - rro.min())
+    return res
+
+
+def evaluate(design: Design, version: int = 2, revolutions: int | None = None, seed: int = 0,
+             with_kf: bool = True, only: int | None = None) -> dict:  # fmt: skip
+    """Evaluate ``design`` on every perturbed plant of the benchmark (``only``: the first
+    ``only`` plants).  Returns ``{"plants": [PlantResult...], "summary": {...}}`` where the
+    summary holds mean and worst RRO p-p and NRRO 3 sigma (tracks) over the plants, the
+    number unstable, and the smallest margins."""
+    bench = benchmark(version)
+    if abs(design.fs_pes * bench.Ts - 1) > 1e-9:
+        raise ValueError(f"the design's PES rate {design.fs_pes:g} Hz is not the benchmark's {1 / bench.Ts:g} Hz")
+    revs = bench.revolutions if revolutions is None else int(revolutions)
+    dist = generate(revs * bench.sectors * design.pes_every, version, seed, design.fs)
+    U = linsim.inputs(dist)
+    results = [evaluate_plant(design, bench, name, p, dist, U) for name, p in plants(bench, with_kf)[:only]]
+    return dict(plants=results, summary=summarise(results))
+
+
+def summarise(results: list[PlantResult]) -> dict:
+    """Mean and worst of the figures over the plants (NaN figures when any is unstable)."""
+    ok = [r for r in results if r.figures is not None]
+    rro = np.array([r.figures.rro_pp for r in ok])
+    nrro = np.array([r.figures.nrro_3sigma for r in ok])
+    th = np.array([3 * r.theory["total"] / TP for r in ok])
+    unstable = len(results) - len(ok)
+    nan = math.nan
+    return dict(
+        plants=len(results), unstable=unstable,
+        rro_pp_mean=float(rro.mean()) if ok and not unstable else nan,
+        rro_pp_worst=float(rro.max()) if ok and not unstable else nan,
+        nrro_3sigma_mean=float(nrro.mean()) if ok and not unstable else nan,
+        nrro_3sigma_worst=float(nrro.max()) if ok and not unstable else nan,
+        nrro_3sigma_theory_mean=float(th.mean()) if ok and not unstable else nan,
+        gain_margin_db_min=min(r.margins["gain_margin_db"] for r in results),
+        phase_margin_deg_min=min(r.margins["phase_margin_deg"] for r in results),
+        crossover_hz_nominal=results[0].margins["crossover_hz"],
+    )  # fmt: skip
+
+
+def table(named: dict) -> str:
+    """Markdown table of the summaries ``{design name: evaluate(...)}`` (figures in % of a track)."""
+    head = ("| design | unstable | RRO p-p mean | RRO p-p worst | NRRO 3σ mean | NRRO 3σ worst | NRRO 3σ theory mean "
+            "| min GM (dB) | min PM (deg) | crossover (Hz) |")
+    out = [head, "|" + "---|" * 10]
+    for name, ev in named.items():
+        s = ev["summary"]
+        pct = lambda v: f"{100 * v:.2f}" if np.isfinite(v) else "—"  # noqa: E731
+        out.append(f"| {name} | {s['unstable']}/{s['plants']} | {pct(s['rro_pp_mean'])} | {pct(s['rro_pp_worst'])} "
+                   f"| {pct(s['nrro_3sigma_mean'])} | {pct(s['nrro_3sigma_worst'])} | {pct(s['nrro_3sigma_theory_mean'])} "
+                   f"| {s['gain_margin_db_min']:.2f} | {s['phase_margin_deg_min']:.1f} | {s['crossover_hz_nominal']:.0f} |")  # fmt: skip
+    return "\n".join(out)
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(prog="python -m servo.hdd.evaluate", description=__doc__.splitlines()[0])
+    ap.add_argument("--version", type=int, default=2, choices=(1, 2))
+    ap.add_argument("--revolutions", type=int, default=None, help="default: the benchmark's 1000")
+    ap.add_argument("--seed", type=int, default=0)
+    ap.add_argument("--designs", default="reference,own", help="comma-separated: reference, own")
+    ap.add_argument("--out", default=None, help="folder (new or empty) for evaluation.json and PES plots")
+    a = ap.parse_args(argv)
+    try:
+        names = [n.strip() for n in a.designs.split(",") if n.strip()]
+        known = {"reference": designs.reference, "own": designs.own}
+        bad = [n for n in names if n not in known]
+        if bad or not names:
+            raise ValueError(f"unknown design {', '.join(bad) or '(none)'}: choose from {', '.join(known)}")
+        if a.revolutions is not None and a.revolutions < 3:
+            raise ValueError("--revolutions must be >= 3")
+        results = {n: evaluate(known[n](a.version), a.version, a.revolutions, a.seed) for n in names}
+    except ValueError as exc:
+        print(f"servo: error: {exc}", file=sys.stderr)
+        return 2
+    print(f"NSS HDD benchmark v{a.version}, linear evaluation ({a.revolutions or 1000} revolutions, seed {a.seed}); "
+          "figures in % of a track")  # fmt: skip
+    print(table(results))
+    if a.out:
+        from servo.hdd.report import write_report
+
+        write_report(a.out, results, vars(a))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
