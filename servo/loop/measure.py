@@ -10,6 +10,10 @@ is correlated with the excitation's frequency (a single-bin DFT, no leakage)::
 
     S(f) = 2/n * sum_k s[k]*exp(-j*2*pi*f*(t_k - t_i))
 
+computed as the least-squares fit of a sine together with an offset and a linear drift
+(:func:`correlate`), the same number for a periodic signal and immune to a slow
+transient still decaying in the window.
+
 Signals (log columns): ``u`` the current command, ``u_n`` the controller's output with
 the excitation (``u_n = u_pi + u_exc``), ``u_c`` the compensator's current, ``u_exc``,
 ``x``.  Two break points (docs/loop.md):
@@ -104,7 +108,12 @@ class Program:
 
 
 def program(cfg: Config, s: LoopSettings, freqs=None) -> Program:
-    """The schedule of ``s`` (or of the given frequencies, Hz) at ``cfg``'s sample rate."""
+    """The schedule of ``s`` (or of the given frequencies, Hz) at ``cfg``'s sample rate.
+
+    Each segment is a whole number of windows (``periods`` periods in whole samples),
+    so its sine ends where it began, at phase 0: the excitation has no jump between
+    frequencies.  The settling is the first whole windows, at least ``settle_periods``
+    periods and ``settle_s`` seconds."""
     fs = cfg.run.sample_rate_hz
     fr = np.geomspace(s.f_min, s.f_max, s.n_freq) if freqs is None else np.asarray(freqs, dtype=float)
     f_act, start, win = [], [], []
@@ -112,7 +121,8 @@ def program(cfg: Config, s: LoopSettings, freqs=None) -> Program:
     for f in fr:
         n = int(round(s.periods * fs / f))  # whole samples, exactly `periods` periods
         fa = s.periods * fs / n
-        settle = int(math.ceil(max(s.settle_periods / fa, s.settle_s) * fs))
+        need = max(s.settle_periods / fa, s.settle_s) * fs
+        settle = int(math.ceil(need / n - 1e-9)) * n
         f_act.append(fa)
         start.append(k)
         win.append((k + settle, k + settle + n))
@@ -121,28 +131,44 @@ def program(cfg: Config, s: LoopSettings, freqs=None) -> Program:
                    s.periods, cfg.dt)  # fmt: skip
 
 
+def _sine_fit(Y: np.ndarray, w: float, t: np.ndarray) -> np.ndarray:
+    """Complex amplitudes (one per column of ``Y``, (n, m)) of the least-squares fit
+    ``y = c0 + c1*t + a*cos(w*t) + b*sin(w*t)``: ``a - j*b``, the single-bin DFT's
+    ``2/n*sum(y*exp(-j*w*t))`` of a pure sine, with an offset and a drift fitted jointly."""
+    tc = t - t.mean()
+    A = np.column_stack([np.ones_like(t), tc, np.cos(w * t), np.sin(w * t)])
+    coef = np.linalg.lstsq(A, Y, rcond=None)[0]
+    return coef[2] - 1j * coef[3]
+
+
 def correlate(log: dict[str, np.ndarray], prog: Program) -> tuple[dict, dict, dict]:
-    """Single-bin DFTs of :data:`SIGNALS` over each window.  Returns ``(whole, per_period,
+    """The complex amplitude at the frequency of each of :data:`SIGNALS` over each
+    window: a least-squares fit of a sine, an offset and a linear drift (over whole
+    periods the sine's part equals the single-bin DFT; the drift term keeps a slow
+    transient left in the window from leaking into it).  Returns ``(whole, per_period,
     fraction)``: ``{signal: (n_f,) complex}``, ``{signal: (n_f, periods) complex}`` (one
-    DFT per period, for the spread) and ``{signal: (n_f,)}`` the fraction of the
-    signal's (linearly detrended) variance in the window that lies at the frequency."""
+    fit per period, for the spread) and ``{signal: (n_f,)}`` the fraction of the
+    signal's variance about the offset and drift that the sine holds."""
     nf, p = len(prog.f), prog.periods
     whole = {s: np.zeros(nf, complex) for s in SIGNALS}
     per = {s: np.zeros((nf, p), complex) for s in SIGNALS}
     frac = {s: np.zeros(nf) for s in SIGNALS}
     for i, (f, a, (w0, w1)) in enumerate(zip(prog.f, prog.start, prog.win)):
         n = w1 - w0
-        k = np.arange(w0, w1)
-        e = np.exp(-2j * np.pi * f * (k - a) * prog.dt)
+        t = (np.arange(w0, w1) - a) * prog.dt
+        w = 2.0 * np.pi * f
+        Y = np.column_stack([log[s][w0:w1] for s in SIGNALS])
+        amp = _sine_fit(Y, w, t)
         edges = np.round(np.arange(p + 1) * n / p).astype(int)
-        for s in SIGNALS:
-            y = log[s][w0:w1]
-            whole[s][i] = 2.0 / n * np.dot(y, e)
-            per[s][i] = [2.0 / (b - c) * np.dot(y[c:b], e[c:b]) for c, b in zip(edges[:-1], edges[1:])]
-            j = np.arange(n)
-            yd = y - np.polyval(np.polyfit(j, y, 1), j) if np.ptp(y) > 0 else np.zeros(n)
-            var = float(np.var(yd))
-            frac[s][i] = min(1.0, abs(whole[s][i]) ** 2 / 2.0 / var) if var > 0 else 1.0
+        amp_i = np.array([_sine_fit(Y[c:b], w, t[c:b]) for c, b in zip(edges[:-1], edges[1:])])
+        tc = t - t.mean()
+        drift = np.column_stack([np.ones_like(t), tc])
+        resid = Y - drift @ np.linalg.lstsq(drift, Y, rcond=None)[0]
+        var = np.var(resid, axis=0)
+        for j, s in enumerate(SIGNALS):
+            whole[s][i] = amp[j]
+            per[s][i] = amp_i[:, j]
+            frac[s][i] = min(1.0, abs(amp[j]) ** 2 / 2.0 / var[j]) if var[j] > 0 else 1.0
     return whole, per, frac
 
 

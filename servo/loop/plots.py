@@ -72,7 +72,7 @@ def _mark(ax, m: dict | None, color, text: bool = True) -> None:
     ax[0].axvline(fc, color=color, lw=0.8, alpha=0.6)
     ax[1].plot([fc, fc], [-180.0, -180.0 + pm], color=color, lw=1.5)
     if text:
-    f"PM {pm:.0f} deg @ {fc:.0f} Hz", (fc, -180.0 + pm / 2), xytext=(4, 0), textcoords="offset points",
+        ax[1].annotate(f"PM {pm:.0f} deg @ {fc:.0f} Hz", (fc, -180.0 + pm / 2), xytext=(4, 0), textcoords="offset points",
                        fontsize=7, color=color)  # fmt: skip
 
 
