@@ -8,15 +8,13 @@ crossover within 2 %, phase margin within 2 deg, gain margin within 1 dB of
 """
 import json
 import re
-import select
-import subprocess
-import sys
-from contextlib import contextmanager
 
 import control
 import numpy as np
 import pytest
 
+from hil.board import Board
+from hil.emulator import start_in_thread
 from servo.config import Config, to_toml
 from servo.io.frequency_response import load_frequency_responses
 from servo.loop.design import (compensator_response, controller_response, current_loop_design, loop_design,
@@ -214,35 +212,15 @@ def test_bad_input_is_one_line_and_writes_nothing(args, message, tmp_path, capsy
 # ------------------------------------------------------------------------ through the link
 
 
-@contextmanager
-def emulator(cfg_file, timeout=60.0):
-    proc = subprocess.Popen([sys.executable, "-m", "servo", "emulate", "--pty", "--lockstep", "--config", str(cfg_file)],
-                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)  # fmt: skip
-    try:
-        ready, _, _ = select.select([proc.stdout], [], [], timeout)
-        line = proc.stdout.readline() if ready else ""
-        m = re.search(r"listening on (\S+)", line)
-        assert m, f"emulator did not start: {line!r}"
-        yield m.group(1)
-    finally:
-        proc.terminate()
-        try:
-            proc.wait(5)
-        except subprocess.TimeoutExpired:
-            proc.kill()
-            proc.wait()
-        proc.stdout.close()
-        proc.stderr.close()
-
-
 def test_through_the_emulator_the_measurement_is_the_simulated_drives(tmp_path, capsys):
-    """``servo loop --port`` against ``servo emulate`` (lockstep, over a pty) measures
+    """``servo loop --port`` against the device emulator (lockstep, over a pty; in a
+    thread here, tests/test_hil.py runs ``servo emulate`` as its own process) measures
     exactly what the simulated drive gives: the same loop, bit for bit."""
     cfg_file = tmp_path / "cfg.toml"
     cfg = CFG.replace(scenario={"disturbance_amplitude": 0.0})
     cfg_file.write_text(to_toml(cfg))
     out = tmp_path / "port"
-    with emulator(cfg_file) as url:
+    with start_in_thread(Board(cfg)) as url:
         code, stdout, err = servo(capsys, "loop", *CLI_BAND, "--compensator", "on", "--quiet", "--config", str(cfg_file),
                                   "--port", url, "--out", str(out))  # fmt: skip
     assert code == 0, err
