@@ -1,0 +1,95 @@
+"""``servo loop``: loop-shaping measurements (L, S, T) in closed loop, against the design."""
+from __future__ import annotations
+
+import argparse
+import time
+from pathlib import Path
+
+from servo.cli.common import add_config_options, config_from_args
+from servo.errors import ConfigError
+
+
+def register(sub) -> None:
+    p = sub.add_parser(
+        "loop",
+        help="measure the open loop L, sensitivity S and T by stepped-sine injection, against the design",
+        description="Stepped-sine injection of a current at the controller's output, in closed loop, on the "
+        "simulated drive or a board (--port URL, e.g. `servo emulate`): the open loop L, the sensitivity S and "
+        "the complementary sensitivity T, broken at the controller output (L = -U_pi/U_n) and at the current "
+        "(L_u = -U_fb/U), with and without the compensator, set against the design C*P (the PI holding loop on "
+        "the double integrator 1/(J s^2) and on the drive's linear model). Prints the crossover, phase and gain "
+        "margins (control.stability_margins) of each; writes frd.npz (servo.io.frequency_response."
+        "load_frequency_responses, convertible to control.FrequencyResponseData), loop.csv, loop.png, "
+        "sensitivity.png and summary.json. docs/loop.md explains the signs and the estimator.",
+    )
+    p.add_argument("--compensator", choices=("on", "off", "both"), default="both",
+                   help="measure with the compensator, without, or both (default both)")  # fmt: skip
+    p.add_argument("--levels", default="0.2", metavar="MA,...", help="excitation amplitudes in mA (default 0.2)")
+    p.add_argument("--f-min", type=float, default=20.0, help="lowest frequency, Hz (default 20)")
+    p.add_argument("--f-max", type=float, default=2000.0, help="highest frequency, Hz (default 2000)")
+    p.add_argument("--n-freq", type=int, default=25, help="log-spaced frequencies (default 25)")
+    p.add_argument("--periods", type=int, default=8, help="measured periods per frequency (default 8)")
+    p.add_argument("--settle", type=float, default=0.02, metavar="S",
+                   help="settling before each frequency's window, s (at least 4 periods; default 0.02)")  # fmt: skip
+    p.add_argument("--port", metavar="URL", help="measure a board (or `servo emulate`) over this serial port "
+                   "instead of the simulated drive; start the emulator without a scenario disturbance "
+                   "(--set scenario.disturbance_amplitude=0)")  # fmt: skip
+    add_config_options(p)
+    p.add_argument("--quiet", action="store_true", help="no progress lines on stderr")
+    p.add_argument("--out", metavar="DIR", help="output folder (default servo-out/loop-<time>)")
+    p.set_defaults(handler=handle)
+
+
+def settings_from_args(args) -> "LoopSettings":  # noqa: F821
+    from servo.loop.measure import LoopSettings
+
+    try:
+        levels = tuple(float(v) * 1e-3 for v in args.levels.split(","))
+    except ValueError:
+        raise ConfigError(f"--levels {args.levels!r}: expected comma-separated numbers in mA") from None
+    return LoopSettings(f_min=args.f_min, f_max=args.f_max, n_freq=args.n_freq, periods=args.periods,
+                        settle_s=args.settle, levels=levels)  # fmt: skip
+
+
+def handle(args: argparse.Namespace) -> int:
+    from servo.io.outdir import check_output, staged
+    from servo.io.provenance import provenance
+    from servo.loop.job import format_summary, run_loop
+
+    cfg = config_from_args(args)
+    s = settings_from_args(args).check(cfg)
+    out = Path(args.out) if args.out else Path("servo-out") / time.strftime("loop-%Y%m%d-%H%M%S")
+    check_output(out)
+    prov = provenance(cfg, [], getattr(args, "argv", None))
+    if args.port is None:
+        with staged(out) as tmp:
+            summary = run_loop(cfg, tmp, s, args.compensator, progress=not args.quiet, provenance=prov)
+    else:
+        summary = _on_port(cfg, out, s, args, prov)
+    print(format_summary(summary, out))
+    return 0
+
+
+def _on_port(cfg, out: Path, s, args: argparse.Namespace, prov: dict) -> dict:
+    """The same job through the serial link: one session (driver) per run.  The first
+    driver is configured (handshake, version and rate checks) before anything is written,
+    so a bad URL or an absent board leaves no output folder."""
+    from hil.serialdriver import SerialDriver
+    from servo.io.outdir import staged
+    from servo.loop.job import run_loop
+    from servo.runtime.pacing import realtime_section
+
+    first = SerialDriver(cfg, args.port)
+    first.configure()
+    pending = [first]
+
+    def make_driver(rcfg, inputs):
+        return pending.pop() if pending else SerialDriver(rcfg, args.port)
+
+    try:
+        with realtime_section(), staged(out) as tmp:  # no GC pauses while the board waits
+            return run_loop(cfg, tmp, s, args.compensator, make_driver=make_driver,
+                            where=f"{first.info.name} (d = {cfg.link.command_latency_ticks}, batch = {cfg.link.batch})",
+                            progress=not args.quiet, provenance=prov)  # fmt: skip
+    finally:
+        first.close()
