@@ -38,42 +38,22 @@ def _z(cfg: Config, f_hz) -> np.ndarray:
 
 def uses_measured_velocity(cfg: Config) -> bool:
     """Whether the controller's rate feedback reads the drive's velocity sensor (else
-    its own estimator on the position), as :func:`servo.runtime.controller.controller_params`
+    its own estimator on the position), as :func:`servo.runtime.controller.stage_params`
     and the drive decide it."""
     return cfg.controller.velocity_source == "auto" and cfg.drive.measures_velocity
 
 
 def controller_response(cfg: Config, f_hz) -> np.ndarray:
-    """The linear frequency response ``C(f)`` (A/m, complex, shape of ``f_hz``) of the PI
-    holding loop of :mod:`kernels.holding` from ``-x`` (m) to its output ``u_n`` (A), as
-    implemented (discrete, sample period ``cfg.dt``)::
+    """The linear frequency response ``C(f)`` (A/m, complex, shape of ``f_hz``) of the
+    configured controller kind from ``-x`` (m) to its output ``u_n`` (A), as it runs at
+    the tick rate: the kind's own :meth:`~servo.controllers.ControllerKind.response`
+    (for the PI holding loop, ``kp + ki*dt/(z - 1) + kd*D(z)`` with ``D`` the velocity
+    signal per unit position: ``j*w`` when the drive's velocity is measured, else the
+    estimator's).  The output limits are assumed inactive."""
+    from servo.controllers import get_kind
 
-        C(z) = kp + ki*dt/(z - 1) + kd*D(z)
-
-    The integrator adds ``ki*dt*e`` after the output is computed (hence ``1/(z - 1)``).
-    ``D`` is the velocity signal per unit position: ``j*w`` when the drive's velocity is
-    measured (``controller.velocity_source = "auto"`` on a drive that measures it; the
-    sensor reads ``dx/dt`` at the tick), else the controller's estimator
-    ``(1 - a)*(1 - 1/z)/dt / (1 - a/z)`` with ``a = exp(-2*pi*velocity_cutoff_hz*dt)``
-    (:func:`kernels.compensator.velocity_estimate`).  The setpoint weight acts on the
-    reference only, not on this feedback path; the output limits are assumed inactive.
-
-    This is the one place ``servo loop`` asks for the controller's response.  The
-    controller-kind interface (issue 10, item 2) will move it there: every kind will
-    provide its own response, and this function becomes a one-line delegation to the
-    configured kind.
-    """
-    c = cfg.controller
-    f = np.asarray(f_hz, dtype=float)
-    z = _z(cfg, f)
-    dt = cfg.dt
-    if uses_measured_velocity(cfg):
-        d = 2j * np.pi * f
-    else:
-        a = math.exp(-2.0 * math.pi * c.velocity_cutoff_hz * dt)
-        d = (1.0 - a) * (1.0 - 1.0 / z) / dt / (1.0 - a / z)
     with np.errstate(divide="ignore", invalid="ignore"):
-        return c.kp + c.ki * dt / (z - 1.0) + c.kd * d
+        return get_kind(cfg.controller.kind).response(cfg.controller.section, cfg, np.asarray(f_hz, dtype=float))
 
 
 def compensator_response(cfg: Config, f_hz) -> np.ndarray:

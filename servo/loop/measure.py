@@ -1,7 +1,7 @@
 """Stepped-sine measurement of the closed loop: L, S and T at the injection points.
 
 One run per excitation level and compensator setting: the excitation current ``u_exc``
-(A, added to the controller's output, :func:`kernels.controller.controller_tick`) is a
+(A, added to the controller's output, :mod:`kernels.compose`) is a
 sine held at each frequency in turn, ``level*sin(2*pi*f*(t - t_i))`` from the segment's
 start ``t_i``: ``settle`` ticks (transients and the pivot's hysteresis loop become
 periodic), then a window of exactly ``periods`` periods in whole samples (the
@@ -76,9 +76,9 @@ class LoopSettings:
             raise ConfigError("loop: periods >= 2, settle_periods >= 0 and 0 <= settle_s <= 10 s")
         if not self.levels or min(self.levels) <= 0.0 or not all(map(math.isfinite, self.levels)):
             raise ConfigError("loop: excitation levels must be positive")
-        if max(self.levels) >= cfg.controller.holding_limit:
-            raise ConfigError(f"loop: level {max(self.levels) * 1e3:g} mA reaches controller.holding_limit "
-                              f"({cfg.controller.holding_limit * 1e3:g} mA)")  # fmt: skip
+        if max(self.levels) >= cfg.controller.current_limit:
+            raise ConfigError(f"loop: level {max(self.levels) * 1e3:g} mA reaches controller.current_limit "
+                              f"({cfg.controller.current_limit * 1e3:g} mA)")  # fmt: skip
         return self
 
 
@@ -290,7 +290,8 @@ def measure(cfg: Config, s: LoopSettings, level: float, compensation: bool, make
     for w0, w1 in prog.win:
         inside[w0:w1] = True
     c = cfg.controller
-    clipped = int(np.count_nonzero(inside & ((np.abs(log["u"]) >= c.current_limit) | (np.abs(log["u_n"]) >= c.holding_limit))))
+    own_limit = getattr(c.section, "holding_limit", getattr(c.section, "output_limit", np.inf))  # the kind's, if any
+    clipped = int(np.count_nonzero(inside & ((np.abs(log["u"]) >= c.current_limit) | (np.abs(log["u_n"]) >= own_limit))))
     fast = int(np.count_nonzero(inside & (log["regime"] != 0.0))) if compensation else 0
     return LoopMeasurement(level, compensation, prog.f, whole, per, frac, clipped, fast, int(inside.sum()), link)
 
