@@ -12,7 +12,8 @@ Three methods (the user picks one for a whole design):
     block has a pole or zero at ``s = 0`` (an integrator).
 ``zoh``
     Zero-order-hold equivalent (``scipy.signal.cont2discrete``): the block's step
-    response at the sample instants.
+    response at the sample instants.  It does not map a notch's zeros: a 20 dB notch at
+    4.1 kHz comes out about 12 dB deep at 52.8 kHz (use it for the lead-lag only).
 """
 from __future__ import annotations
 

@@ -25,7 +25,9 @@ MAX_LEAD_RATIO = 100.0
 
 def _build(J, fs, pes_every, method, slow_block, fast_blocks, info):
     slow = discretise.sos(slow_block, fs / pes_every, method)
-    fast = [discretise.sos(b, fs, method) for b in fast_blocks]
+    # a zero-order hold does not keep a notch's zeros (a 20 dB notch comes out ~12 dB):
+    # in a "zoh" design the notches and the low-pass are matched
+    fast = [discretise.sos(b, fs, "matched" if method == "zoh" else method) for b in fast_blocks]
     fast = np.vstack(fast) if fast else np.zeros((0, 6))
     return Design(slow, fast, fs, pes_every, integrators=1 if slow_block.params.get("integrator_ratio") else 0,
                   blocks=(slow_block, *fast_blocks), method=method, info=info)  # fmt: skip
@@ -58,12 +60,14 @@ def track_following(
     ticks per PES sample (the slow cascade runs at ``fs/pes_every``, notches and low-pass
     at ``fs``); ``method``: "bilinear" (prewarped at the crossover for the lead-lag, at each
     notch's centre and the low-pass corner), "matched" or "zoh"
-    (:mod:`servo.design.discretise`); ``delay_s``: plant input delay (s) the phase margin
+    (:mod:`servo.design.discretise`; with "zoh" the notches and low-pass are matched, a
+    hold equivalent losing a notch's depth); ``delay_s``: plant input delay (s) the phase margin
     accounts for.
 
     The gain puts the discrete loop's gain crossover exactly at ``crossover_hz``.  Raises
-    ValueError when the requested phase margin needs more than :data:`MAX_LEAD_RATIO` of
-    lead, a notch or the low-pass sits at or above Nyquist of the tick rate, the crossover
+    ValueError when no lead ratio up to :data:`MAX_LEAD_RATIO` gives the requested phase
+    margin (a wide lead also lifts the gain above the crossover, and past a point loses
+    margin to the sample-and-hold and the delay), a notch or the low-pass sits at or above Nyquist of the tick rate, the crossover
     above the PES Nyquist, or a cascade is too long or unstable.
     """
     if not (J > 0 and fs > 0 and 0 < crossover_hz < fs / pes_every / 2):
@@ -88,12 +92,18 @@ def track_following(
     if lead_ratio is None:
         if phase_margin_deg is None:
             raise ValueError("give phase_margin_deg or lead_ratio")
-        lo, hi = 1.0, MAX_LEAD_RATIO
-        pm_lo, pm_hi = phase_margin(lo) - phase_margin_deg, phase_margin(hi) - phase_margin_deg
-        if pm_hi < 0:
-            raise ValueError(f"a {phase_margin_deg:g} deg phase margin at {crossover_hz:g} Hz needs more than a "
-                             f"{MAX_LEAD_RATIO:g}:1 lead (it gives {pm_hi + phase_margin_deg:.1f} deg)")  # fmt: skip
-        lead_ratio = lo if pm_lo >= 0 else brentq(lambda a: phase_margin(a) - phase_margin_deg, lo, hi, xtol=1e-10)
+        grid = np.geomspace(1.0, MAX_LEAD_RATIO, 33)
+        pms = np.array([phase_margin(a) for a in grid])
+        best = int(np.argmax(pms))
+        if pms[best] < phase_margin_deg:
+            raise ValueError(f"a {phase_margin_deg:g} deg phase margin at {crossover_hz:g} Hz is out of reach: the "
+                             f"most a lead of up to {MAX_LEAD_RATIO:g}:1 gives is {pms[best]:.1f} deg "
+                             f"(lead ratio {grid[best]:.3g})")  # fmt: skip
+        if pms[0] >= phase_margin_deg:
+            lead_ratio = 1.0
+        else:  # the smallest lead that gives the margin: PM rises from grid[0] to grid[best]
+            i = int(np.nonzero(pms[: best + 1] >= phase_margin_deg)[0][0])
+            lead_ratio = brentq(lambda a: phase_margin(a) - phase_margin_deg, grid[i - 1], grid[i], xtol=1e-12)
     h, _ = unit_loop(lead_ratio)
     gain = 1.0 / abs(h)
     slow = analog.lead_integrator(crossover_hz, lead_ratio, integrator_ratio, gain)

@@ -1,7 +1,7 @@
 """The two designs the benchmark evaluation compares, for a benchmark version.
 
 * :func:`reference`: the benchmark's own PID + notches (:func:`servo.design.nss_reference`);
-* :func:`own`: this project's :func:`servo.design.track_following` design for the
+* :func:`own`: (version 2) this project's :func:`servo.design.track_following` design for the
   benchmark's plant (parameters in :data:`OWN`, chosen as ``docs/hdd.md`` explains).
 """
 from __future__ import annotations
@@ -11,11 +11,8 @@ from servo.hdd.benchmark import benchmark
 
 #: Parameters of the project's design per benchmark version (track_following keywords).
 OWN = {
-    2: dict(crossover_hz=1100.0, phase_margin_deg=40.0, integrator_ratio=5.0,
-            notches=((4100.0, 20.0, 0.4), (7000.0, 20.0, 0.4), (12300.0, 20.0, 0.4), (16400.0, 20.0, 0.4)),
-            lowpass_hz=None, method="bilinear"),
-    1: dict(crossover_hz=1100.0, phase_margin_deg=40.0, integrator_ratio=5.0,
-            notches=((4100.0, 20.0, 0.6), (8200.0, 20.0, 0.6), (12300.0, 20.0, 0.5), (16400.0, 20.0, 0.4)),
+    2: dict(crossover_hz=950.0, phase_margin_deg=47.0, integrator_ratio=8.0,
+            notches=((4100.0, 15.0, 0.4), (5000.0, 10.0, 0.3), (7000.0, 20.0, 0.4), (12300.0, 20.0, 0.4)),
             lowpass_hz=None, method="bilinear"),
 }  # fmt: skip
 
@@ -28,5 +25,7 @@ def reference(version: int = 2) -> Design:
 def own(version: int = 2, **overrides) -> Design:
     """The project's track-following design for ``version`` (``overrides`` change :data:`OWN`)."""
     b = benchmark(version)
+    if version not in OWN:
+        raise ValueError(f"no tuned track-following design for benchmark version {version} (only {sorted(OWN)})")
     kw = dict(OWN[version], **overrides)
     return track_following(b.J, 2.0 / b.Ts, pes_every=2, delay_s=b.Td, **kw)

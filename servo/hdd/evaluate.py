@@ -23,6 +23,7 @@ import argparse
 import math
 import sys
 from dataclasses import dataclass
+from pathlib import Path
 
 import numpy as np
 
@@ -60,9 +61,10 @@ class PlantResult:
 TP = 2.54e-7  # overwritten per benchmark in evaluate(); both versions share it
 
 
-def evaluate_plant(design: Design, bench: Benchmark, name: str, plant, dist: Disturbances, U) -> PlantResult:
+def evaluate_plant(design: Design, bench: Benchmark, name: str, plant, dist: Disturbances, U,
+                   margin_points: int = 20000) -> PlantResult:
     """:class:`PlantResult` of ``design`` on one plant under the disturbance record ``U``."""
-    m = loop.margins(loop.open_loop(design, plant, bench.Td))
+    m = loop.margins(loop.open_loop(design, plant, bench.Td), n=margin_points)
     res = PlantResult(name, m)
     if not m["stable"]:
         return res
@@ -77,9 +79,9 @@ def evaluate_plant(design: Design, bench: Benchmark, name: str, plant, dist: Dis
 
 
 def evaluate(design: Design, version: int = 2, revolutions: int | None = None, seed: int = 0,
-             with_kf: bool = True, only: int | None = None) -> dict:  # fmt: skip
+             with_kf: bool = True, only: int | None = None, margin_points: int = 20000) -> dict:  # fmt: skip
     """Evaluate ``design`` on every perturbed plant of the benchmark (``only``: the first
-    ``only`` plants).  Returns ``{"plants": [PlantResult...], "summary": {...}}`` where the
+    ``only`` plants; ``margin_points``: the margins' frequency grid).  Returns ``{"plants": [PlantResult...], "summary": {...}}`` where the
     summary holds mean and worst RRO p-p and NRRO 3 sigma (tracks) over the plants, the
     number unstable, and the smallest margins."""
     bench = benchmark(version)
@@ -88,7 +90,7 @@ def evaluate(design: Design, version: int = 2, revolutions: int | None = None, s
     revs = bench.revolutions if revolutions is None else int(revolutions)
     dist = generate(revs * bench.sectors * design.pes_every, version, seed, design.fs)
     U = linsim.inputs(dist)
-    results = [evaluate_plant(design, bench, name, p, dist, U) for name, p in plants(bench, with_kf)[:only]]
+    results = [evaluate_plant(design, bench, name, p, dist, U, margin_points) for name, p in plants(bench, with_kf)[:only]]
     return dict(plants=results, summary=summarise(results))
 
 
@@ -98,6 +100,7 @@ def summarise(results: list[PlantResult]) -> dict:
     rro = np.array([r.figures.rro_pp for r in ok])
     nrro = np.array([r.figures.nrro_3sigma for r in ok])
     th = np.array([3 * r.theory["total"] / TP for r in ok])
+    rth = np.array([r.rro_pp_theory for r in ok])
     unstable = len(results) - len(ok)
     nan = math.nan
     return dict(
@@ -107,6 +110,7 @@ def summarise(results: list[PlantResult]) -> dict:
         nrro_3sigma_mean=float(nrro.mean()) if ok and not unstable else nan,
         nrro_3sigma_worst=float(nrro.max()) if ok and not unstable else nan,
         nrro_3sigma_theory_mean=float(th.mean()) if ok and not unstable else nan,
+        rro_pp_theory_mean=float(rth.mean()) if ok and not unstable else nan,
         gain_margin_db_min=min(r.margins["gain_margin_db"] for r in results),
         phase_margin_deg_min=min(r.margins["phase_margin_deg"] for r in results),
         crossover_hz_nominal=results[0].margins["crossover_hz"],
@@ -132,28 +136,31 @@ def main(argv=None) -> int:
     ap.add_argument("--version", type=int, default=2, choices=(1, 2))
     ap.add_argument("--revolutions", type=int, default=None, help="default: the benchmark's 1000")
     ap.add_argument("--seed", type=int, default=0)
-    ap.add_argument("--designs", default="reference,own", help="comma-separated: reference, own")
+    ap.add_argument("--designs", default=None, help="comma-separated: reference, own (default: both; version 1: reference)")
     ap.add_argument("--out", default=None, help="folder (new or empty) for evaluation.json and PES plots")
     a = ap.parse_args(argv)
     try:
-        names = [n.strip() for n in a.designs.split(",") if n.strip()]
+        spec = a.designs if a.designs is not None else ("reference,own" if a.version == 2 else "reference")
+        names = [n.strip() for n in spec.split(",") if n.strip()]
         known = {"reference": designs.reference, "own": designs.own}
         bad = [n for n in names if n not in known]
         if bad or not names:
             raise ValueError(f"unknown design {', '.join(bad) or '(none)'}: choose from {', '.join(known)}")
         if a.revolutions is not None and a.revolutions < 3:
             raise ValueError("--revolutions must be >= 3")
+        if a.out and Path(a.out).exists() and (not Path(a.out).is_dir() or any(Path(a.out).iterdir())):
+            raise ValueError(f"{a.out}: exists and is not an empty folder")
         results = {n: evaluate(known[n](a.version), a.version, a.revolutions, a.seed) for n in names}
-    except ValueError as exc:
+        print(f"NSS HDD benchmark v{a.version}, linear evaluation ({a.revolutions or 1000} revolutions, seed {a.seed}); "
+              "figures in % of a track")  # fmt: skip
+        print(table(results))
+        if a.out:
+            from servo.hdd.report import write_report
+
+            write_report(a.out, results, vars(a))
+    except (ValueError, OSError) as exc:
         print(f"servo: error: {exc}", file=sys.stderr)
         return 2
-    print(f"NSS HDD benchmark v{a.version}, linear evaluation ({a.revolutions or 1000} revolutions, seed {a.seed}); "
-          "figures in % of a track")  # fmt: skip
-    print(table(results))
-    if a.out:
-        from servo.hdd.report import write_report
-
-        write_report(a.out, results, vars(a))
     return 0
 
 
