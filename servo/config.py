@@ -161,7 +161,13 @@ class CompensatorConfig:
 @dataclass
 class ScenarioConfig:
     """The ``servo run`` scenario: hold, reference steps, a sinusoidal force disturbance,
-    and an optional excitation current for frequency-response measurements."""
+    and an optional excitation current for frequency-response measurements; or the HDD
+    benchmark's track following (docs/hdd.md)."""
+
+    kind: str = P("steps", "-", "steps: the fields below; hdd_benchmark: follow a track with the NSS HDD "
+                  "benchmark's runout, force disturbance and noise, reported as PES figures (docs/hdd.md)",
+                  choices=("steps", "hdd_benchmark"))  # fmt: skip
+    hdd_version: int = P(2, "-", "hdd_benchmark: the benchmark's version (1 or 2)", 1, 2)
 
     step_times: list = P([0.05, 0.12, 0.19, 0.28], "s", "times of the reference steps", 0.0)
     step_positions: list = P([0.3e-6, 0.0, 20e-6, 0.0], "m", "reference after each step, from the holding position", -0.015, 0.015)

@@ -29,7 +29,7 @@ from servo.io.resources import check_disk
 from servo.io.runlog import FORMATS, RunLog
 from servo.run import plots
 from servo.run.metrics import tick_timing
-from servo.run.reduce import PlotRows, RunFigures
+from servo.run.reduce import PesReport, PlotRows, RunFigures
 from servo.run.realtime import REALTIME_LOG_BLOCK, RealtimeOptions, check_realtime, grant_line, lateness_line, make_pacer, plot_lateness, report
 from servo.run.startup import process_age_s
 from servo.runtime.controller import Controller
@@ -84,12 +84,20 @@ def run_simulated(cfg: Config, out_dir: Path, compensated: bool, fast: bool,
     except BaseException:
         log.close_after_fault()
         raise
-    log.finalise([figures, plot_rows])
+    pes = PesReport(cfg) if cfg.scenario.kind == "hdd_benchmark" else None
+    log.finalise([figures, plot_rows] + ([pes] if pes else []))
     result.link = driver.report()
+    figs = figures.result()
+    if pes is not None:  # the HDD benchmark's figures, and their plot
+        from servo.hdd.plots import pes_plot
+
+        got = pes.result()
+        figs["pes_tracks"] = got.summary()
+        atomic_write(out_dir / f"pes_{label}.png", lambda p: pes_plot(got, "track", f"PES, {label}").savefig(p, format="png"))
     if realtime:
         result.realtime = report(pacer, realtime, grant)
         result.lateness = pacer.lateness
-    return figures.result(), plot_rows.rows(), result
+    return figs, plot_rows.rows(), result
 
 
 def summarise(cfg: Config, figures: dict, result: LoopResult) -> dict:
@@ -186,6 +194,9 @@ def format_summary(summary: dict, out_dir: Path) -> str:
         name = f"step {st['size_m'] * 1e6:+.2g} um ovsht%/settle"
         cells = "".join(_step_cells(runs[lab]["steps"][i]) for lab in labels)
         lines.append(f"  {name:<28}" + cells)
+    if "pes_tracks" in first:  # the HDD benchmark's figures (docs/hdd.md)
+        for key, name in (("sigma3", "PES 3 sigma"), ("rro_pp", "RRO peak-to-peak"), ("nrro_3sigma", "NRRO 3 sigma")):
+            lines.append(f"  {name + ' (% track)':<28}" + "".join(f"{runs[lab]['pes_tracks'][key] * 100:>16.2f}" for lab in labels))
     for lab in labels:
         r = runs[lab]
         if "link" in r:  # the tick includes waiting for the board's sample: not a compute figure

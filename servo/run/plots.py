@@ -53,7 +53,8 @@ def _tracking(cfg, logs):
 def _steps(cfg, logs):
     """Each step normalised by its size: a linear plant gives the same curve at every size."""
     fig, axes = subplots(1, len(logs), figsize=(5.5 * len(logs), 4.2), sharey=True, squeeze=False)
-    times, pos = cfg.scenario.step_times, cfg.scenario.step_positions
+    steps = cfg.scenario.kind == "steps"  # the HDD benchmark's scenario has none
+    times, pos = (cfg.scenario.step_times, cfg.scenario.step_positions) if steps else ((), ())
     ends = {name: b for name, _, b in segments(cfg)}
     for ax, (label, a) in zip(axes[0], logs.items()):
         t, x, x0 = a[:, COL["t"]], a[:, COL["x"]], a[0, COL["r"]]

@@ -11,6 +11,7 @@ import numpy as np
 
 from kernels.compose import LOG_COLUMNS
 from servo.config import Config
+from servo.errors import ConfigError
 from servo.run.metrics import StepResponse
 from servo.runtime.scenario import segments
 
@@ -21,6 +22,32 @@ COL = {c: i for i, c in enumerate(LOG_COLUMNS)}
 #: it looks the same, and drawing it costs the same for a run of any length).
 PLOT_ROWS = 50_000
 PLOT_BUCKETS = 2000
+
+
+class PesReport:
+    """The HDD benchmark's PES figures (:class:`servo.hdd.pes.PesAccumulator`) of a
+    track-following run: the error ``e`` at every PES sample (every ``pes_every`` ticks,
+    the samples the controller reads), the first 10 ms ignored, in tracks."""
+
+    def __init__(self, cfg: Config):
+        from servo.hdd.benchmark import benchmark
+        from servo.hdd.pes import PesAccumulator
+
+        b = benchmark(cfg.scenario.hdd_version)
+        self.pes_every = max(1, int(round(cfg.run.sample_rate_hz * b.Ts)))
+        if cfg.run.log_every != 1:
+            raise ConfigError("config: scenario.kind = hdd_benchmark needs run.log_every = 1 (every PES sample)")
+        fs_pes = cfg.run.sample_rate_hz / self.pes_every
+        self.track = b.Tp
+        self.acc = PesAccumulator(b.sectors, fs_pes, skip=int(round(0.01 * fs_pes)))
+
+    def __call__(self, chunk: np.ndarray) -> None:
+        tick, e = chunk[:, COL["tick"]], chunk[:, COL["e"]]
+        self.acc.add(-e[tick % self.pes_every == 0] / self.track)  # PES = y - runout = -e, tracks
+
+    def result(self):
+        """The figures (:class:`servo.hdd.pes.PesFigures`, tracks)."""
+        return self.acc.report()
 
 
 class RunFigures:
@@ -39,7 +66,7 @@ class RunFigures:
         ends = {name: b for name, _, b in self.segments}
         prev = 0.0
         s = cfg.scenario
-        for i, (ts, pos) in enumerate(zip(s.step_times, s.step_positions)):
+        for i, (ts, pos) in enumerate(zip(s.step_times, s.step_positions) if s.kind == "steps" else ()):
             if ts < cfg.run.duration_s and pos != prev:
                 self._pending_steps.append((ts, ends[f"step {i + 1}"], prev, pos))
             prev = pos

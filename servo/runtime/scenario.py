@@ -136,7 +136,16 @@ class ScenarioInputs(Inputs):
 
 
 def scenario_inputs(cfg: Config) -> Inputs:
-    """The inputs of ``servo run``'s scenario (:class:`ScenarioInputs`)."""
+    """The inputs of ``servo run``'s scenario: :class:`ScenarioInputs`, or the HDD
+    benchmark's runout and force disturbance (:class:`servo.hdd.BenchmarkInputs`)."""
+    if cfg.scenario.kind == "hdd_benchmark":
+        from servo.hdd.disturbances import BenchmarkInputs, generate  # it builds on this module
+
+        try:
+            dist = generate(cfg.n_ticks, cfg.scenario.hdd_version, seed=cfg.run.seed, fs=cfg.run.sample_rate_hz)
+        except ValueError as exc:
+            raise ConfigError(f"config: scenario.kind = hdd_benchmark: {exc}") from None
+        return BenchmarkInputs(dist)
     return ScenarioInputs(cfg)
 
 
@@ -169,8 +178,11 @@ class Window:
 
 
 def segments(cfg: Config) -> list[tuple[str, float, float]]:
-    """Named time segments of the scenario: hold, each step, the disturbance."""
+    """Named time segments of the scenario: hold, each step, the disturbance (the HDD
+    benchmark's: the first 10 ms it ignores, then track following)."""
     s, end = cfg.scenario, cfg.run.duration_s
+    if s.kind == "hdd_benchmark":
+        return [(name, a, b) for name, a, b in (("settling", 0.0, min(0.01, end)), ("track following", 0.01, end)) if a < end]
     marks = [(0.0, "hold")] + [(t, f"step {i + 1}") for i, t in enumerate(s.step_times)]
     if s.disturbance_amplitude > 0.0:
         marks.append((s.disturbance_start, "disturbance"))

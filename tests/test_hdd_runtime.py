@@ -1,0 +1,48 @@
+"""The HDD benchmark through the project's runtime: the compiled loop with the "nss" and
+"track" controller kinds reproduces the independent linear evaluation of servo.hdd
+(scipy/control, exact lifted multirate loop) sample by sample, on the same disturbance
+record."""
+import numpy as np
+import pytest
+
+from servo.config import Config
+from servo.experiments.sim import MemoryLog
+from servo.hdd import linsim
+from servo.hdd.benchmark import benchmark
+from servo.hdd.disturbances import BenchmarkInputs, generate
+from servo.hdd.drive import benchmark_drive
+from servo.hdd.plant import plants
+from servo.runtime.controller import Controller
+from servo.runtime.loop import log_rows, run_closed_loop
+from servo.runtime.simdriver import SimDriver
+
+REVS = 30
+TRACK = {"crossover_hz": 950.0, "phase_margin_deg": 47.0, "integrator_ratio": 8.0,
+         "notch_hz": [4100.0, 5000.0, 7000.0, 12300.0], "notch_depth_db": [15.0, 10.0, 20.0, 20.0],
+         "notch_width": [0.4, 0.3, 0.4, 0.4], "pes_every": 2, "delay_s": 1e-5}  # fmt: skip
+
+
+@pytest.mark.parametrize("kind", ["nss", "track"])
+def test_the_compiled_loop_reproduces_the_linear_evaluation(kind):
+    b = benchmark(2)
+    over = benchmark_drive(2)
+    over["drive"]["position_noise"] = 0.0  # the linear loop below gets the same (no) sensor noise
+    over["run"]["duration_s"] = REVS * b.sectors * b.Ts
+    cfg = Config().replace(**over, controller={"kind": kind, "track": TRACK}, scenario={"kind": "hdd_benchmark"})
+    n = cfg.n_ticks
+    dist = generate(n, 2, seed=cfg.run.seed, fs=cfg.run.sample_rate_hz)
+    ctl = Controller(cfg)
+    log = MemoryLog(log_rows(cfg), ctl.log_columns)
+    inputs = BenchmarkInputs(dist)
+    with SimDriver(cfg, inputs) as drv:
+        run_closed_loop(cfg, drv, ctl, inputs, log, fast=True, timing=False)
+    e = log.data[: log.rows, ctl.log_columns.index("e")]
+    runtime_pes = -e[::2]  # PES = -e at the PES samples (even ticks), m
+
+    design = ctl.kind.designed(cfg.controller.section, cfg)
+    name, plant = plants(b, with_kf=False)[0]  # the nominal plant
+    linear_pes = linsim.simulate(linsim.closed_loop(design, plant, b.Td), linsim.inputs(dist, include_noise=False))
+    m = min(len(runtime_pes), len(linear_pes))
+    a, c = runtime_pes[:m], linear_pes[:m]
+    assert np.std(c) > 0.01 * b.Tp  # the runout is being followed, with a residual PES
+    assert np.max(np.abs(a - c)) < 0.02 * np.std(c), (np.max(np.abs(a - c)) / np.std(c))
