@@ -17,12 +17,15 @@ from kernels.delay import shift_in
 from kernels.holding import holding_pi
 from kernels.plant import plant_measure, plant_params_t, plant_state_t, plant_step
 from kernels.stage import stage_params_t, stage_state_t
-from servo.controllers import pi
+from servo.controllers import nss, pi, track
 
-#: The PI kind's tick on its stage, on the records (:mod:`kernels.compose`), and its
+#: Each kind's tick on its stage, on the records (:mod:`kernels.compose`), and the kinds'
 #: record array types.
 controller_step = pi.PI.kernels().servo_step
+track_step = track.Track.kernels().servo_step
+nss_step = nss.NSS.kernels().servo_step
 pi_state_t, pi_params_t = from_dtype(pi.STATE)[::1], from_dtype(pi.PARAMS)[::1]
+track_state_t, track_params_t = from_dtype(track.STATE)[::1], from_dtype(track.PARAMS)[::1]
 
 #: Rows of an input table (a power of two: the row of sample k is ``k & (M - 1)``).
 M = 4096
@@ -77,6 +80,30 @@ def loop_controller_tick(n, xin, ss, sp, cs, cp):
     for k in range(n):
         j = k & mask
         acc += controller_step(s, p, c, q, xin[j, 0], xin[j, 1], xin[j, 2], xin[j, 3])
+    return acc
+
+
+@njit(float64(int64, float64[:, ::1], stage_state_t, stage_params_t, track_state_t, track_params_t), cache=True)
+def loop_track_tick(n, xin, ss, sp, cs, cp):
+    """The track-following kind's tick on its stage, rows as :func:`loop_controller_tick`."""
+    mask = xin.shape[0] - 1
+    s, p, c, q = ss[0], sp[0], cs[0], cp[0]
+    acc = 0.0
+    for k in range(n):
+        j = k & mask
+        acc += track_step(s, p, c, q, xin[j, 0], xin[j, 1], xin[j, 2], xin[j, 3])
+    return acc
+
+
+@njit(float64(int64, float64[:, ::1], stage_state_t, stage_params_t, track_state_t, track_params_t), cache=True)
+def loop_nss_tick(n, xin, ss, sp, cs, cp):
+    """The NSS reference kind's tick on its stage, rows as :func:`loop_controller_tick`."""
+    mask = xin.shape[0] - 1
+    s, p, c, q = ss[0], sp[0], cs[0], cp[0]
+    acc = 0.0
+    for k in range(n):
+        j = k & mask
+        acc += nss_step(s, p, c, q, xin[j, 0], xin[j, 1], xin[j, 2], xin[j, 3])
     return acc
 
 

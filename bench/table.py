@@ -12,6 +12,8 @@ from bench.conftest import RESULTS_DIR
 ROWS = [
     ("controller_tick", "controller tick, compiled (Dahl + compensator + PI + limits)", "ns"),
     ("controller_tick_uncompensated", "controller tick, compensator off", "ns"),
+    ("controller_tick_track", "controller tick, kind track (biquads at two rates) + compensator", "ns"),
+    ("controller_tick_nss", "controller tick, kind nss (benchmark PID + notches) + compensator", "ns"),
     ("dahl_update_alpha_1", "Dahl update, alpha = 1", "ns"),
     ("dahl_update_alpha_1.5", "Dahl update, alpha = 1.5", "ns"),
     ("compensate", "compensator, eq. (9)", "ns"),
@@ -31,6 +33,7 @@ ROWS = [
 ]
 RATIOS = [
     ("numba_over_c_controller_tick", "Numba / C, controller tick"),
+    ("numba_over_c_track_tick", "Numba / C, track-following tick"),
     ("numba_over_c_plant_step", "Numba / C, plant step"),
     ("numba_over_c_closed_loop", "Numba / C, closed loop"),
     ("python_over_numba_controller_tick", "Python / Numba, controller tick"),

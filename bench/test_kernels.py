@@ -35,6 +35,17 @@ def test_controller_tick_uncompensated(benchmark, cfg, record):
     _assert_budget(cfg, "controller tick (uncompensated)", ns, "controller_tick")
 
 
+@pytest.mark.parametrize("kind", ["track", "nss"])
+def test_controller_tick_of_every_kind(benchmark, cfg, record, kind):
+    """The other controller kinds on the same stage (compensator on) meet the same budget."""
+    ctl = w.controller(cfg.replace(controller={"kind": kind}))
+    xin, n = w.controller_inputs(cfg), 100_000
+    loop = {"track": loops.loop_track_tick, "nss": loops.loop_nss_tick}[kind]
+    ns = per_sample_ns(benchmark, loop, n, ROUNDS, setup=lambda: ((n, xin, *ctl.records()), {}))
+    record.figure(f"controller_tick_{kind}", ns, "controller_tick")
+    _assert_budget(cfg, f"controller tick ({kind})", ns, "controller_tick")
+
+
 @pytest.mark.parametrize("alpha", [1.0, 1.5])
 def test_dahl_update(benchmark, cfg, record, alpha):
     m, k, n = w.motion(cfg), cfg.compensator, 200_000

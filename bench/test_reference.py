@@ -45,7 +45,8 @@ def same(a, b, rtol=1e-12):
 
 
 def records(rec):
-    return np.array(rec.tolist(), dtype=float)
+    """Every float64 of a record array (nested arrays included), in layout order."""
+    return np.frombuffer(np.ascontiguousarray(rec).tobytes(), dtype=np.float64)
 
 
 @pytest.mark.parametrize("case", list(CASES))
@@ -84,6 +85,18 @@ def test_c_computes_what_numba_computes(cref_lib, record, case):
                 same(records(a.state), records(b.state)))
     assert np.ptp(out[0, :, 0]) > 1e-6  # the loop moved the arm
     record.check(f"C == Numba: {case}", max_relative_difference=worst, bitwise=worst == 0.0)
+
+
+def test_c_computes_what_numba_computes_for_the_track_following_tick(cref_lib, record):
+    """The track-following kind (two cascades of biquads at two rates, anti-windup) on its
+    stage: the same numbers in C and Numba, outputs and every state."""
+    cfg = Config().replace(controller={"kind": "track", "track": {"pes_every": 2}})
+    xin = w.controller_inputs(cfg)
+    a, b = w.controller(cfg), w.controller(cfg)
+    worst = same(loops.loop_track_tick(20_000, xin, *a.records()), cref_lib.loop_track_tick(20_000, xin, *b.records()))
+    worst = max(worst, same(records(a.stage_state), records(b.stage_state)), same(records(a.state), records(b.state)))
+    assert np.any(a.state[0]["z_slow"] != 0.0)  # the cascades ran
+    record.check("C == Numba: track-following tick", max_relative_difference=worst, bitwise=worst == 0.0)
 
 
 @pytest.mark.parametrize("case", [c for c in CASES if "Coulomb" not in c])
@@ -153,6 +166,11 @@ def _numba_c(cfg, cref_lib, what):
         xin, a, b, n = w.controller_inputs(cfg), w.controller(cfg), w.controller(cfg), 5_000
         return (lambda: loops.loop_controller_tick(n, xin, *a.records()),
                 lambda: cref_lib.loop_controller_tick(n, xin, *b.records()), n)  # fmt: skip
+    if what == "track_tick":
+        cfg = cfg.replace(controller={"kind": "track"})
+        xin, a, b, n = w.controller_inputs(cfg), w.controller(cfg), w.controller(cfg), 5_000
+        return (lambda: loops.loop_track_tick(n, xin, *a.records()),
+                lambda: cref_lib.loop_track_tick(n, xin, *b.records()), n)  # fmt: skip
     if what == "plant_step":
         uin, pa, pb, n = w.plant_inputs(cfg), w.plant(cfg), w.plant(cfg), 1_000
         return (lambda: loops.loop_plant_step(n, uin, pa.state, pa.params, pa.q, pa.mab, pa.ubuf),
@@ -163,7 +181,7 @@ def _numba_c(cfg, cref_lib, what):
             lambda: cref_lib.loop_closed(n, ref, noise, pb, *b.records()), n)  # fmt: skip
 
 
-@pytest.mark.parametrize("what", ["controller_tick", "plant_step", "closed_loop"])
+@pytest.mark.parametrize("what", ["controller_tick", "track_tick", "plant_step", "closed_loop"])
 def test_numba_over_c_ratio(cfg, cref_lib, record, what):
     """Numba/C per-sample time ratio on the same arithmetic: near 1 (at most 2.5)."""
     numba_fn, c_fn, n = _numba_c(cfg, cref_lib, what)

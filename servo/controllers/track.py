@@ -189,11 +189,11 @@ class Track(TwoRate):
     def check(cls, s: TrackSection, cfg) -> None:
         if not (len(s.notch_hz) == len(s.notch_depth_db) == len(s.notch_width)):
             raise ConfigError("config: controller.track.notch_hz, notch_depth_db and notch_width must have the same length")
-        nyquist = cfg.run.sample_rate_hz / 2
-        for key, f in [("crossover_hz", s.crossover_hz), ("lowpass_hz", s.lowpass_hz)] + \
-                [(f"notch_hz[{i}]", f) for i, f in enumerate(s.notch_hz)]:  # fmt: skip
-            if f >= nyquist / s.pes_every:
+        nyquist = cfg.run.sample_rate_hz / 2  # the notches and low-pass run at the tick rate, the lead-lag slower
+        for key, f, top in [("crossover_hz", s.crossover_hz, nyquist / s.pes_every), ("lowpass_hz", s.lowpass_hz, nyquist)] + \
+                [(f"notch_hz[{i}]", f, nyquist) for i, f in enumerate(s.notch_hz)]:  # fmt: skip
+            if f >= top:
                 raise ConfigError(f"config: controller.track.{key} = {f!r} is at or above the Nyquist frequency "
-                                  f"of its rate ({nyquist / s.pes_every:g} Hz)")  # fmt: skip
+                                  f"of its rate ({top:g} Hz)")  # fmt: skip
         if len(s.notch_hz) + (1 if s.lowpass_hz else 0) > MAX_SECTIONS:
             raise ConfigError(f"config: controller.track: at most {MAX_SECTIONS} notches and low-pass sections")
