@@ -12,12 +12,15 @@ per call:
   stage leaves for ``u_n`` under the current limit;
 * ``log(out, c)``: its own log columns into ``out`` (a view of the row, may be empty).
 
-:func:`compose` builds, for that kind, the four kernels the runtime calls:
+:func:`compose` builds, for that kind, the kernels the runtime calls, on one record
+array ``buf`` of :func:`records_dtype` holding the four records (stage state and
+parameters, the kind's state and parameters: one argument, so that a call from Python
+pays one argument's type check, ~0.3 us, not four):
 
-* ``servo_start(ss, sp, cs, cp, x, v_meas, u_now)`` and
-  ``servo_tick(ss, sp, cs, cp, x, v_meas, r, u_exc) -> u``: the kind inside the stage of
-  :mod:`kernels.stage` (signals, compensator, limit);
-* ``log_row(row, k, dt, x, u_exc, ss, cs)``: the columns :data:`LOG_COLUMNS` then the
+* ``servo_start(buf, x, v_meas, u_now)`` and ``servo_tick(buf, x, v_meas, r, u_exc) -> u``:
+  the kind inside the stage of :mod:`kernels.stage` (signals, compensator, limit);
+  ``servo_step(s, p, c, q, x, v_meas, r, u_exc) -> u`` the same on the four records;
+* ``log_row(row, k, dt, x, u_exc, buf)``: the columns :data:`LOG_COLUMNS` then the
   kind's own;
 * ``closed_loop(...)``: the all-compiled fast path against the simulated drive, the same
   operations in the same order as the tick-by-tick path (``servo.runtime.scheduler``),
@@ -37,12 +40,13 @@ from __future__ import annotations
 import types
 from typing import NamedTuple
 
+import numpy as np
 from numba import float64, from_dtype, int64, njit, void
 
 from kernels.delay import shift_in
 from kernels.plant import plant_measure, plant_params_t, plant_state_t, plant_step
 from kernels.stage import (
-    stage_output, stage_params_rec_t, stage_params_t, stage_room, stage_start, stage_state_rec_t, stage_state_t,
+    STAGE_PARAMS, STAGE_STATE, stage_output, stage_params_rec_t, stage_room, stage_start, stage_state_rec_t,
     stage_update,
 )  # fmt: skip
 
@@ -71,10 +75,11 @@ def error_stats(stats, e):
 # each compiled copy a globals dict in which they are the kind's kernels.
 
 
-def _servo_start(ss, sp, cs, cp, x, v_meas, u_now):
-    s = ss[0]
-    u_n = stage_start(s, sp[0], x, v_meas, u_now)
-    ctrl_start(cs[0], cp[0], x, s.v, u_n)  # noqa: F821
+def _servo_start(buf, x, v_meas, u_now):
+    b = buf[0]
+    s = b.stage_state
+    u_n = stage_start(s, b.stage_params, x, v_meas, u_now)
+    ctrl_start(b.state, b.params, x, s.v, u_n)  # noqa: F821
 
 
 def _servo_step(s, p, c, q, x, v_meas, r, u_exc):
@@ -84,12 +89,13 @@ def _servo_step(s, p, c, q, x, v_meas, r, u_exc):
     return stage_output(s, p, x, r, u_n, u_c)
 
 
-def _servo_tick(ss, sp, cs, cp, x, v_meas, r, u_exc):
-    return servo_step(ss[0], sp[0], cs[0], cp[0], x, v_meas, r, u_exc)  # noqa: F821
+def _servo_tick(buf, x, v_meas, r, u_exc):
+    b = buf[0]
+    return servo_step(b.stage_state, b.stage_params, b.state, b.params, x, v_meas, r, u_exc)  # noqa: F821
 
 
-def _log_row(row, k, dt, x, u_exc, ss, cs):
-    c = ss[0]
+def _log_row(row, k, dt, x, u_exc, buf):
+    c = buf[0].stage_state
     row[0] = k
     row[1] = k * dt
     row[2] = c.x_prev + c.e  # absolute reference: x + (r - x)
@@ -102,30 +108,31 @@ def _log_row(row, k, dt, x, u_exc, ss, cs):
     row[9] = c.H_dahl
     row[10] = c.regime
     row[11] = c.e
-    ctrl_log(row[12:], cs[0])  # noqa: F821
+    ctrl_log(row[12:], buf[0].state)  # noqa: F821
 
 
 def _closed_loop(
     ps, pp, q, mab, gain, ubuf, latency,
-    ss, sp, cs, cp,
+    buf,
     r, u_exc, d, noise,
     k0, n, est_every, log_every,
     stats, log, row,
     start, u_start,
 ):  # fmt: skip
     dt = pp[0].dt
-    s, sp0, c, cp0 = ss[0], sp[0], cs[0], cp[0]
+    b = buf[0]
+    s, sp0, c, cp0 = b.stage_state, b.stage_params, b.state, b.params
     for k in range(k0, k0 + n):
         x, v = plant_measure(ps, pp, q, gain, noise[k - k0, 0], noise[k - k0, 1])
         if start != 0 and k == k0:
-            servo_start(ss, sp, cs, cp, x, v, u_start)  # noqa: F821
+            servo_start(buf, x, v, u_start)  # noqa: F821
         i = k - k0
         u = servo_step(s, sp0, c, cp0, x, v, r[i], u_exc[i])  # noqa: F821
         plant_step(ps, pp, q, mab, ubuf, shift_in(latency, u), d[i])
         if k % est_every == 0:
-            error_stats(stats, ss[0].e)
+            error_stats(stats, s.e)
         if k % log_every == 0:
-            log_row(log[row], k, dt, x, u_exc[i], ss, cs)  # noqa: F821
+            log_row(log[row], k, dt, x, u_exc[i], buf)  # noqa: F821
             row += 1
     return row
 
@@ -133,8 +140,8 @@ def _closed_loop(
 _closed_loop.__doc__ = """Run ticks ``k0 .. k0+n-1`` of the closed loop against the simulated drive.
 
 Plant: state ``ps``, params ``pp``, modes ``q``/``mab``/``gain``, input-delay buffer
-``ubuf``; ``latency`` the link's command queue (length = latency in ticks).  Stage
-``ss``/``sp``, controller ``cs``/``cp``.  Inputs of tick k at index ``k - k0``:
+``ubuf``; ``latency`` the link's command queue (length = latency in ticks).  ``buf``: the
+stage's and the controller's records (:func:`records_dtype`).  Inputs of tick k at index ``k - k0``:
 reference ``r`` (m) and excitation ``u_exc`` (A) as the excitation task holds them
 (:class:`servo.runtime.scenario.Window`), disturbance ``d`` (A), ``noise`` the two
 standard normal draws.  Logs every ``log_every`` ticks into ``log[row]`` onwards and
@@ -145,6 +152,7 @@ returns the next free row.  ``start != 0``: the controller takes over at ``k0`` 
 class Composed(NamedTuple):
     """The compiled kernels of one controller kind (see the module docstring)."""
 
+    dtype: object
     servo_start: object
     servo_tick: object
     servo_step: object
@@ -165,6 +173,13 @@ def _specialise(template, name: str, env: dict, signature):
 _COMPOSED: dict[tuple, Composed] = {}
 
 
+def records_dtype(state_dtype, params_dtype):
+    """The dtype of one controller's ``buf``: fields ``stage_state``, ``stage_params``
+    (:mod:`kernels.stage`), ``state``, ``params`` (the kind's)."""
+    return np.dtype([("stage_state", STAGE_STATE), ("stage_params", STAGE_PARAMS),
+                     ("state", state_dtype), ("params", params_dtype)])  # fmt: skip
+
+
 def compose(name: str, tag: str, state_dtype, params_dtype, start, tick, log) -> Composed:
     """The kernels of controller kind ``name`` (compiled, or loaded from the cache, once
     per process).  ``tag``: a short hash of the kind's source (part of the cache names);
@@ -174,12 +189,13 @@ def compose(name: str, tag: str, state_dtype, params_dtype, start, tick, log) ->
     if key in _COMPOSED:
         return _COMPOSED[key]
     c_t, p_t = from_dtype(state_dtype), from_dtype(params_dtype)
-    cs_t, cp_t = c_t[::1], p_t[::1]
+    dtype = records_dtype(state_dtype, params_dtype)
+    buf_t = from_dtype(dtype)[::1]
     base = f"{name}_{tag}"
     env = {"ctrl_start": start, "ctrl_tick": tick, "ctrl_log": log}
     s_start = _specialise(
         _servo_start, f"servo_start_{base}", env,
-        void(stage_state_t, stage_params_t, cs_t, cp_t, float64, float64, float64),
+        void(buf_t, float64, float64, float64),
     )  # fmt: skip
     s_step = _specialise(
         _servo_step, f"servo_step_{base}", env,
@@ -187,26 +203,26 @@ def compose(name: str, tag: str, state_dtype, params_dtype, start, tick, log) ->
     )  # fmt: skip
     s_tick = _specialise(
         _servo_tick, f"servo_tick_{base}", {"servo_step": s_step},
-        float64(stage_state_t, stage_params_t, cs_t, cp_t, float64, float64, float64, float64),
+        float64(buf_t, float64, float64, float64, float64),
     )  # fmt: skip
     s_log = _specialise(
         _log_row, f"log_row_{base}", env,
-        void(float64[::1], int64, float64, float64, float64, stage_state_t, cs_t),
+        void(float64[::1], int64, float64, float64, float64, buf_t),
     )  # fmt: skip
     env = {"servo_start": s_start, "servo_step": s_step, "log_row": s_log}
     s_loop = _specialise(
         _closed_loop, f"closed_loop_{base}", env,
         int64(
             plant_state_t, plant_params_t, float64[:, ::1], float64[:, :, ::1], float64[::1], float64[::1],
-            float64[::1], stage_state_t, stage_params_t, cs_t, cp_t,
+            float64[::1], buf_t,
             float64[::1], float64[::1], float64[::1], float64[:, ::1],
             int64, int64, int64, int64, float64[::1], float64[:, ::1], int64, int64, float64,
         ),
     )  # fmt: skip
-    out = _COMPOSED[key] = Composed(s_start, s_tick, s_step, s_log, s_loop)
+    out = _COMPOSED[key] = Composed(dtype, s_start, s_tick, s_step, s_log, s_loop)
     return out
 
 
 def composed_kernels() -> list:
     """Every kernel :func:`compose` built in this process (for cache accounting)."""
-    return [k for c in _COMPOSED.values() for k in c]
+    return [k for c in _COMPOSED.values() for k in c[1:]]

@@ -12,7 +12,7 @@ import math
 import numpy as np
 
 from kernels.compose import LOG_COLUMNS, LOG_UNITS
-from kernels.stage import STAGE_PARAMS, STAGE_STATE
+from kernels.stage import STAGE_PARAMS
 from servo.config import Config
 from servo.controllers import get_kind
 
@@ -40,47 +40,49 @@ class Controller:
     """State and parameters of the configured controller on its stage; :meth:`start`,
     then :meth:`tick` once per sample.
 
-    ``stage_state``/``stage_params``: the stage's records; ``state``/``params``: the
-    kind's; ``kernels``: the kind's composed kernels; ``log_columns``/``log_units``: the
+    ``buf``: the four records in one array (what the kernels take); ``stage_state``/
+    ``stage_params``: the stage's records, ``state``/``params``: the kind's (views into
+    ``buf``); ``kernels``: the kind's composed kernels; ``log_columns``/``log_units``: the
     columns of a run log of this controller (the common ones, then the kind's).
     """
 
     def __init__(self, cfg: Config, compensation: bool | None = None):
         self.kind = get_kind(cfg.controller.kind)
-        self.stage_params = stage_params(cfg, compensation)
-        self.stage_state = np.zeros(1, STAGE_STATE)
-        self.params = self.kind.params(cfg.controller.section, cfg)
-        self.state = np.zeros(1, self.kind.STATE)
         self.kernels = self.kind.kernels()
+        self.buf = np.zeros(1, self.kernels.dtype)
+        self.stage_state, self.stage_params = self.buf["stage_state"], self.buf["stage_params"]
+        self.state, self.params = self.buf["state"], self.buf["params"]
+        self.stage_params[:] = stage_params(cfg, compensation)
+        self.params[:] = self.kind.params(cfg.controller.section, cfg)
         self.log_columns = LOG_COLUMNS + tuple(self.kind.log_columns)
         self.log_units = {**LOG_UNITS, **self.kind.log_units}
 
     def records(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-        """``(stage_state, stage_params, state, params)``, the kernels' first arguments."""
+        """``(stage_state, stage_params, state, params)``: views of the four records."""
         return self.stage_state, self.stage_params, self.state, self.params
 
     def warm_up(self) -> None:
         """Call the kernels once on scratch copies, so that the first tick of a run pays
         no first-call cost (the first dispatch on these record types takes ~0.2 ms)."""
-        scratch = [a.copy() for a in self.records()]
-        self.kernels.servo_start(*scratch, 0.0, 0.0, 0.0)
-        self.kernels.servo_tick(*scratch, 0.0, 0.0, 0.0, 0.0)
-        self.kernels.log_row(np.empty(len(self.log_columns)), 0, 1.0, 0.0, 0.0, scratch[0], scratch[2])
+        scratch = self.buf.copy()
+        self.kernels.servo_start(scratch, 0.0, 0.0, 0.0)
+        self.kernels.servo_tick(scratch, 0.0, 0.0, 0.0, 0.0)
+        self.kernels.log_row(np.empty(len(self.log_columns)), 0, 1.0, 0.0, 0.0, scratch)
 
     def start(self, x: float, v: float, u_now: float) -> None:
         """Take over bumplessly at position ``x`` (m), velocity ``v`` (m/s, NaN if not
         measured) with ``u_now`` (A) applied."""
-        self.kernels.servo_start(self.stage_state, self.stage_params, self.state, self.params, x, v, u_now)
+        self.kernels.servo_start(self.buf, x, v, u_now)
 
     def tick(self, x: float, v: float, r: float, u_exc: float) -> float:
         """One sample at measured ``x`` (m), ``v`` (m/s, NaN if not measured), reference
         ``r`` (m, from the holding position), excitation ``u_exc`` (A); returns the
         current command (A)."""
-        return self.kernels.servo_tick(self.stage_state, self.stage_params, self.state, self.params, x, v, r, u_exc)
+        return self.kernels.servo_tick(self.buf, x, v, r, u_exc)
 
     def log_row(self, row: np.ndarray, k: int, dt: float, x: float, u_exc: float) -> None:
         """Fill ``row`` (length ``len(log_columns)``) for tick ``k``."""
-        self.kernels.log_row(row, k, dt, x, u_exc, self.stage_state, self.state)
+        self.kernels.log_row(row, k, dt, x, u_exc, self.buf)
 
     @property
     def e(self) -> float:

@@ -119,7 +119,7 @@ def _warm_up(controller, log: RunLog) -> None:
 def _run_ticks(cfg, driver, controller, inputs, log, stats, pacer, durations) -> None:
     dt = cfg.dt
     state = controller.stage_state
-    log_row, ss, cs = controller.kernels.log_row, controller.stage_state, controller.state
+    log_row, buf = controller.kernels.log_row, controller.buf
     r, u_exc = Window(inputs.reference), Window(inputs.excitation)
     r.load(0), u_exc.load(0)  # the first windows now, not on the first tick
 
@@ -134,7 +134,7 @@ def _run_ticks(cfg, driver, controller, inputs, log, stats, pacer, durations) ->
         error_stats(stats, state[0]["e"])
 
     def logger(k: int) -> None:
-        log_row(log.data[log.rows], k, dt, data.x, data.u_exc, ss, cs)
+        log_row(log.data[log.rows], k, dt, data.x, data.u_exc, buf)
         log.rows += 1
         log.maybe_flush()
 
@@ -162,7 +162,7 @@ def _run_fast(cfg, driver: SimDriver, controller, inputs, log, stats) -> None:
         u_exc.load(k)
         log.rows = closed_loop(
             p.state, p.params, p.q, p.mab, p.gain, p.ubuf, driver.latency,
-            *controller.records(),
+            controller.buf,
             r.values[i : i + m], u_exc.values[i : i + m], driver.disturbance(k, m), driver.noise(k, m),
             k, m, cfg.run.estimator_every, cfg.run.log_every,
             stats, log.data, log.rows, 1 if k == first else 0, u_start,
