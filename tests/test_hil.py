@@ -70,8 +70,9 @@ def emulator(*args, timeout=60.0):
 def run_log(cfg, driver, tmp_path, name, controller=None):
     """Run the scenario of ``cfg`` against ``driver``; returns (rows, driver)."""
     inputs = scenario_inputs(cfg)
-    with driver, RunLog(tmp_path, name, LOG_COLUMNS) as log:
-        run_closed_loop(cfg, driver, controller or Controller(cfg), inputs, log)
+    controller = controller or Controller(cfg)
+    with driver, RunLog(tmp_path, name, controller.log_columns) as log:
+        run_closed_loop(cfg, driver, controller, inputs, log)
     return log.recorded().copy()
 
 
@@ -97,6 +98,17 @@ def test_lockstep_through_the_emulator_is_bit_identical_to_the_simulator(lockste
     assert st["board_stats"]["ticks"] >= 10_000 and st["board_stats"]["faults"] == 0
     assert st["host"]["rx_frames"] == 2 + 10_000 // b and sum(st["host"][k] for k in ("crc_errors", "seq_dropped")) == 0
     assert drv.info.command_latency_ticks == d and drv.state is DriverState.CLOSED
+
+
+def test_another_controller_kind_runs_through_the_link_unchanged(lockstep_emulator, tmp_path):
+    """The track-following kind (its own records and log column) over the serial link: the
+    same bits as on the simulated drive, with no edit outside its module."""
+    url, _ = lockstep_emulator
+    cfg = CFG.replace(controller={"kind": "track"}, link={"watchdog_s": 2.0})
+    sim = run_log(cfg, SimDriver(cfg, scenario_inputs(cfg)), tmp_path, "sim")
+    hil = run_log(cfg, SerialDriver(cfg, url), tmp_path, "hil")
+    assert hil.shape == sim.shape == (10_000, len(LOG_COLUMNS) + 1)  # + the kind's "pes" column
+    assert np.array_equal(hil, sim)
 
 
 def test_servo_run_port_gives_the_simulator_run_bit_for_bit(lockstep_emulator, tmp_path):
