@@ -9,8 +9,9 @@ Kernel state (Dahl turnaround, integrator, plant) is carried from sample to samp
 a run.  Explicit signatures and ``cache=True``, like the kernels: importing this module
 compiles (or loads) every loop before any timing starts.
 """
-from numba import float64, from_dtype, int64, njit
+from numba import float64, from_dtype, int64
 
+from kernels._cache import kernel
 from kernels.compensator import compensate
 from kernels.dahl import dahl_update
 from kernels.delay import shift_in
@@ -31,7 +32,7 @@ track_state_t, track_params_t = from_dtype(track.STATE)[::1], from_dtype(track.P
 M = 4096
 
 
-@njit(float64(int64, float64[:, ::1], float64, float64, float64), cache=True)
+@kernel(float64(int64, float64[:, ::1], float64, float64, float64))
 def loop_dahl_update(n, xin, sigma, Ha, alpha):
     """``dahl_update`` (eq. 6-7) on rows ``(x, s_new)`` of ``xin``; returns the sum of H (A)."""
     mask = xin.shape[0] - 1
@@ -44,7 +45,7 @@ def loop_dahl_update(n, xin, sigma, Ha, alpha):
     return acc
 
 
-@njit(float64(int64, float64[:, ::1], float64[::1]), cache=True)
+@kernel(float64(int64, float64[:, ::1], float64[::1]))
 def loop_compensate(n, xin, kp):
     """``compensate`` (eq. 9) on rows ``(regime, x, v, s, H)``; ``kp = (B, Fc, K, h0)``."""
     mask = xin.shape[0] - 1
@@ -56,7 +57,7 @@ def loop_compensate(n, xin, kp):
     return acc
 
 
-@njit(float64(int64, float64[:, ::1], float64[::1]), cache=True)
+@kernel(float64(int64, float64[:, ::1], float64[::1]))
 def loop_holding_pi(n, xin, g):
     """``holding_pi`` on rows ``(e, e_p, v)``; ``g = (kp, ki, kd, dt, lo, hi)``; the
     integrator is carried.  Returns the sum of outputs (A)."""
@@ -70,7 +71,7 @@ def loop_holding_pi(n, xin, g):
     return acc
 
 
-@njit(float64(int64, float64[:, ::1], stage_state_t, stage_params_t, pi_state_t, pi_params_t), cache=True)
+@kernel(float64(int64, float64[:, ::1], stage_state_t, stage_params_t, pi_state_t, pi_params_t))
 def loop_controller_tick(n, xin, ss, sp, cs, cp):
     """The full controller tick (Dahl update + compensator + PI + limits) on rows
     ``(x, v_meas, r, u_exc)``.  Returns the sum of commands (A)."""
@@ -83,7 +84,7 @@ def loop_controller_tick(n, xin, ss, sp, cs, cp):
     return acc
 
 
-@njit(float64(int64, float64[:, ::1], stage_state_t, stage_params_t, track_state_t, track_params_t), cache=True)
+@kernel(float64(int64, float64[:, ::1], stage_state_t, stage_params_t, track_state_t, track_params_t))
 def loop_track_tick(n, xin, ss, sp, cs, cp):
     """The track-following kind's tick on its stage, rows as :func:`loop_controller_tick`."""
     mask = xin.shape[0] - 1
@@ -95,7 +96,7 @@ def loop_track_tick(n, xin, ss, sp, cs, cp):
     return acc
 
 
-@njit(float64(int64, float64[:, ::1], stage_state_t, stage_params_t, track_state_t, track_params_t), cache=True)
+@kernel(float64(int64, float64[:, ::1], stage_state_t, stage_params_t, track_state_t, track_params_t))
 def loop_nss_tick(n, xin, ss, sp, cs, cp):
     """The NSS reference kind's tick on its stage, rows as :func:`loop_controller_tick`."""
     mask = xin.shape[0] - 1
@@ -107,9 +108,8 @@ def loop_nss_tick(n, xin, ss, sp, cs, cp):
     return acc
 
 
-@njit(
+@kernel(
     float64(int64, float64[:, ::1], plant_state_t, plant_params_t, float64[:, ::1], float64[:, :, ::1], float64[::1]),
-    cache=True,
 )
 def loop_plant_step(n, uin, ps, pp, q, mab, ubuf):
     """``plant_step`` (RK4 sub-steps, Dahl pivot, modes, input delay) on rows ``(u, d)``.
@@ -123,7 +123,7 @@ def loop_plant_step(n, uin, ps, pp, q, mab, ubuf):
     return acc
 
 
-@njit(float64(int64, float64[:, ::1], plant_state_t, plant_params_t, float64[:, ::1], float64[::1]), cache=True)
+@kernel(float64(int64, float64[:, ::1], plant_state_t, plant_params_t, float64[:, ::1], float64[::1]))
 def loop_plant_measure(n, noise, ps, pp, q, gain):
     """``plant_measure`` (modes, noise, quantisation) with rows ``(nx, nv)`` of ``noise``."""
     mask = noise.shape[0] - 1
@@ -135,7 +135,7 @@ def loop_plant_measure(n, noise, ps, pp, q, gain):
     return acc
 
 
-@njit(float64(int64, float64[:, ::1], float64[::1]), cache=True)
+@kernel(float64(int64, float64[:, ::1], float64[::1]))
 def loop_shift_in(n, uin, buf):
     """``shift_in`` (the link's command queue) on ``uin[:, 0]``; returns the sum out (A)."""
     mask = uin.shape[0] - 1
@@ -145,13 +145,12 @@ def loop_shift_in(n, uin, buf):
     return acc
 
 
-@njit(
+@kernel(
     float64(
         int64, float64[:, ::1], float64[:, ::1],
         plant_state_t, plant_params_t, float64[:, ::1], float64[:, :, ::1], float64[::1], float64[::1],
         stage_state_t, stage_params_t, pi_state_t, pi_params_t,
     ),
-    cache=True,
 )  # fmt: skip
 def loop_closed(n, ref, noise, ps, pp, q, mab, gain, ubuf, ss, sp, cs, cp):
     """Closed loop without logging: ``plant_measure -> controller_tick -> plant_step``;

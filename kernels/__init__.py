@@ -8,7 +8,6 @@ kind is first used, before its loop starts.  Imports numpy and numba only.  The 
 code is cached on disk in a directory keyed by the kernels' source (:mod:`kernels._cache`),
 so editing any kernel recompiles all.
 """
-from kernels import _cache  # noqa: F401  (first: sets the cache directory)
 from kernels.compensator import FAST, SLOW, compensate, direction, regime_switch, velocity_estimate
 from kernels.compose import LOG_COLUMNS, STATS_SIZE, compose, error_stats
 from kernels.dahl import dahl_closed, dahl_flow, dahl_slope, dahl_update

@@ -9,14 +9,17 @@ any edit start a fresh cache.
 
 The directory is ``$SERVO_NUMBA_CACHE`` or ``~/.cache/servo-numba`` (``$XDG_CACHE_HOME``
 if set), then ``<hash>/``.  ``NUMBA_CACHE_DIR``, if the user set it, is respected as is.
-Import this module before any kernel is defined (``kernels/__init__.py`` does).
+Kernels are declared with :func:`kernel`, which points Numba's cache there only while it
+compiles or loads them: importing the kernels leaves Numba's configuration unchanged.
 """
 from __future__ import annotations
 
 import hashlib
 import os
+from contextlib import contextmanager
 from pathlib import Path
 
+from numba import njit
 from numba.core import config
 
 HERE = Path(__file__).resolve().parent
@@ -46,20 +49,6 @@ def cache_dir() -> Path:
     return Path(base) / source_hash()
 
 
-def configure() -> None:
-    """Point Numba's cache at :func:`cache_dir` unless ``NUMBA_CACHE_DIR`` is set or the
-    directory cannot be created (then Numba's default, beside the sources, is used)."""
-    if os.environ.get("NUMBA_CACHE_DIR"):
-        return
-    path = cache_dir()
-    try:
-        path.mkdir(parents=True, exist_ok=True)
-    except OSError:
-        return
-    config.CACHE_DIR = str(path)
-
-
-configure()
 
 
 def compiled_here() -> bool:
@@ -78,3 +67,37 @@ def compiled_here() -> bool:
         if name.split(".")[0] in ("kernels", "servo", "bench"):  # controller kinds live in servo/
             found += [obj for obj in vars(mod).values() if isinstance(obj, CPUDispatcher)]
     return any(sum(k.stats.cache_misses.values()) > 0 for k in found)
+
+
+@contextmanager
+def keyed_cache():
+    """Numba's cache directory set to :func:`cache_dir` for the block, and restored after:
+    the kernels' cache locations are fixed when they are decorated, and Numba's global
+    configuration is left as the user had it."""
+    if os.environ.get("NUMBA_CACHE_DIR"):
+        yield
+        return
+    path = cache_dir()
+    try:
+        path.mkdir(parents=True, exist_ok=True)
+    except OSError:  # no writable cache folder: Numba's default, beside the sources
+        yield
+        return
+    before = config.CACHE_DIR
+    config.CACHE_DIR = str(path)
+    try:
+        yield
+    finally:
+        config.CACHE_DIR = before
+
+
+def kernel(signature, **options):
+    """``numba.njit(signature, cache=True, **options)``, compiled (or loaded from the keyed
+    cache, :func:`keyed_cache`) at decoration: every kernel of this project is declared
+    with it, so it has an explicit signature and is ready before any loop runs."""
+
+    def decorate(fn):
+        with keyed_cache():
+            return njit(signature, cache=True, **options)(fn)
+
+    return decorate

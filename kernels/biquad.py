@@ -9,8 +9,10 @@ A section ``(b0, b1, b2, a0, a1, a2)`` with ``a0 = 1`` (scipy.signal's ``sos`` r
 The coefficients and states live in a controller's records as fixed-size nested arrays
 (:data:`MAX_SECTIONS` rows) so that a tick allocates nothing; ``n`` sections are used.
 """
-from numba import float64, int64, njit, void
+from numba import float64, int64, void
 from numba.core.types import NestedArray
+
+from kernels._cache import kernel
 
 #: Rows of a cascade in a record.
 MAX_SECTIONS = 8
@@ -18,7 +20,7 @@ sos_t = NestedArray(float64, (MAX_SECTIONS, 6))
 zi_t = NestedArray(float64, (MAX_SECTIONS, 2))
 
 
-@njit(float64(sos_t, zi_t, int64, float64), cache=True)
+@kernel(float64(sos_t, zi_t, int64, float64))
 def sos_cascade(sos, z, n, x):
     """One sample ``x`` through sections ``0..n-1`` of ``sos``, updating their states ``z``;
     returns the output (the unit of ``x`` times the cascade's gain)."""
@@ -30,7 +32,7 @@ def sos_cascade(sos, z, n, x):
     return x
 
 
-@njit(float64(sos_t, zi_t, zi_t, int64, float64), cache=True)
+@kernel(float64(sos_t, zi_t, zi_t, int64, float64))
 def sos_cascade_try(sos, z, z_new, n, x):
     """:func:`sos_cascade` that leaves ``z`` as it is and writes the updated states into
     ``z_new`` (commit them with :func:`sos_commit`): for anti-windup."""
@@ -42,7 +44,7 @@ def sos_cascade_try(sos, z, z_new, n, x):
     return x
 
 
-@njit(void(zi_t, zi_t, int64), cache=True)
+@kernel(void(zi_t, zi_t, int64))
 def sos_commit(z, z_new, n):
     """Copy the states of sections ``0..n-1`` from ``z_new`` into ``z``."""
     for i in range(n):

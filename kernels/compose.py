@@ -41,8 +41,9 @@ import types
 from typing import NamedTuple
 
 import numpy as np
-from numba import float64, from_dtype, int64, njit, void
+from numba import float64, from_dtype, int64, void
 
+from kernels._cache import kernel
 from kernels.delay import shift_in
 from kernels.plant import plant_measure, plant_params_t, plant_state_t, plant_step
 from kernels.stage import (
@@ -61,7 +62,7 @@ N_COMMON = len(LOG_COLUMNS)
 STATS_SIZE = 3
 
 
-@njit(void(float64[::1], float64), cache=True)
+@kernel(void(float64[::1], float64))
 def error_stats(stats, e):
     """The tracking-error estimator: accumulate ``e`` (m) into ``stats``."""
     stats[0] += e * e
@@ -167,7 +168,7 @@ def _specialise(template, name: str, env: dict, signature):
     fn = types.FunctionType(template.__code__, g, name)
     fn.__qualname__ = name
     fn.__doc__ = template.__doc__
-    return njit(signature, cache=True)(fn)
+    return kernel(signature)(fn)
 
 
 _COMPOSED: dict[tuple, Composed] = {}

@@ -1,8 +1,10 @@
 """Shift register for delayed commands (the plant's input delay, the link's latency)."""
-from numba import float64, njit
+from numba import float64
+
+from kernels._cache import kernel
 
 
-@njit(float64(float64[::1], float64), cache=True)
+@kernel(float64(float64[::1], float64))
 def shift_in(buf, u):
     """Push ``u`` into ``buf`` (``buf[0]`` newest) and return the value pushed out, i.e. the
     one pushed ``len(buf)`` calls ago.  An empty buffer is no delay: ``u`` comes back."""

@@ -11,7 +11,9 @@ Negative durations count in bin 0.
 import math
 
 import numpy as np
-from numba import float64, int64, njit, void
+from numba import float64, int64, void
+
+from kernels._cache import kernel
 
 LINEAR_NS = 1 << 17  # 131 us: every tick and lateness of a 50 kHz loop, exactly
 LOG_STEP = 0.01
@@ -20,7 +22,7 @@ N_BINS = LINEAR_NS + int(math.ceil(math.log(MAX_NS / LINEAR_NS) / math.log1p(LOG
 _LOG_BASE = math.log1p(LOG_STEP)
 
 
-@njit(int64(int64), cache=True)
+@kernel(int64(int64))
 def bin_of(t):
     """The bin of duration ``t`` (ns)."""
     if t < LINEAR_NS:
@@ -29,14 +31,14 @@ def bin_of(t):
     return min(b, N_BINS - 1)
 
 
-@njit(void(int64[::1], int64, int64[::1]), cache=True)
+@kernel(void(int64[::1], int64, int64[::1]))
 def add_durations(values, n, counts):
     """Count ``values[:n]`` (ns) into ``counts`` (:data:`N_BINS`,)."""
     for i in range(n):
         counts[bin_of(values[i])] += 1
 
 
-@njit(float64(int64), cache=True)
+@kernel(float64(int64))
 def lower_edge(b):
     """The smallest duration (ns) of bin ``b``."""
     if b < LINEAR_NS:

@@ -16,16 +16,17 @@ integrator stops integrating errors that push further into the limit.  A bumples
 sets ``I`` so that the first output equals the current already applied
 (:func:`holding_pi_bumpless`).
 """
-from numba import float64, njit
+from numba import float64
 from numba.types import UniTuple
 
+from kernels._cache import kernel
 
-@njit(
+
+@kernel(
     UniTuple(float64, 2)(
         float64, float64, float64, float64, float64, float64, float64, float64, float64, float64,
         float64,
     ),
-    cache=True,
 )
 def holding_pi(e, e_p, v, integ, u_ff, kp, ki, kd, dt, lo, hi):
     """One sample of the holding loop.  Returns ``(u_n, integ)``: the output (A) clamped to
@@ -43,7 +44,7 @@ def holding_pi(e, e_p, v, integ, u_ff, kp, ki, kd, dt, lo, hi):
     return u, integ
 
 
-@njit(float64(float64, float64, float64, float64, float64), cache=True)
+@kernel(float64(float64, float64, float64, float64, float64))
 def holding_pi_bumpless(u_now, e, v, kp, kd):
     """Integrator value (A) that makes the first output equal ``u_now`` (A), the current
     already applied when the loop takes over (no feed-forward at that instant)."""

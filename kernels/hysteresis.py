@@ -4,13 +4,14 @@ Runs exactly the per-sample estimator of the controller (:func:`kernels.dahl.dah
 with the deadbanded direction of :func:`kernels.compensator.direction`) over arrays, so a
 fitted model is the model the compensator will run.
 """
-from numba import float64, njit, void
+from numba import float64, void
 
+from kernels._cache import kernel
 from kernels.compensator import direction
 from kernels.dahl import dahl_update
 
 
-@njit(void(float64[::1], float64[::1], float64, float64, float64, float64, float64, float64[::1]), cache=True)
+@kernel(void(float64[::1], float64[::1], float64, float64, float64, float64, float64, float64[::1]))
 def dahl_trace(x, v, deadband, sigma, Ha, alpha, H0, out):
     """Dahl estimate ``out[k]`` (A) along positions ``x`` (m) with velocities ``v`` (m/s).
 

@@ -31,9 +31,10 @@ with ``n_sub`` RK4 sub-steps.
 import math
 
 import numpy as np
-from numba import float64, from_dtype, njit, void
+from numba import float64, from_dtype, void
 from numba.types import UniTuple
 
+from kernels._cache import kernel
 from kernels.dahl import dahl_flow
 from kernels.delay import shift_in
 
@@ -84,14 +85,14 @@ params_rec_t = from_dtype(PLANT_PARAMS)
 state_rec_t = from_dtype(PLANT_STATE)
 
 
-@njit(float64(float64, params_rec_t), cache=True)
+@kernel(float64(float64, params_rec_t))
 def force_constant(x, p):
     """Force constant relative to the stroke centre, ``kf(x)`` (dimensionless)."""
     r = x / p.stroke
     return 1.0 + p.kf1 * r + p.kf2 * r * r
 
 
-@njit(float64(float64, float64, float64, params_rec_t), cache=True)
+@kernel(float64(float64, float64, float64, params_rec_t))
 def drive_force(x, u, d, p):
     """Every force on the arm except friction and hysteresis (A)."""
     f = force_constant(x, p) * u + d - p.K * x - p.h0
@@ -100,7 +101,7 @@ def drive_force(x, u, d, p):
     return f
 
 
-@njit(float64(float64, float64, params_rec_t), cache=True)
+@kernel(float64(float64, float64, params_rec_t))
 def sliding_friction(v, s, p):
     """Viscous plus Coulomb/Stribeck friction (A) while moving in direction ``s``."""
     f = p.B * (1.0 + s * p.b_asym) * v
@@ -111,15 +112,14 @@ def sliding_friction(v, s, p):
     return f
 
 
-@njit(float64(float64, params_rec_t), cache=True)
+@kernel(float64(float64, params_rec_t))
 def breakaway(s, p):
     """Static friction (A) to overcome to start moving in direction ``s``."""
     return p.Fs * (1.0 + s * p.fc_asym)
 
 
-@njit(
+@kernel(
     float64(float64, float64, float64, float64, float64, float64, float64, params_rec_t),
-    cache=True,
 )
 def acceleration(x, v, s, x0, H0, u, d, p):
     """``x''`` (m/s^2) within a sub-step that started at ``(x0, H0)`` moving in ``s``."""
@@ -127,7 +127,7 @@ def acceleration(x, v, s, x0, H0, u, d, p):
     return (drive_force(x, u, d, p) - sliding_friction(v, s, p) - H) / p.J
 
 
-@njit(void(state_rec_t, params_rec_t, float64, float64, float64), cache=True)
+@kernel(void(state_rec_t, params_rec_t, float64, float64, float64))
 def rigid_substep(st, p, u, d, h):
     """Advance rigid body and Dahl state by ``h`` seconds under constant ``u``, ``d``."""
     x0 = st.x
@@ -171,7 +171,7 @@ def rigid_substep(st, p, u, d, h):
     st.H = H1
 
 
-@njit(void(float64[:, ::1], float64[:, :, ::1], float64, float64), cache=True)
+@kernel(void(float64[:, ::1], float64[:, :, ::1], float64, float64))
 def modes_advance(q, mab, part, u):
     """Advance the flexible modes ``q[i] = (q_i, q_i')`` over one constant-input interval
     with their exact discretisation ``mab[i, part] = (a11, a12, a21, a22, b1, b2)``."""
@@ -183,7 +183,7 @@ def modes_advance(q, mab, part, u):
         q[i, 1] = mab[i, j, 2] * q0 + mab[i, j, 3] * q1 + mab[i, j, 5] * u
 
 
-@njit(void(state_rec_t, params_rec_t, float64, float64, float64), cache=True)
+@kernel(void(state_rec_t, params_rec_t, float64, float64, float64))
 def rigid_advance(st, p, u, d, h):
     """``n_sub`` RK4 sub-steps covering ``h`` seconds."""
     n = int(p.n_sub)
@@ -192,7 +192,7 @@ def rigid_advance(st, p, u, d, h):
         rigid_substep(st, p, u, d, hs)
 
 
-@njit(
+@kernel(
     void(
         plant_state_t,
         plant_params_t,
@@ -202,7 +202,6 @@ def rigid_advance(st, p, u, d, h):
         float64,
         float64,
     ),
-    cache=True,
 )
 def plant_step(ps, pp, q, mab, ubuf, u_cmd, d):
     """Advance the drive by one sample period under the current command ``u_cmd`` (A) and
@@ -221,11 +220,10 @@ def plant_step(ps, pp, q, mab, ubuf, u_cmd, d):
     modes_advance(q, mab, 1.0, u_late)
 
 
-@njit(
+@kernel(
     UniTuple(float64, 2)(
         plant_state_t, plant_params_t, float64[:, ::1], float64[::1], float64, float64
     ),
-    cache=True,
 )
 def plant_measure(ps, pp, q, gain, nx, nv):
     """The sensor: ``(x_meas, v_meas)`` in m and m/s at the current instant.

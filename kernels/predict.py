@@ -6,12 +6,13 @@ from many starting states over a recorded input: for each start ``k`` the rigid 
 its Dahl state and its modes are set to estimates at sample ``k`` and the model is
 stepped ``horizon`` samples under the recorded input, noise-free.
 """
-from numba import float64, int64, njit, void
+from numba import float64, int64, void
 
+from kernels._cache import kernel
 from kernels.plant import modes_advance, plant_measure, plant_params_t, plant_state_t, plant_step
 
 
-@njit(void(float64[:, :, ::1], float64[::1], float64[:, ::1], float64[:, :, ::1]), cache=True)
+@kernel(void(float64[:, :, ::1], float64[::1], float64[:, ::1], float64[:, :, ::1]))
 def mode_trace(mab, u, q, out):
     """Modal states ``out[k] = q`` (n, n_modes, 2) at each sample ``k`` (before the step
     of sample ``k``) under inputs ``u`` (n,), advancing ``q`` in place with the exact
@@ -23,13 +24,12 @@ def mode_trace(mab, u, q, out):
         modes_advance(q, mab, 1.0, u[k])
 
 
-@njit(
+@kernel(
     void(
         plant_state_t, plant_params_t, float64[:, ::1], float64[:, :, ::1], float64[::1], float64[::1],
         float64[::1], float64[::1], float64[::1], float64[::1], float64[:, :, ::1], int64[::1], int64,
         float64[:, ::1],
     ),
-    cache=True,
 )  # fmt: skip
 def multistep(ps, pp, q, mab, gain, ubuf, u, x0, v0, H0, q0, starts, horizon, out):
     """Predicted measured positions ``out[s, i]`` (m) at sample ``starts[s] + i + 1``.

@@ -18,9 +18,10 @@ take the records themselves (``ss[0]``).
 import math
 
 import numpy as np
-from numba import float64, from_dtype, njit
+from numba import float64, from_dtype
 from numba.types import UniTuple
 
+from kernels._cache import kernel
 from kernels.compensator import SLOW, compensate, direction, regime_switch, velocity_estimate
 from kernels.dahl import dahl_update
 
@@ -69,14 +70,14 @@ stage_params_rec_t = from_dtype(STAGE_PARAMS)
 stage_state_rec_t = from_dtype(STAGE_STATE)
 
 
-@njit(float64(stage_state_rec_t, stage_params_rec_t, float64), cache=True)
+@kernel(float64(stage_state_rec_t, stage_params_rec_t, float64))
 def _compensation(c, p, x):
     if p.comp_on == 0.0:
         return 0.0
     return compensate(int(c.regime), x, c.v, c.s, c.H_dahl, p.B, p.Fc, p.K, p.h0)
 
 
-@njit(float64(stage_state_rec_t, stage_params_rec_t, float64, float64, float64), cache=True)
+@kernel(float64(stage_state_rec_t, stage_params_rec_t, float64, float64, float64))
 def stage_start(c, p, x, v_meas, u_now):
     """Take over at position ``x`` (m), velocity ``v_meas`` (m/s, NaN if not measured) with
     ``u_now`` (A) applied: hold ``x``, reset the signals (the pivot's hysteresis state is
@@ -100,7 +101,7 @@ def stage_start(c, p, x, v_meas, u_now):
     return u_now - u_c
 
 
-@njit(float64(stage_state_rec_t, stage_params_rec_t, float64, float64), cache=True)
+@kernel(float64(stage_state_rec_t, stage_params_rec_t, float64, float64))
 def stage_update(c, p, x, v_meas):
     """The signals of one sample at measured position ``x`` (m) and velocity ``v_meas``
     (m/s, NaN if not measured): velocity, direction, Dahl estimate (eq. 6-7), regime;
@@ -123,13 +124,13 @@ def stage_update(c, p, x, v_meas):
     return _compensation(c, p, x)  # eq. (9)
 
 
-@njit(UniTuple(float64, 2)(stage_params_rec_t, float64), cache=True)
+@kernel(UniTuple(float64, 2)(stage_params_rec_t, float64))
 def stage_room(p, u_c):
     """``(lo, hi)`` (A): the range of ``u_n`` that keeps ``u_n + u_c`` within the limit."""
     return -p.u_max - u_c, p.u_max - u_c
 
 
-@njit(float64(stage_state_rec_t, stage_params_rec_t, float64, float64, float64, float64), cache=True)
+@kernel(float64(stage_state_rec_t, stage_params_rec_t, float64, float64, float64, float64))
 def stage_output(c, p, x, r, u_n, u_c):
     """The command ``u = clip(u_n + u_c)`` (A, eq. 8) for the controller's ``u_n`` (A);
     records the error ``(r_base + r) - x`` (m) and the three currents."""

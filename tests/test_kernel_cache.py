@@ -24,9 +24,20 @@ def test_any_kernel_edit_changes_the_cache_directory(tmp_path):
     assert _cache.source_hash(copies) != edited
 
 
-def test_numba_caches_into_the_keyed_directory():
-    assert config.CACHE_DIR == str(_cache.cache_dir())
-    assert config.CACHE_DIR.endswith(_cache.source_hash())
+def test_numba_caches_into_the_keyed_directory_and_its_configuration_is_left_alone():
+    import subprocess
+    import sys
+
+    from kernels.dahl import dahl_update
+    from servo.controllers.pi import pi_tick
+
+    for k in (dahl_update, pi_tick):
+        assert k.stats.cache_path.startswith(str(_cache.cache_dir()))
+    code = ("from numba.core import config; before = config.CACHE_DIR; import kernels, servo.run.job, "
+            "servo.runtime.controller as c, servo.config as s; c.Controller(s.Config()); "
+            "assert config.CACHE_DIR == before, config.CACHE_DIR")  # fmt: skip
+    r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
+    assert r.returncode == 0, r.stderr
 
 
 def test_the_first_run_says_it_compiled_the_kernels_and_the_second_that_it_loaded_them(tmp_path):

@@ -12,8 +12,9 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from numba import float64, from_dtype, njit, void
+from numba import float64, from_dtype, void
 
+from kernels._cache import kernel
 from kernels.holding import holding_pi, holding_pi_bumpless
 from servo.config import P
 from servo.controllers.base import ControllerKind
@@ -32,13 +33,13 @@ STATE = np.dtype([("integ", "f8")])  # integrator, A
 _c_t, _p_t = from_dtype(STATE), from_dtype(PARAMS)  # the records (kernels.compose)
 
 
-@njit(void(_c_t, _p_t, float64, float64, float64), cache=True)
+@kernel(void(_c_t, _p_t, float64, float64, float64))
 def pi_start(c, p, x, v, u_n):
     """Bumpless take-over: the integrator that makes the first output ``u_n`` (A)."""
     c.integ = holding_pi_bumpless(u_n, 0.0, v, p.kp, p.kd)
 
 
-@njit(float64(_c_t, _p_t, float64, float64, float64, float64, float64, float64, float64), cache=True)
+@kernel(float64(_c_t, _p_t, float64, float64, float64, float64, float64, float64, float64))
 def pi_tick(c, p, x, v, r_base, r, u_exc, lo, hi):
     """One sample; returns ``u_n`` (A)."""
     e = (r_base + r) - x
@@ -48,7 +49,7 @@ def pi_tick(c, p, x, v, r_base, r, u_exc, lo, hi):
     return u_n
 
 
-@njit(void(float64[::1], _c_t), cache=True)
+@kernel(void(float64[::1], _c_t))
 def pi_log(out, c):
     """No columns of its own."""
 

@@ -24,8 +24,9 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from numba import float64, from_dtype, njit, void
+from numba import float64, from_dtype, void
 
+from kernels._cache import kernel
 from kernels.biquad import MAX_SECTIONS, sos_cascade, sos_cascade_try, sos_commit
 from servo.config import P
 from servo.controllers.base import ControllerKind
@@ -56,7 +57,7 @@ STATE = np.dtype(
 _c_t, _p_t = from_dtype(STATE), from_dtype(PARAMS)
 
 
-@njit(void(_c_t, _p_t, float64, float64, float64), cache=True)
+@kernel(void(_c_t, _p_t, float64, float64, float64))
 def two_rate_start(c, p, x, v, u_n):
     """Cascades at rest; the output starts at ``u_n`` (A)."""
     c.phase = 0.0
@@ -71,7 +72,7 @@ def two_rate_start(c, p, x, v, u_n):
             c.z_fast[i, j] = 0.0
 
 
-@njit(float64(_c_t, _p_t, float64, float64, float64, float64, float64, float64, float64), cache=True)
+@kernel(float64(_c_t, _p_t, float64, float64, float64, float64, float64, float64, float64))
 def two_rate_tick(c, p, x, v, r_base, r, u_exc, lo, hi):
     """One tick; returns ``u_n`` (A)."""
     if c.phase == 0.0:
@@ -98,7 +99,7 @@ def two_rate_tick(c, p, x, v, r_base, r, u_exc, lo, hi):
     return u
 
 
-@njit(void(float64[::1], _c_t), cache=True)
+@kernel(void(float64[::1], _c_t))
 def two_rate_log(out, c):
     """``pes``: the latest PES sample (m)."""
     out[0] = c.pes
