@@ -23,14 +23,12 @@ cluster run equals the table of a serial run row for row.
 from __future__ import annotations
 
 import logging
-import math
 import os
-import sys
-import time
 from dataclasses import dataclass
 from typing import Callable
 
 from servo.errors import ConfigError
+from servo.io import progress
 from servo.fleet.task import Task, error_line, failed_row, run_batch
 
 #: at most this many tasks run in this process when no cluster is named
@@ -78,27 +76,22 @@ def batches(tasks: list, size: int, workers: int) -> list[list]:
 
 
 class Progress:
-    """Progress on a stream (stderr): drives done, failed, elapsed and remaining time;
-    one line at most every ``every_s`` seconds, and the last."""
+    """A fleet's progress on a reporter (:class:`servo.io.progress.Reporter`: stderr,
+    rate-limited, nothing with ``--quiet``): drives done/total, how many failed, time
+    left.  Called with each batch's rows."""
 
-    def __init__(self, label: str, total: int, stream=None, every_s: float = 2.0):
-        self.label, self.total, self.every_s = label, total, every_s
-        self.stream = sys.stderr if stream is None else stream
-        self.done = self.failed = 0
-        self.t0 = time.perf_counter()
-        self.last = -math.inf
+    def __init__(self, reporter, total: int):
+        self.reporter, self.failed = reporter, 0
+        self.start(total)
+
+    def start(self, total: int) -> None:
+        """(Re)start the count: ``total`` drives to run (fewer after ``--resume``)."""
+        self.total = total
+        self.reporter.stage("", total, "drives")
 
     def __call__(self, rows: list) -> None:
-        self.done += len(rows)
         self.failed += sum(r["status"] != "ok" for r in rows)
-        now = time.perf_counter()
-        if now - self.last >= self.every_s or self.done >= self.total:
-            self.last = now
-            el = now - self.t0
-            left = el / self.done * (self.total - self.done) if self.done else math.nan
-            eta = f", ~{left:.0f} s left" if self.done < self.total and math.isfinite(left) else ""
-            print(f"{self.label}: {self.done}/{self.total} drives, {self.failed} failed, {el:.1f} s{eta}",
-                  file=self.stream, flush=True)  # fmt: skip
+        self.reporter.advance(len(rows), f"{self.failed} failed")
 
 
 def describe(where: Where, n_tasks: int) -> str:
@@ -114,7 +107,8 @@ def describe(where: Where, n_tasks: int) -> str:
 def _in_process(command, tasks, settings, on_rows) -> list[dict]:
     rows = []
     for t in tasks:
-        got = run_batch(command, [t], settings)
+        with progress.reporting(progress.QUIET):  # a drive's own stages are not the fleet's progress
+            got = run_batch(command, [t], settings)
         rows += got
         on_rows(got)
     return rows
