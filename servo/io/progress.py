@@ -159,6 +159,7 @@ class Reporter(Quiet):
         log has recorded)."""
         with self._lock:
             self._done_fn = done
+        self._start()
         try:
             yield self
         finally:
@@ -215,10 +216,8 @@ class Reporter(Quiet):
         if self.detail:
             text += f" ({self.detail})"
         text += f", {_secs(now - self.t0)}"
-        if self.total and 0 < self.done < self.total:
-            t1, d1 = self._first or (self.stage_t0, 0)
-            if self.done <= d1:  # one step seen: its time includes the stage's start-up
-                t1, d1 = self.stage_t0, 0
+        t1, d1 = self._first or (now, self.done)
+        if self.total and d1 < self.done < self.total:  # not from the first count: it includes a start-up
             left = (now - t1) / (self.done - d1) * (self.total - self.done)
             text += f", ~{_secs(left)} left"
         return text, (self.what, self.done, self.total, self.detail)
