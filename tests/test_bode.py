@@ -64,7 +64,7 @@ def test_bode_command_writes_csv_frd_and_plots(tmp_path, capsys):
     assert main(["bode", "--levels", "1,4", "--n-freq", "3", "--periods", "2", "--f-min", "100", "--f-max", "300",
                  "--no-second-drive", "--out", str(out)]) == 0  # fmt: skip
     printed = capsys.readouterr()
-    assert "equivalent resonance" in printed.out and "sweep 4/4" in printed.err
+    assert "equivalent resonance" in printed.out  # progress on stderr: tests/test_progress.py
     assert not (out / "frd.pkl").exists()  # no pickle tied to a python-control version
     resp = load_frequency_responses(out / "frd.npz")
     assert len(resp) == 4 and all(r.unit == "m/A" and r.f_hz.size == 3 for r in resp.values())

@@ -1,6 +1,7 @@
 """``servo fleet`` in this process: distributions, robust outliers, the table, resume,
 failing recordings, the Monte Carlo closed loop, the verdict column, bad input."""
 import json
+import re
 
 import numpy as np
 import pyarrow.parquet as pq
@@ -16,7 +17,9 @@ from servo.fleet import identify as fleet_identify
 from kernels.compose import LOG_COLUMNS
 from servo.fleet.closedloop import run_scenario
 from servo.run.reduce import COL
-from servo.fleet.diagnose import row_of_report
+from servo.diagnose.proving.cases import Case, recording
+from servo.fleet import diagnose as fleet_diagnose
+from servo.fleet.diagnose import flag, row_of_report
 from servo.fleet.job import run_fleet
 from servo.fleet.outliers import outliers, robust_z
 from servo.fleet.runner import Where, batches
@@ -205,10 +208,48 @@ def test_the_diagnosis_row_picks_up_findings_and_a_verdict_when_the_report_has_o
     assert row["hysteresis.Ha"] == pytest.approx(1e-3, rel=0.3) and row["hysteresis.Ha_std"] > 0
     assert row["test_force_rel_pct_after"] < row["test_force_rel_pct_before"]
     assert row["verdict"] == report["verdict"] == "explained"  # the diagnosis's own verdict, carried over
+    assert row["flag_reason"] == "findings: hysteresis" and row["verdict_text"] == report["verdict_text"]
     assert "verdict" not in row_of_report({k: v for k, v in report.items() if k != "verdict"})
     assert row_of_report({**report, "verdict": "defect"})["verdict"] == "defect"
     v = row_of_report({**report, "verdict": {"flag": True, "why": "hysteresis"}})["verdict"]
     assert json.loads(v) == {"flag": True, "why": "hysteresis"}
+
+
+def test_flag_accounts_for_the_verdict_as_well_as_the_findings():
+    assert flag([], "consistent", "fine") == (False, None)
+    assert flag(["hysteresis"], "explained", "ok") == (True, "findings: hysteresis")
+    assert flag([], "unexplained", "the model still fails: x") == (True, "verdict unexplained: the model still fails: x")
+    assert flag(["offset"], "out_of_scope", None) == (True, "findings: offset; verdict out_of_scope")
+    assert flag([], {"verdict": "unexplained"}) == (False, None)  # a table is not one of the verdicts
+
+
+def test_drives_the_model_does_not_describe_are_flagged_with_the_reason_though_nothing_is_found(tmp_path):
+    """The position of an unrelated run (out of scope) has no findings, and a clipping the
+    training part never sees stays unexplained whatever is found; the fleet flags both and
+    says why, the verdict's text included.  A null drive is not flagged."""
+    recs = {"late_clip": recording(Case("saturation_late", 0.1, "pdi", "multisine", 5000.0), seed=2)[0],
+            "unrelated": recording(Case("out_of_scope", 0.0, "pdi", "multisine", 5000.0), seed=1)[0],
+            "null": concealed_recording(None, 0.0, seed=1)[0]}  # fmt: skip
+    for name, rec in recs.items():
+        np.savez(tmp_path / f"{name}.npz", t=rec.t, u=rec.u, x=rec.x)
+    s = fleet_diagnose.settings()
+    tasks = recording_tasks(sources([str(tmp_path / f"{n}.npz") for n in recs]), s)
+    summary = run_fleet("diagnose", tasks, s, tmp_path / "out", Where(workers=0), plots=False)
+    rows = {r["drive"]: r for r in pq.read_table(tmp_path / "out" / "fleet.parquet").to_pylist()}
+    late, unrelated, null = rows["late_clip"], rows["unrelated"], rows["null"]
+    assert late["verdict"] == "unexplained" and late["flagged"], late
+    assert "verdict unexplained: the model still fails" in late["flag_reason"]
+    assert "no term of the vocabulary" in late["flag_reason"]
+    assert unrelated["verdict"] == "out_of_scope" and unrelated["flagged"] and not unrelated["findings"], unrelated
+    assert "verdict out_of_scope: " in unrelated["flag_reason"] and "inertia" in unrelated["flag_reason"]
+    assert null["verdict"] == "consistent" and not null["flagged"] and null["flag_reason"] is None
+    assert not null["findings"]
+    assert summary["flagged"] == ["late_clip", "unrelated"]
+    report = (tmp_path / "out" / "fleet_report.md").read_text()
+    assert "## Flagged drives (2 of 3)" in report
+    assert re.search(r"^\| late_clip \| .* \| unexplained \| .*verdict unexplained: the model still fails", report, re.M)
+    assert re.search(r"^\| unrelated \| - \| out_of_scope \| verdict out_of_scope: ", report, re.M), report
+    assert "| null |" not in report
 
 
 # ---------------------------------------------------------------- Monte Carlo

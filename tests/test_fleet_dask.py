@@ -53,7 +53,7 @@ def test_a_local_cluster_of_two_workers_gives_the_serial_table_row_for_row(fleet
     assert table.equals(serial)
     assert sorted(summary["flagged"]) == sorted(n for n, d in truth.items() if d)
     report = (tmp_path / "fleet_report.md").read_text()
-    assert f"## Drives with findings ({N_DEFECTS} of {N_DRIVES})" in report
+    assert f"## Flagged drives ({N_DEFECTS} of {N_DRIVES})" in report
     assert {"findings.png", "histograms.png", "scatter.png"} <= {p.name for p in tmp_path.iterdir()}
 
 

@@ -186,7 +186,7 @@ def test_a_port_that_disappears_mid_run_stops_servo_run_with_one_line(tmp_path):
     out = tmp_path / "out"
     with emulator("--pty", "--config", str(cfg_file)) as (emu, url):
         host = subprocess.Popen(servo_cmd("run", "--config", str(cfg_file), "--port", url, "--out", str(out),
-                                          "--compensation", "on"), stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                                          "--compensation", "on", "--quiet"), stdout=subprocess.PIPE, stderr=subprocess.PIPE,
                                 text=True)  # fmt: skip
         try:
             journal = tmp_path / f"{out.name}.incomplete" / "log_compensated.journal"
@@ -352,7 +352,8 @@ def test_a_host_that_quits_between_config_and_start_leaves_the_board_at_zero_cur
     blocker.write_text("")
     with emulator("--pty", "--config", str(cfg_file)) as (emu, url):
         port = url if case == "out_under_a_file" else f"faulty://{url}?corrupt_rx=2"
-        r = subprocess.run(servo_cmd("run", "--config", str(cfg_file), "--port", port, "--out", str(blocker / "out")),
+        r = subprocess.run(servo_cmd("run", "--config", str(cfg_file), "--port", port, "--quiet",
+                                     "--out", str(blocker / "out")),
                            capture_output=True, text=True, timeout=60)  # fmt: skip
         assert r.returncode != 0 and r.stderr.count("\n") == 1 and r.stderr.startswith("servo: error:"), r.stderr
         line = _wait_session_line(emu, "stopped by the host before START", timeout=5)

@@ -154,7 +154,7 @@ def test_realtime_runs_the_tick_path_even_when_the_config_asks_for_the_fast_path
 def test_servo_run_realtime_fault_is_one_line_and_keeps_the_log(tmp_path):
     out = tmp_path / "o"
     r = servo("run", "--realtime", "--overrun-policy", "fault", "--max-overruns", "3", "--set", "run.sample_rate_hz=1e6",
-              "--duration", "0.01", "--compensation", "on", "--out", str(out))  # fmt: skip
+              "--duration", "0.01", "--compensation", "on", "--quiet", "--out", str(out))  # fmt: skip
     assert r.returncode == 3
     assert r.stderr.count("\n") == 1 and "Traceback" not in r.stderr, r.stderr
     assert r.stderr.startswith("servo: error: realtime: 3 consecutive deadline overruns")

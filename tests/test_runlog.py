@@ -70,7 +70,8 @@ def test_a_journal_left_by_a_kill_is_finalised_later(tmp_path):
 
 def _start_run(tmp_path, *extra, rows=2 * 8192):
     out = tmp_path / "run"
-    cmd = [sys.executable, "-m", "servo", "run", "--duration", "30", "--compensation", "on", "--out", str(out), *extra]
+    cmd = [sys.executable, "-m", "servo", "run", "--duration", "30", "--compensation", "on", "--quiet", "--out", str(out),
+           *extra]  # --quiet: the test reads stderr's one error line, not the progress
     proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     journal = tmp_path / "run.incomplete" / "log_compensated.journal"
     deadline = time.time() + 60
@@ -158,7 +159,7 @@ def test_a_journal_that_cannot_be_written_stops_the_run_safely(tmp_path, fast):
     """Issue 9.4: a 200 KB disk left a journal with 2045 of 8192 rows and a success."""
     out = tmp_path / "o"
     limit = 2 * 8192 * 12 * 8 + 300_000  # bytes: two blocks of 8192 rows of 12 columns and part of a third
-    r = subprocess.run([sys.executable, "-m", "servo", "run", "--duration", "1", "--compensation", "on", fast,
+    r = subprocess.run([sys.executable, "-m", "servo", "run", "--duration", "1", "--compensation", "on", fast, "--quiet",
                         "--out", str(out)], capture_output=True, text=True, preexec_fn=_limit_file_size(limit))  # fmt: skip
     assert r.returncode == 3, r.stderr
     assert r.stderr.count("\n") == 1 and "Traceback" not in r.stderr

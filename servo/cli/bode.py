@@ -6,7 +6,7 @@ import argparse
 import time
 from pathlib import Path
 
-from servo.cli.common import add_config_options, config_from_args
+from servo.cli.common import add_config_options, add_quiet_option, config_from_args, progress_from_args
 from servo.errors import ConfigError
 
 
@@ -28,6 +28,7 @@ def register(sub) -> None:
     p.add_argument("--no-second-drive", action="store_true", help="skip the second drive (Fig. 9-10)")
     add_config_options(p)
     p.add_argument("--out", metavar="DIR", help="output folder (default servo-out/bode-<time>)")
+    add_quiet_option(p)
     p.set_defaults(handler=handle)
 
 
@@ -58,9 +59,10 @@ def handle(args: argparse.Namespace) -> int:
     if max(s.levels) > cfg.controller.current_limit:
         raise ConfigError("a level exceeds the current limit")
     out = Path(args.out) if args.out else Path("servo-out") / time.strftime("bode-%Y%m%d-%H%M%S")
+    from servo.io.progress import reporting
     from servo.io.provenance import provenance
 
-    with staged(out) as tmp:
+    with reporting(progress_from_args(args, "servo bode")), staged(out) as tmp:
         summary = run_bode(cfg, tmp, s, with_second=not args.no_second_drive, provenance=provenance(cfg, [], args.argv))
     print(format_summary(summary, out))
     return 0

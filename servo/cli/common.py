@@ -71,3 +71,17 @@ def recording_from_args(args: argparse.Namespace):
     from servo.io.recording import load_recording, parse_mapping
 
     return load_recording(args.recording, parse_mapping(args.columns, "--columns"), parse_mapping(args.scale, "--scale"))
+
+
+def add_quiet_option(p: argparse.ArgumentParser) -> None:
+    """``--quiet``: no progress lines on stderr (:mod:`servo.io.progress`)."""
+    p.add_argument("--quiet", action="store_true", help="no progress lines on stderr (the summary on stdout stays)")
+
+
+def progress_from_args(args: argparse.Namespace, label: str):
+    """The reporter of a command: :data:`servo.io.progress.QUIET` with ``--quiet``, else a
+    :class:`servo.io.progress.Reporter` on stderr labelled ``label`` (install it with
+    :func:`servo.io.progress.reporting`)."""
+    from servo.io.progress import QUIET, Reporter
+
+    return QUIET if getattr(args, "quiet", False) else Reporter(label)

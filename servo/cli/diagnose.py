@@ -5,7 +5,7 @@ import argparse
 import time
 from pathlib import Path
 
-from servo.cli.common import add_recording_options, recording_from_args
+from servo.cli.common import add_quiet_option, add_recording_options, progress_from_args, recording_from_args
 from servo.errors import ConfigError
 
 
@@ -31,24 +31,37 @@ def register(sub) -> None:
     p.add_argument("--force-unit", default="A", help="unit of the input column for the report (default A; N for EMPS)")
     p.add_argument("--no-plots", action="store_true", help="write report.json and final_model.toml only")
     p.add_argument("--out", metavar="DIR", help="output folder (default servo-out/diagnose-<time>)")
+    add_quiet_option(p)
     p.set_defaults(handler=handle)
 
 
 def handle(args: argparse.Namespace) -> int:
+    from servo.diagnose.report import format_summary
+    from servo.io.progress import reporting, stage
+
+    with reporting(progress_from_args(args, "servo diagnose")):  # closed (its line cleared) before the summary
+        report, out = _diagnose(args, stage)
+    print(format_summary(report, out))
+    return 0
+
+
+def _diagnose(args: argparse.Namespace, stage) -> tuple[dict, Path]:
     from servo.io.outdir import staged
     from servo.diagnose.job import Options, diagnose
-    from servo.diagnose.report import build_report, format_summary, write_drive_toml, write_report
+    from servo.diagnose.report import build_report, write_drive_toml, write_report
     from servo.identify.regressors import RobustSettings
 
     if not 0.0 < args.alpha < 0.5:
         raise ConfigError(f"--alpha {args.alpha!r}: expected a level between 0 and 0.5")
     if args.horizon is not None and not args.horizon > 0:
         raise ConfigError(f"--horizon {args.horizon!r}: expected a positive number of seconds")
+    stage("loading the recording")
     rec = recording_from_args(args)
     opt = Options(baseline=args.baseline, model=args.model, test_fraction=args.test_fraction, blocks=args.blocks,
                   alpha=args.alpha, horizon_s=args.horizon, force_unit=args.force_unit,
                   settings=RobustSettings(cutoff_hz=args.cutoff_hz, decimate=args.decimate))  # fmt: skip
     D = diagnose(rec, opt)  # everything computed before any file is written
+    stage("plots and the report")
     out = Path(args.out) if args.out else Path("servo-out") / time.strftime("diagnose-%Y%m%d-%H%M%S")
     with staged(out) as tmp:  # the folder appears complete, or not at all
         files = ["report.json"]
@@ -63,5 +76,4 @@ def handle(args: argparse.Namespace) -> int:
         if not write_drive_toml(report, tmp):
             report["files"].remove("final_model.toml")
         write_report(report, tmp)
-    print(format_summary(report, out))
-    return 0
+    return report, out

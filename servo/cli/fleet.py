@@ -12,7 +12,7 @@ import time
 import tomllib
 from pathlib import Path
 
-from servo.cli.common import add_config_options, config_from_args
+from servo.cli.common import add_config_options, add_quiet_option, config_from_args, progress_from_args
 from servo.errors import ConfigError, ServoError
 
 
@@ -26,7 +26,7 @@ def _where_options(p: argparse.ArgumentParser) -> None:
     p.add_argument("--resume", action="store_true", help="keep the drives of the table already in --out whose "
                    "recording (content hash) and settings match; run only the others")  # fmt: skip
     p.add_argument("--no-plots", action="store_true", help="write the table, fleet.json and fleet_report.md only")
-    p.add_argument("--quiet", action="store_true", help="no progress lines on stderr")
+    add_quiet_option(p)
     p.add_argument("--out", metavar="DIR", help="output folder (default servo-out/fleet-<command>-<time>)")
 
 
@@ -58,7 +58,7 @@ def register(sub) -> None:
     q.add_argument("--off", metavar="T,...", help="terms to switch off, e.g. K")
     q.add_argument("--force-lag", type=float, metavar="S", default=0.0, help="seconds the recorded force acts late")
     _where_options(q)
-    q.set_defaults(handler=handle_identify)
+    q.set_defaults(handler=_reported(identify))
 
     q = fs.add_parser("diagnose", help="diagnose every recording: which drives carry physics the model lacks",
                       description="servo diagnose on every recording; one row each (findings, verdict, final model).")
@@ -70,7 +70,7 @@ def register(sub) -> None:
     q.add_argument("--horizon", type=float, metavar="S", help="simulated-output horizon, s (default 10 row spacings)")
     q.add_argument("--force-unit", default="A", help="unit of the input column (default A)")
     _where_options(q)
-    q.set_defaults(handler=handle_diagnose)
+    q.set_defaults(handler=_reported(diagnose))
 
     q = fs.add_parser("simulate", help="Monte Carlo: drives drawn from distributions, compensator on and off",
                       description="Draw --drives drives from distributions over [drive] fields (--vary "
@@ -84,7 +84,7 @@ def register(sub) -> None:
     q.add_argument("--duration", type=float, metavar="S", help="simulated seconds per run (default: run.duration_s)")
     add_config_options(q)
     _where_options(q)
-    q.set_defaults(handler=handle_simulate)
+    q.set_defaults(handler=_reported(simulate))
 
     q = fs.add_parser("synthetic", help="write a fleet of recordings with spreads and a few known defects",
                       description="Recordings of drives with parameter spreads, a known few carrying a concealed "
@@ -95,26 +95,46 @@ def register(sub) -> None:
     q.add_argument("--duration", type=float, default=1.0, metavar="S", help="seconds per recording (default 1)")
     q.add_argument("--seed", type=int, default=0, help="seed (default 0)")
     q.add_argument("--out", metavar="DIR", required=True, help="output folder")
-    q.set_defaults(handler=handle_synthetic)
+    add_quiet_option(q)
+    q.set_defaults(handler=_reported(synthetic))
 
 
 def _out(args, command: str) -> Path:
     return Path(args.out) if args.out else Path("servo-out") / time.strftime(f"fleet-{command}-%Y%m%d-%H%M%S")
 
 
-def _run(args, command: str, tasks, settings: dict) -> int:
+def _run(args, command: str, tasks, settings: dict) -> tuple[str, ServoError | None]:
     from servo.fleet.job import format_summary, run_fleet
     from servo.fleet.runner import Progress, Where
+    from servo.io.progress import current
 
     where = Where(args.scheduler, args.workers, args.batch)
     where.check()
     out = _out(args, command)
-    progress = None if args.quiet else Progress(f"servo fleet {command}", len(tasks))
-    summary = run_fleet(command, tasks, settings, out, where, args.resume, not args.no_plots, progress)
-    print(format_summary(summary, out))
-    if summary["ok"] == 0:
-        raise ServoError(f"fleet: every drive failed (see {out / 'fleet_report.md'})")
-    return 0
+    summary = run_fleet(command, tasks, settings, out, where, args.resume, not args.no_plots,
+                        Progress(current(), len(tasks)))  # fmt: skip
+    failed = ServoError(f"fleet: every drive failed (see {out / 'fleet_report.md'})") if summary["ok"] == 0 else None
+    return format_summary(summary, out), failed
+
+
+def _reported(work):
+    """A subcommand's handler: ``work(args) -> (text, error or None)`` under the command's
+    progress reporter (stderr; none with ``--quiet``), then ``text`` on stdout once the
+    reporter is closed, then the error if there is one."""
+
+    def handler(args: argparse.Namespace) -> int:
+        from servo.io.progress import reporting, stage
+
+        with reporting(progress_from_args(args, f"servo fleet {args.fleet_command}")):
+            stage("reading the inputs")
+            text, error = work(args)
+        print(text)
+        if error is not None:
+            raise error
+        return 0
+
+    handler.__name__ = handler.__qualname__ = f"handle_{work.__name__}"
+    return handler
 
 
 def _sources(args):
@@ -123,7 +143,7 @@ def _sources(args):
     return sources(args.recordings, args.manifest, args.columns, args.scale)
 
 
-def handle_identify(args: argparse.Namespace) -> int:
+def identify(args: argparse.Namespace) -> tuple[str, ServoError | None]:
     from servo.fleet import identify
     from servo.fleet.sources import recording_tasks
     from servo.identify.regressors import RobustSettings, parse_terms
@@ -135,7 +155,7 @@ def handle_identify(args: argparse.Namespace) -> int:
     return _run(args, "identify", recording_tasks(_sources(args), settings), settings)
 
 
-def handle_diagnose(args: argparse.Namespace) -> int:
+def diagnose(args: argparse.Namespace) -> tuple[str, ServoError | None]:
     from servo.diagnose.baseline import from_terms
     from servo.fleet import diagnose
     from servo.fleet.sources import recording_tasks
@@ -175,7 +195,7 @@ def _specs(args) -> dict:
     return specs
 
 
-def handle_simulate(args: argparse.Namespace) -> int:
+def simulate(args: argparse.Namespace) -> tuple[str, ServoError | None]:
     from servo.config import from_dict, to_dict
     from servo.fleet import simulate
     from servo.fleet.spec import draw_drives, parse_specs
@@ -200,7 +220,7 @@ def handle_simulate(args: argparse.Namespace) -> int:
     return _run(args, "simulate", simulate.drive_tasks(drives, settings), settings)
 
 
-def handle_synthetic(args: argparse.Namespace) -> int:
+def synthetic(args: argparse.Namespace) -> tuple[str, ServoError | None]:
     from servo.fleet.synthetic import synthetic_drives, write_fleet
 
     if not args.duration > 0:
@@ -209,7 +229,6 @@ def handle_synthetic(args: argparse.Namespace) -> int:
     drives = synthetic_drives(args.drives, k, args.seed)
     manifest = write_fleet(args.out, drives, args.duration)
     bad = [f"{d.name} ({d.defect})" for d in drives if d.defect]
-    print(f"servo fleet synthetic: {len(drives)} drives, {len(bad)} with a defect: {', '.join(bad) or 'none'}")
-    print(f"  wrote {args.out}/: {len(drives)} recordings, manifest.csv, truth.json")
-    print(f"  next: servo fleet diagnose --manifest {manifest}")
-    return 0
+    return "\n".join([f"servo fleet synthetic: {len(drives)} drives, {len(bad)} with a defect: {', '.join(bad) or 'none'}",
+                      f"  wrote {args.out}/: {len(drives)} recordings, manifest.csv, truth.json",
+                      f"  next: servo fleet diagnose --manifest {manifest}"]), None  # fmt: skip

@@ -5,7 +5,7 @@ import argparse
 import time
 from pathlib import Path
 
-from servo.cli.common import add_config_options, config_from_args
+from servo.cli.common import add_config_options, add_quiet_option, config_from_args, progress_from_args
 from servo.errors import ConfigError
 
 
@@ -35,7 +35,7 @@ def register(sub) -> None:
                    "instead of the simulated drive; start the emulator without a scenario disturbance "
                    "(--set scenario.disturbance_amplitude=0)")  # fmt: skip
     add_config_options(p)
-    p.add_argument("--quiet", action="store_true", help="no progress lines on stderr")
+    add_quiet_option(p)
     p.add_argument("--out", metavar="DIR", help="output folder (default servo-out/loop-<time>)")
     p.set_defaults(handler=handle)
 
@@ -54,6 +54,7 @@ def settings_from_args(args) -> "LoopSettings":  # noqa: F821
 def handle(args: argparse.Namespace) -> int:
     from servo.io.outdir import check_output, staged
     from servo.io.provenance import provenance
+    from servo.io.progress import reporting
     from servo.loop.job import format_summary, run_loop
 
     cfg = config_from_args(args)
@@ -63,9 +64,11 @@ def handle(args: argparse.Namespace) -> int:
     prov = provenance(cfg, [], getattr(args, "argv", None))
     if args.port is None:
         with staged(out) as tmp:
-            summary = run_loop(cfg, tmp, s, args.compensator, progress=not args.quiet, provenance=prov)
+            with reporting(progress_from_args(args, "servo loop")):  # closed before the summary
+                summary = run_loop(cfg, tmp, s, args.compensator, provenance=prov)
     else:
-        summary = _on_port(cfg, out, s, args, prov)
+        with reporting(progress_from_args(args, "servo loop")):
+            summary = _on_port(cfg, out, s, args, prov)
     print(format_summary(summary, out))
     return 0
 
@@ -90,6 +93,6 @@ def _on_port(cfg, out: Path, s, args: argparse.Namespace, prov: dict) -> dict:
         with realtime_section(), staged(out) as tmp:  # no GC pauses while the board waits
             return run_loop(cfg, tmp, s, args.compensator, make_driver=make_driver,
                             where=f"{first.info.name} (d = {cfg.link.command_latency_ticks}, batch = {cfg.link.batch})",
-                            progress=not args.quiet, provenance=prov)  # fmt: skip
+                            provenance=prov)  # fmt: skip
     finally:
         first.close()

@@ -5,7 +5,7 @@ import argparse
 import time
 from pathlib import Path
 
-from servo.cli.common import add_config_options, config_from_args
+from servo.cli.common import add_config_options, add_quiet_option, config_from_args, progress_from_args
 
 
 def register(sub) -> None:
@@ -19,6 +19,7 @@ def register(sub) -> None:
     p.add_argument("--levels", default="0.2,1,4,16", metavar="MA,...", help="Bode levels in mA (default 0.2,1,4,16)")
     add_config_options(p)
     p.add_argument("--out", metavar="DIR", help="output folder (default servo-out/paper-<time>)")
+    add_quiet_option(p)
     p.set_defaults(handler=handle)
 
 
@@ -32,7 +33,9 @@ def handle(args: argparse.Namespace) -> int:
     s = settings_from_args(args)
     out = Path(args.out) if args.out else Path("servo-out") / time.strftime("paper-%Y%m%d-%H%M%S")
     t0 = time.perf_counter()
-    with staged(out) as tmp:
+    from servo.io.progress import reporting
+
+    with reporting(progress_from_args(args, "servo paper")), staged(out) as tmp:
         summary = run_paper(cfg, tmp, s)
     c = summary["bode"]["linearity_compensated"]
     h = summary["hysteresis"]["error_pct"]

@@ -5,7 +5,7 @@ import argparse
 from pathlib import Path
 
 from servo.cli import UsageError
-from servo.cli.common import add_config_options, config_from_args
+from servo.cli.common import add_config_options, add_quiet_option, config_from_args, progress_from_args
 from servo.errors import ConfigError
 
 
@@ -28,6 +28,7 @@ def register(sub) -> None:
                    help="run with the compensator, without, or both and compare (default)")  # fmt: skip
     p.add_argument("--fast", action=argparse.BooleanOptionalAction, default=None,
                    help="all-compiled fast path instead of tick by tick (default: run.fast_path)")  # fmt: skip
+    add_quiet_option(p)
     p.add_argument("--port", metavar="URL", help="run against a DSP/VCM board (or `servo emulate`) over this "
                    "pyserial URL: a device or pseudo-terminal path, socket://HOST:PORT, ... (the [link] section "
                    "sets latency, batching, timeouts)")  # fmt: skip
@@ -79,6 +80,7 @@ def realtime_options(args: argparse.Namespace):
 
 def handle(args: argparse.Namespace) -> int:
     from servo.io.outdir import check_output, staged
+    from servo.io.progress import reporting
     from servo.run.job import default_out_dir, format_summary, run_job
 
     realtime = realtime_options(args)
@@ -89,12 +91,13 @@ def handle(args: argparse.Namespace) -> int:
     from servo.io.provenance import provenance
 
     prov = provenance(cfg, [], getattr(args, "argv", None))
-    if args.port is None:
-        with staged(out, keep_partial=True) as tmp:
-            summary = run_job(cfg, tmp, compensation=args.compensation, fast=False if realtime else args.fast,
-                              realtime=realtime, log_formats=formats, provenance=prov)  # fmt: skip
-    else:
-        summary = _run_on_port(cfg, out, args, formats, prov)
+    with reporting(progress_from_args(args, "servo run")):  # closed (its line cleared) before the summary
+        if args.port is None:
+            with staged(out, keep_partial=True) as tmp:
+                summary = run_job(cfg, tmp, compensation=args.compensation, fast=False if realtime else args.fast,
+                                  realtime=realtime, log_formats=formats, provenance=prov)  # fmt: skip
+        else:
+            summary = _run_on_port(cfg, out, args, formats, prov)
     print(format_summary(summary, out))
     return 0
 

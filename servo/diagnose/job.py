@@ -34,6 +34,7 @@ from servo.diagnose.simulate import Prediction, Unsimulable, horizon_samples, pr
 from servo.diagnose.terms import VOCABULARY
 from servo.errors import ServoError
 from servo.identify.regressors import IdentificationError, RobustSettings
+from servo.io import progress
 from servo.io.recording import Recording
 from servo.io.resources import available_memory
 
@@ -179,7 +180,7 @@ def _select(sel: Selector, model: Model, opt: Options):
     while len(findings) < opt.max_findings:
         sel.set_noise(model)
         cands, why = sel.eligible(model)
-        scores = [sel.score(model, c) for c in cands]
+        scores = [sel.score(model, c) for c in progress.each(cands, f"candidate terms, round {len(rounds) + 1}")]
         testable = [s for s in scores if s.S0 is not None]
         for s in scores:
             if s.S0 is None:
@@ -325,6 +326,7 @@ def diagnose(rec: Recording, opt: Options | None = None) -> Diagnosis:
     check_recording(rec)
     check_memory(rec.n, opt)
     base = baseline_mod.from_file(opt.model) if opt.model else baseline_mod.from_terms(opt.baseline)
+    progress.stage("signals and the baseline fit")
     design0 = prepare(rec, opt.settings, opt)
     baseline_mod.check_baseline(design0, base)
     H = horizon_samples(design0, opt.horizon_s)
@@ -336,6 +338,7 @@ def diagnose(rec: Recording, opt: Options | None = None) -> Diagnosis:
     sel = Selector(design, blocks, opt.alpha)
     findings, rounds, not_testable, implausible = _select(sel, base, opt)
 
+    progress.stage("held-out proof")
     starts_test = starts_in(design, ~design.train_rows, H)
     fits, errs, nr, preds, unconfirmed, note = _prove(design, base, findings, test_rows, starts_test, H)
     for i, f in enumerate(findings):
@@ -345,7 +348,7 @@ def diagnose(rec: Recording, opt: Options | None = None) -> Diagnosis:
         f.params, f.std = fits[i + 1].term_params(k), fits[i + 1].term_std(k)
     final = fits[-1]
 
-    # locate, on the baseline's held-out residual
+    progress.stage("locate tests and the verdict")  # on the baseline's held-out residual
     r_before = heldout_residual(design, base, blocks, test_rows)
     r_after = heldout_residual(design, final.model, blocks, test_rows)
     sel.set_noise(base)

@@ -12,7 +12,6 @@ version-independent format of :mod:`servo.io.frequency_response`:
 """
 from __future__ import annotations
 
-import sys
 from pathlib import Path
 
 import numpy as np
@@ -23,21 +22,25 @@ from servo.experiments.bode_analysis import band_max, linearity, loop_delay, res
 from servo.experiments.bode_plots import plot_bode
 from servo.io.atomic import write_json
 from servo.io.frequency_response import save_npz
+from servo.io.progress import QUIET, current
 from servo.io.runlog import write_csv
 
 
 def run_sweeps(cfg: Config, s: SweepSettings, drives: dict, progress: bool = True) -> dict:
-    """All sweeps: ``{(drive, compensation): [Sweep per level]}``."""
-    out, total, done = {}, len(drives) * 2 * len(s.levels), 0
+    """All sweeps: ``{(drive, compensation): [Sweep per level]}``.  Reports the
+    frequencies done, and the sweep in hand, to the current progress reporter
+    (:mod:`servo.io.progress`; ``progress=False``: not even there)."""
+    rep = current() if progress else QUIET
+    out, n_sweeps, done = {}, len(drives) * 2 * len(s.levels), 0
+    rep.stage("Bode sweeps", n_sweeps * s.n_freq, "frequencies")
     for name, c in drives.items():
         for comp in (False, True):
             out[(name, comp)] = []
             for level in s.levels:
-                out[(name, comp)].append(sweep(c, level, s, comp))
+                what = f"sweep {done + 1}/{n_sweeps}: {name}, compensation {'on' if comp else 'off'}, {level * 1e3:g} mA"
+                rep.update(done * s.n_freq, what)
+                out[(name, comp)].append(sweep(c, level, s, comp, lambda i, n, k=done: rep.update(k * s.n_freq + i)))
                 done += 1
-                if progress:
-                    print(f"  sweep {done}/{total}: {name}, compensation {'on' if comp else 'off'}, "
-                          f"{level * 1e3:g} mA: {s.n_freq} frequencies done", file=sys.stderr, flush=True)  # fmt: skip
     return out
 
 

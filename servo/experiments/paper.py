@@ -7,7 +7,6 @@ only (each from the summaries the three jobs write).
 """
 from __future__ import annotations
 
-import sys
 from pathlib import Path
 
 from servo.config import Config
@@ -19,18 +18,15 @@ from servo.experiments.square_wave import SquareWave, force_lag, nominal, repres
 from servo.identify.regressors import TERMS, RobustSettings
 from servo.identify.report import paper_path_note, run_identify
 from servo.io.atomic import atomic_write, write_json
+from servo.io.progress import stage
 from servo.io.recording import save_recording_csv
-
-
-def _say(msg: str) -> None:
-    print(msg, file=sys.stderr, flush=True)
 
 
 def run_paper(cfg: Config, out: Path, sweep: SweepSettings) -> dict:
     out = Path(out)
-    _say("servo paper: 1/3 hysteresis loops and Dahl fit (Fig. 2-4)")
+    stage("1/3 hysteresis loops and Dahl fit (Fig. 2-4)")
     hy = run_hysteresis_simulated(cfg, out / "hysteresis", HysteresisExperiment())
-    _say("servo paper: 2/3 square-wave friction identification (Fig. 5)")
+    stage("2/3 square-wave friction identification (Fig. 5)")
     sw = SquareWave()
     rec, log = run_square_wave(cfg, sw)
     rec.source = f"simulated drive, {sw.amplitude * 1e3:g} mA {sw.hz:g} Hz square wave, {sw.holding_hz:g} Hz holding loop"
@@ -39,8 +35,8 @@ def run_paper(cfg: Config, out: Path, sweep: SweepSettings) -> dict:
     (out / "identification").mkdir(parents=True, exist_ok=True)
     save_recording_csv(out / "identification" / "recording.csv", rec)
     ident = run_identify(rec, out / "identification", ("robust", "paper"), TERMS, settings, "A", ref, force_lag(cfg))
-    _say(f"servo paper: 3/3 Bode sweeps (Fig. 7-10): {2 * 2 * len(sweep.levels)} sweeps of {sweep.n_freq} frequencies")
     bode = run_bode(cfg, out / "bode", sweep, with_second=True, progress=True)
+    stage("the report")
     summary = {"hysteresis": hy, "identification": ident, "bode": bode}
     write_json(out / "summary.json", summary)
     atomic_write(out / "REPORT.md", lambda f: Path(f).write_text(report(cfg, summary, sw)))

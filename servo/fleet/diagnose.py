@@ -4,9 +4,16 @@ A thin adapter over :func:`servo.diagnose.job.diagnose` and
 :func:`servo.diagnose.report.build_report`: the row is read from the report (the same
 dictionary ``servo diagnose`` writes as ``report.json``), so what the report gains the
 table can pick up.  Columns: ``findings`` (the physics named, in order, comma-separated),
-``n_findings``, ``flagged`` (any finding), ``verdict`` when the report has one (a string,
-or its strict JSON when it is a table), the held-out errors before and after, and every
-parameter of the final model as ``<physics>.<param>`` with ``<physics>.<param>_std``.
+``n_findings``, ``verdict`` when the report has one (a string, or its strict JSON when it
+is a table) and ``verdict_text``, ``flagged`` and ``flag_reason`` (:func:`flag`), the
+held-out errors before and after, and every parameter of the final model as
+``<physics>.<param>`` with ``<physics>.<param>_std``.
+
+A drive is **flagged** when the diagnosis found physics its baseline leaves out, *or*
+when its verdict says the final model does not describe the recording
+(:data:`FLAGGING_VERDICTS`: ``unexplained``, a mismatch no term of the vocabulary
+accounts for; ``out_of_scope``, a recording the force balance does not describe): such a
+drive has no findings, yet it is the one a drive maker must look at.
 """
 from __future__ import annotations
 
@@ -18,6 +25,8 @@ from servo.io.recording import load_recording, parse_mapping
 
 #: drives per Dask task (a diagnosis takes a fraction of a second or more)
 BATCH = 1
+#: verdicts of :mod:`servo.diagnose.verdict` that flag a drive, findings or not
+FLAGGING_VERDICTS = ("unexplained", "out_of_scope")
 
 
 def settings(baseline: str | None = None, test_fraction: float = 0.25, blocks: int = 10, alpha: float = 0.05,
@@ -35,14 +44,25 @@ def options(s: dict) -> Options:
                    settings=RobustSettings(cutoff_hz=s["cutoff_hz"], decimate=s["decimate"]))  # fmt: skip
 
 
+def flag(names: list[str], verdict, verdict_text: str | None = None) -> tuple[bool, str | None]:
+    """Whether a drive is flagged and why (module doc): ``findings: hysteresis,offset``
+    and/or ``verdict unexplained: <the verdict's text>``; (False, None) otherwise."""
+    why = [f"findings: {','.join(names)}"] if names else []
+    if isinstance(verdict, str) and verdict in FLAGGING_VERDICTS:
+        why.append(f"verdict {verdict}" + (f": {verdict_text}" if verdict_text else ""))
+    return bool(why), ("; ".join(why) or None)
+
+
 def row_of_report(report: dict) -> dict:
     """The columns of a diagnosis report (``report.json``'s dictionary)."""
     names = [f["physics"] for f in report["findings"]]
-    out = {"findings": ",".join(names), "n_findings": len(names), "flagged": bool(names),
+    flagged, reason = flag(names, report.get("verdict"), report.get("verdict_text"))
+    out = {"findings": ",".join(names), "n_findings": len(names), "flagged": flagged, "flag_reason": reason,
            "samples": int(report["recording"]["samples"])}  # fmt: skip
     if "verdict" in report:
         v = report["verdict"]
         out["verdict"] = v if isinstance(v, str) or v is None else strict_json(v).replace("\n", " ")
+        out["verdict_text"] = " ".join(str(report.get("verdict_text") or "").split()) or None
     be, fe = report["baseline"]["error"], report["final_model"]["error"]
     for k in ("test_force_rel_pct", "test_output_nrmse"):
         out[f"{k}_before"] = be[k]
@@ -76,4 +96,4 @@ def pairs(columns: list[str]) -> list[tuple[str, str]]:
     return [(a, b) for a, b in want if a in columns and b in columns]
 
 
-__all__ = ["BATCH", "options", "pairs", "row_of_report", "run", "scored", "settings"]
+__all__ = ["BATCH", "FLAGGING_VERDICTS", "flag", "options", "pairs", "row_of_report", "run", "scored", "settings"]

@@ -27,6 +27,7 @@ from servo.fleet.outliers import outliers
 from servo.fleet.report import format_report
 from servo.fleet.task import ADAPTERS, Task, canonical
 from servo.io.atomic import atomic_write, write_json
+from servo.io.progress import stage
 
 CHECKPOINT_S = 5.0
 
@@ -59,12 +60,13 @@ def run_fleet(command: str, tasks: list[Task], settings: dict, out: str | Path, 
     done = table.done_rows(path) if resume else {}
     kept = {t.key: {**done[t.key], "drive": t.drive, "source": t.source} for t in tasks if t.key in done}
     todo = [t for t in tasks if t.key not in kept]
-    if kept and hasattr(progress, "total"):
-        progress.total = len(todo)
+    if kept and hasattr(progress, "start"):
+        progress.start(len(todo))
     t0 = time.perf_counter()
     check = _Checkpoint(path, list(kept.values()), CHECKPOINT_S, progress)
     new = runner.run(command, todo, settings, where, getattr(adapter, "BATCH", 1), check)
     wall = time.perf_counter() - t0
+    stage("the table, report and plots")
     by_key = {**kept, **{r["key"]: r for r in new}}
     rows = [by_key[t.key] for t in tasks]
     out.mkdir(parents=True, exist_ok=True)
@@ -109,7 +111,8 @@ def format_summary(summary: dict, out: str | Path) -> str:
              + (f", {s['resumed']} resumed" if s["resumed"] else "") + f"; ran on {s['ran_on']} in {s['wall_s']:.1f} s"]  # fmt: skip
     if "flagged" in s:
         names = ", ".join(s["flagged"][:20]) + (" ..." if len(s["flagged"]) > 20 else "")
-        lines.append(f"  drives with findings: {len(s['flagged'])}" + (f" ({names})" if names else ""))
+        lines.append(f"  flagged drives (findings, or verdict unexplained/out_of_scope): {len(s['flagged'])}"
+                     + (f" ({names})" if names else ""))  # fmt: skip
     lines.append(f"  robust outliers (|z| > 3.5): {len(s['outliers'])} (listed in fleet_report.md)")
     lines.append(f"  wrote {out}/: " + ", ".join(s["files"]))
     return "\n".join(lines)

@@ -1,9 +1,10 @@
 """``fleet_report.md``: what a fleet run found, for a person to read.
 
 Counts (drives, failed, resumed), where it ran, the settings; the drives that failed
-with their error; for a diagnosis the drives with findings (and their verdict when the
-report has one); the population of each scored column (median, MAD, range); the robust
-outliers (:mod:`servo.fleet.outliers`), largest score first.
+with their error; for a diagnosis the flagged drives (findings, or an ``unexplained`` or
+``out_of_scope`` verdict) with the reason; the population of each scored column
+(median, MAD, range); the robust outliers (:mod:`servo.fleet.outliers`), largest score
+first.
 """
 from __future__ import annotations
 
@@ -73,16 +74,18 @@ def format_report(summary: dict, rows: list[dict], scored: list[str], found: lis
     out.append("")
     if s["command"] == "diagnose":
         flagged = [r for r in rows if r.get("status") == "ok" and r.get("flagged")]
-        has_verdict = any("verdict" in r and r["verdict"] is not None for r in rows)
-        out += [f"## Drives with findings ({len(flagged)} of {s['ok']})", ""]
+        out += [f"## Flagged drives ({len(flagged)} of {s['ok']})", "",
+                "A drive is flagged when its diagnosis names physics the baseline leaves out, or when its verdict "
+                "is `unexplained` (the final model still fails a check) or `out_of_scope`.", ""]  # fmt: skip
         if flagged:
-            head = "| drive | findings |" + (" verdict |" if has_verdict else "")
-            lines = [head, "|---|---|" + ("---|" if has_verdict else "")]
+            lines = ["| drive | findings | verdict | reason |", "|---|---|---|---|"]
             for r in flagged[:MAX_LISTED]:
-                lines.append(f"| {r['drive']} | {r['findings']} |" + (f" {r.get('verdict') or '-'} |" if has_verdict else ""))
+                reason = (r.get("flag_reason") or "-").replace("|", "/")
+                lines.append(f"| {r['drive']} | {r.get('findings') or '-'} | {r.get('verdict') or '-'} | {reason} |")
             out += _cut(lines, len(flagged))
         else:
-            out.append("None: no drive shows physics its baseline leaves out.")
+            out.append("None: no drive shows physics its baseline leaves out, and every verdict is consistent or "
+                       "explained.")  # fmt: skip
         out.append("")
     out += ["## Population", "", *_population(rows, scored), ""]
     out += [f"## Robust outliers ({len(found)})", "",

@@ -19,18 +19,21 @@ scheduler reruns its tasks elsewhere; a batch that keeps killing workers
 (``distributed``'s ``allowed-failures``) gets an error in each of its rows.  The rows
 come back in the tasks' order whatever the order of completion, so the table of a
 cluster run equals the table of a serial run row for row.
+
+:func:`map_batches` is that path for any function of a batch of items: the fleet's
+commands (:func:`run`, rows of :mod:`servo.fleet.task`) and the detection study of
+:mod:`servo.diagnose.study` run through it.
 """
 from __future__ import annotations
 
 import logging
-import math
 import os
-import sys
-import time
 from dataclasses import dataclass
+from functools import partial
 from typing import Callable
 
 from servo.errors import ConfigError
+from servo.io import progress
 from servo.fleet.task import Task, error_line, failed_row, run_batch
 
 #: at most this many tasks run in this process when no cluster is named
@@ -78,27 +81,23 @@ def batches(tasks: list, size: int, workers: int) -> list[list]:
 
 
 class Progress:
-    """Progress on a stream (stderr): drives done, failed, elapsed and remaining time;
-    one line at most every ``every_s`` seconds, and the last."""
+    """A fleet's progress on a reporter (:class:`servo.io.progress.Reporter`: stderr,
+    rate-limited, nothing with ``--quiet``): items done/total (``unit``: drives), how
+    many failed (a row or result with an ``error``), time left.  Called with each
+    batch's rows."""
 
-    def __init__(self, label: str, total: int, stream=None, every_s: float = 2.0):
-        self.label, self.total, self.every_s = label, total, every_s
-        self.stream = sys.stderr if stream is None else stream
-        self.done = self.failed = 0
-        self.t0 = time.perf_counter()
-        self.last = -math.inf
+    def __init__(self, reporter, total: int, unit: str = "drives"):
+        self.reporter, self.unit, self.failed = reporter, unit, 0
+        self.start(total)
+
+    def start(self, total: int) -> None:
+        """(Re)start the count: ``total`` items to run (fewer after ``--resume``)."""
+        self.total = total
+        self.reporter.stage("", total, self.unit)
 
     def __call__(self, rows: list) -> None:
-        self.done += len(rows)
-        self.failed += sum(r["status"] != "ok" for r in rows)
-        now = time.perf_counter()
-        if now - self.last >= self.every_s or self.done >= self.total:
-            self.last = now
-            el = now - self.t0
-            left = el / self.done * (self.total - self.done) if self.done else math.nan
-            eta = f", ~{left:.0f} s left" if self.done < self.total and math.isfinite(left) else ""
-            print(f"{self.label}: {self.done}/{self.total} drives, {self.failed} failed, {el:.1f} s{eta}",
-                  file=self.stream, flush=True)  # fmt: skip
+        self.failed += sum(bool(r.get("error")) for r in rows)
+        self.reporter.advance(len(rows), f"{self.failed} failed")
 
 
 def describe(where: Where, n_tasks: int) -> str:
@@ -111,13 +110,14 @@ def describe(where: Where, n_tasks: int) -> str:
     return f"a local Dask cluster of {n} worker process{'es' if n != 1 else ''}"
 
 
-def _in_process(command, tasks, settings, on_rows) -> list[dict]:
-    rows = []
-    for t in tasks:
-        got = run_batch(command, [t], settings)
-        rows += got
-        on_rows(got)
-    return rows
+def _in_process(fn, items: list, on_results) -> list:
+    out = []
+    for item in items:
+        with progress.reporting(progress.QUIET):  # an item's own stages are not the fleet's progress
+            got = fn([item])
+        out += got
+        on_results(got)
+    return out
 
 
 def _client(where: Where, n_tasks: int):
@@ -136,40 +136,70 @@ def _client(where: Where, n_tasks: int):
     return Client(cluster), cluster
 
 
-def run(command: str, tasks: list[Task], settings: dict, where: Where = Where(), default_batch: int = 1,
-        on_rows: Callable[[list], None] | None = None) -> list[dict]:  # fmt: skip
-    """Rows of ``tasks`` (:func:`servo.fleet.task.run_batch`), in the tasks' order.
-    ``on_rows(rows)`` is called with each batch's rows as they complete (progress,
-    checkpoints)."""
+def map_batches(fn: Callable[[list], list], items: list, where: Where = Where(), default_batch: int = 1,
+                on_results: Callable[[list], None] | None = None, failed: Callable[[list, str], list] | None = None,
+                client=None) -> list:  # fmt: skip
+    """``fn(batch)`` (a list of items -> one result per item, in order) over ``items``:
+    on a Dask cluster in batches (:func:`batches`) or in this process one item at a time
+    (module doc); the results come back in the items' order, whatever the order of
+    completion.  ``fn`` must be importable by the workers (a module-level function, or a
+    ``functools.partial`` of one).  ``on_results(results)`` is called with each batch's
+    results as they complete (progress, checkpoints).  ``failed(batch, why)``: the results
+    of a batch that could not run (its workers kept dying; default: raise).  ``client``:
+    an already connected ``distributed.Client`` to run on (left open), instead of
+    ``where``'s cluster."""
     where.check()
-    on_rows = on_rows or (lambda rows: None)
-    if not tasks:
+    on_results = on_results or (lambda results: None)
+    if not items:
         return []
-    if where.scheduler is None and (where.workers == 0 or len(tasks) <= IN_PROCESS_MAX):
-        return _in_process(command, tasks, settings, on_rows)
+    if client is None and where.scheduler is None and (where.workers == 0 or len(items) <= IN_PROCESS_MAX):
+        return _in_process(fn, items, on_results)
     from distributed import as_completed
 
-    client, cluster = _client(where, len(tasks))
+    own = client is None
+    cluster = None
+    if own:
+        client, cluster = _client(where, len(items))
     try:
         n_workers = max(len(client.scheduler_info().get("workers", {})), 1)
-        groups = batches(tasks, where.batch or default_batch, n_workers)
-        futures = {client.submit(run_batch, command, g, settings, pure=False): i for i, g in enumerate(groups)}
+        groups = batches(items, where.batch or default_batch, n_workers)
+        futures = {client.submit(fn, g, pure=False): i for i, g in enumerate(groups)}
         results: list = [None] * len(groups)
         for fut in as_completed(futures):
             i = futures[fut]
             try:
-                rows = fut.result()
-            except Exception as exc:  # the batch could not run (its workers kept dying): its rows say so
-                why = f"worker failure: {error_line(exc)}"
-                rows = [failed_row(t, settings, why) for t in groups[i]]
-            results[i] = rows
-            on_rows(rows)
+                got = fut.result()
+            except Exception as exc:  # the batch could not run (its workers kept dying)
+                if failed is None:
+                    raise
+                got = failed(groups[i], f"worker failure: {error_line(exc)}")
+            results[i] = got
+            on_results(got)
             fut.release()
-        return [r for rows in results for r in rows]
+        return [r for got in results for r in got]
     finally:
-        client.close()
-        if cluster is not None:
-            cluster.close()
+        if own:
+            client.close()
+            if cluster is not None:
+                cluster.close()
 
 
-__all__ = ["IN_PROCESS_MAX", "Progress", "Where", "batches", "describe", "local_workers", "run"]
+def _rows(command: str, settings: dict, tasks: list[Task]) -> list[dict]:
+    return run_batch(command, tasks, settings)
+
+
+def _failed_rows(settings: dict, tasks: list[Task], why: str) -> list[dict]:
+    return [failed_row(t, settings, why) for t in tasks]
+
+
+def run(command: str, tasks: list[Task], settings: dict, where: Where = Where(), default_batch: int = 1,
+        on_rows: Callable[[list], None] | None = None, client=None) -> list[dict]:  # fmt: skip
+    """Rows of ``tasks`` (:func:`servo.fleet.task.run_batch`), in the tasks' order
+    (:func:`map_batches`; a batch whose workers kept dying gets ``worker failure: ...``
+    in each of its rows).  ``on_rows(rows)`` is called with each batch's rows as they
+    complete (progress, checkpoints)."""
+    return map_batches(partial(_rows, command, settings), tasks, where, default_batch, on_rows,
+                       partial(_failed_rows, settings), client)  # fmt: skip
+
+
+__all__ = ["IN_PROCESS_MAX", "Progress", "Where", "batches", "describe", "local_workers", "map_batches", "run"]

@@ -24,6 +24,7 @@ from servo.config import Config
 from servo.diagnose.concealed import EFFECTS, NULL_DRIVE, RATE_HZ, Scenario, scenario_inputs
 from servo.errors import ConfigError
 from servo.experiments.sim import simulate
+from servo.io import progress
 from servo.io.atomic import atomic_write, write_json
 from servo.io.recording import Recording
 
@@ -91,7 +92,7 @@ def write_fleet(out: str | Path, drives: list[SyntheticDrive], duration_s: float
     returns the manifest's path."""
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
-    for sd in drives:
+    for sd in progress.each(drives, "recording", lambda sd: sd.name, "drives"):
         _write_npz(out / f"{sd.name}.npz", record(sd, duration_s))
     text = io.StringIO()
     w = csv.writer(text, lineterminator="\n")

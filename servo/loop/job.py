@@ -20,13 +20,13 @@ Files written into one folder (all computed before the first is written):
 """
 from __future__ import annotations
 
-import sys
 from pathlib import Path
 from typing import Callable
 
 import numpy as np
 
 from servo.config import Config
+from servo.io import progress
 from servo.io.atomic import write_json
 from servo.io.frequency_response import FrequencyResponse, save_csv, save_npz
 from servo.loop.design import LoopDesign, current_loop_design, loop_design
@@ -77,16 +77,14 @@ def agreement(f_hz, L, S, design: LoopDesign, f_lo: float, f_hi: float) -> dict:
     }
 
 
-def measure_all(cfg: Config, s: LoopSettings, comps, make_driver: Callable | None = None,
-                progress: bool = True) -> list[LoopMeasurement]:  # fmt: skip
-    """Every run: for each compensator setting in ``comps`` (bools) and level of ``s``."""
-    runs, total = [], len(comps) * len(s.levels)
-    for comp in comps:
-        for level in s.levels:
-            runs.append(measure(cfg, s, level, comp, make_driver))
-            if progress:
-                print(f"  servo loop: run {len(runs)}/{total} done ({runs[-1].label}, {len(runs[-1].f)} frequencies)",
-                      file=sys.stderr, flush=True)  # fmt: skip
+def measure_all(cfg: Config, s: LoopSettings, comps, make_driver: Callable | None = None) -> list[LoopMeasurement]:
+    """Every run: for each compensator setting in ``comps`` (bools) and level of ``s``
+    (progress through :mod:`servo.io.progress`, silent unless the command line asked)."""
+    runs = []
+    todo = [(comp, level) for comp in comps for level in s.levels]
+    for comp, level in progress.each(todo, "stepped-sine runs", lambda cl: f"compensator {'on' if cl[0] else 'off'}, "
+                                     f"{cl[1] * 1e3:g} mA", "runs"):  # fmt: skip
+        runs.append(measure(cfg, s, level, comp, make_driver))
     return runs
 
 
@@ -148,12 +146,12 @@ def analyse(cfg: Config, s: LoopSettings, runs: list[LoopMeasurement]) -> tuple[
 
 
 def run_loop(cfg: Config, out: Path, s: LoopSettings, compensator: str = "both", make_driver: Callable | None = None,
-             where: str = "the simulated drive", progress: bool = True, provenance: dict | None = None) -> dict:  # fmt: skip
+             where: str = "the simulated drive", provenance: dict | None = None) -> dict:  # fmt: skip
     """Every run, the analysis, then the files of the module docstring into ``out``;
     returns the summary (``provenance`` recorded as given)."""
     s = s.check(cfg)
     comps = COMPENSATOR_CHOICES[compensator]
-    runs = measure_all(cfg, s, comps, make_driver, progress)
+    runs = measure_all(cfg, s, comps, make_driver)
     file_designs, summary = analyse(cfg, s, runs)
     responses: dict[str, FrequencyResponse] = {}
     for r in runs:

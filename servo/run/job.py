@@ -24,6 +24,7 @@ from kernels import _cache
 from kernels.compose import LOG_COLUMNS
 from servo.config import Config, to_toml
 from servo.controllers import get_kind
+from servo.io import progress
 from servo.io.atomic import atomic_write, write_json
 from servo.io.resources import check_disk
 from servo.io.runlog import FORMATS, RunLog
@@ -79,13 +80,15 @@ def run_simulated(cfg: Config, out_dir: Path, compensated: bool, fast: bool,
                  units=controller.log_units)  # fmt: skip
     try:
         with driver:
-            with section as grant:  # only around configure and the loop: the log is finalised outside
+            ticks = lambda: min(log.recorded_rows * cfg.run.log_every, cfg.n_ticks)  # noqa: E731  (progress)
+            with section as grant, progress.watch(ticks):  # only around configure and the loop: the log is finalised outside
                 result = run_closed_loop(cfg, driver, controller, inputs, log, fast=fast, pacer=pacer)
     except BaseException:
         log.close_after_fault()
         raise
     pes = PesReport(cfg) if cfg.scenario.kind == "hdd_benchmark" else None
-    log.finalise([figures, plot_rows] + ([pes] if pes else []))
+    progress.stage(f"{label} run: writing the log", log.recorded_rows, "rows")
+    log.finalise([figures, plot_rows, lambda rows: progress.advance(len(rows))] + ([pes] if pes else []))
     result.link = driver.report()
     figs = figures.result()
     if pes is not None:  # the HDD benchmark's figures, and their plot
@@ -148,12 +151,14 @@ def run_job(cfg: Config, out_dir: Path, compensation: str = "compare", fast: boo
     atomic_write(out_dir / "config.toml", lambda p: Path(p).write_text(to_toml(cfg)))
     plot_logs, results, runs = {}, {}, {}
     for label in labels:
+        progress.stage(f"{label} run", cfg.n_ticks, "ticks")
         figures, plot_logs[label], results[label] = run_simulated(cfg, out_dir, label == "compensated", fast,
                                                                   make_driver, realtime, log_formats)  # fmt: skip
         if not runs:
             age = process_age_s()
             startup = None if age is None else age - (time.perf_counter() - results[label].started)
         runs[label] = summarise(cfg, figures, results[label])
+    progress.stage("plots")
     plots.plot_run(cfg, plot_logs, results, out_dir)
     if realtime is not None:
         plot_lateness(cfg, {k: r.lateness for k, r in results.items()}, out_dir / "lateness.png")
