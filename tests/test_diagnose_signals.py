@@ -123,3 +123,43 @@ def test_multistep_reproduces_the_plant_from_exact_states():
     idx = starts[:, None] + np.arange(1, 101)[None, :]
     assert np.max(np.abs(out - xs[idx])) < 1e-15
     assert PLANT_PARAMS is not None and plant_measure is not None
+
+
+def test_the_sign_column_is_the_triangular_average_the_acceleration_sees():
+    """At a zero crossing between samples, the Coulomb column at the two samples around
+    it is the average of sgn(v) with the triangular weight of the second difference,
+    for the crossing placed by linear interpolation; elsewhere it is the sign."""
+    from servo.diagnose.signals import held_sign
+
+    for s0 in (0.1, 0.5, 0.9):
+        v = np.arange(-5.0, 6.0) - s0  # crossing at t = s0 between samples 5 and 6
+        hs = held_sign(v)
+        s = np.linspace(-1, 1, 200001)
+        w = 1 - np.abs(s)
+        for k in range(11):
+            exact = np.trapezoid(w * np.sign(k - 5 + s - s0), s) / np.trapezoid(w, s)
+            assert hs[k] == pytest.approx(exact, abs=1e-5)
+
+
+def test_a_reversal_is_placed_where_the_velocity_crosses_zero_not_where_the_filtered_one_does():
+    """Friction that flips at a reversal makes the acceleration jump there; the
+    zero-phase filter spreads the kink and the filtered velocity crosses zero late.
+    The fitted crossing recovers the true one; linear interpolation of the filtered
+    velocity is late by a fraction of a sample, always on the same side."""
+    from scipy import signal
+
+    from servo.diagnose.signals import reversal_times
+
+    s = RobustSettings()
+    fs = 1000.0
+    b, a = signal.butter(s.butter_order, s.cutoff(fs) / (fs / 2))
+    for t0, a1, a2 in ((500.3, -2.0, -1.0), (500.75, 1.5, 0.5), (500.1, -1.2, -0.2)):
+        k = np.arange(1001.0)
+        tau = (k - t0) / fs
+        x = np.where(tau < 0, a1 * tau**2 / 2, a2 * tau**2 / 2)
+        vf = derivative(signal.filtfilt(b, a, x, padlen=3 * s.butter_order), 1 / fs)
+        c = np.flatnonzero(np.sign(vf[1:]) * np.sign(vf[:-1]) < 0)
+        assert c.size == 1
+        linear = c[0] + vf[c[0]] / (vf[c[0]] - vf[c[0] + 1])
+        assert linear - t0 > 0.2  # late
+        assert reversal_times(vf, s, fs, 1e-9)[0] == pytest.approx(t0, abs=0.03)

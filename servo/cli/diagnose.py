@@ -26,8 +26,9 @@ def register(sub) -> None:
     p.add_argument("--blocks", type=int, default=10, help="cross-validation blocks (default 10)")
     p.add_argument("--alpha", type=float, default=0.05, help="family-wise false-alarm level (default 0.05)")
     p.add_argument("--horizon", type=float, metavar="S", help="simulated-output horizon, s (default 10 row spacings)")
-    p.add_argument("--cutoff-hz", type=float, help="Butterworth cutoff on position (default fs/10)")
-    p.add_argument("--decimate", type=int, default=10, help="parallel decimation factor (default 10)")
+    p.add_argument("--cutoff-hz", type=float, help="Butterworth cutoff on position (default fs/decimation)")
+    p.add_argument("--decimate", type=int, help="parallel decimation factor (default: chosen from the recording, 10 "
+                   "unless reversals are too close together for it)")
     p.add_argument("--force-unit", default="A", help="unit of the input column for the report (default A; N for EMPS)")
     p.add_argument("--no-plots", action="store_true", help="write report.json and final_model.toml only")
     p.add_argument("--out", metavar="DIR", help="output folder (default servo-out/diagnose-<time>)")
@@ -57,9 +58,10 @@ def _diagnose(args: argparse.Namespace, stage) -> tuple[dict, Path]:
         raise ConfigError(f"--horizon {args.horizon!r}: expected a positive number of seconds")
     stage("loading the recording")
     rec = recording_from_args(args)
+    settings = None if args.decimate is None else RobustSettings(cutoff_hz=args.cutoff_hz, decimate=args.decimate)
     opt = Options(baseline=args.baseline, model=args.model, test_fraction=args.test_fraction, blocks=args.blocks,
-                  alpha=args.alpha, horizon_s=args.horizon, force_unit=args.force_unit,
-                  settings=RobustSettings(cutoff_hz=args.cutoff_hz, decimate=args.decimate))  # fmt: skip
+                  alpha=args.alpha, horizon_s=args.horizon, force_unit=args.force_unit, settings=settings,
+                  cutoff_hz=args.cutoff_hz)  # fmt: skip
     D = diagnose(rec, opt)  # everything computed before any file is written
     stage("plots and the report")
     out = Path(args.out) if args.out else Path("servo-out") / time.strftime("diagnose-%Y%m%d-%H%M%S")

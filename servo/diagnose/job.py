@@ -18,11 +18,13 @@
 """
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
 from servo.diagnose import baseline as baseline_mod
+from servo.diagnose.band import CANDIDATES
+from servo.diagnose.band import choose as choose_band
 from servo.diagnose import locate
 from servo.diagnose import verdict as verdict_mod
 from servo.diagnose.fit import Fit, fit_model, force_error_pct
@@ -55,7 +57,9 @@ class Options:
     """What to diagnose with: ``baseline`` term set (``"J,B,Fc,K,h0"``) or ``model``
     file; ``test_fraction`` of the rows held out at the end; ``blocks`` of the
     cross-validation; ``alpha`` the family-wise false-alarm level; ``horizon_s`` of
-    the output simulation (default 10 row spacings); the robust path's ``settings``;
+    the output simulation (default 10 row spacings); the robust path's ``settings``
+    (None: the decimation is chosen from the recording, :mod:`servo.diagnose.band`,
+    with the Butterworth at ``cutoff_hz`` if given);
     at most ``max_findings``; ``force_unit`` for the report."""
 
     baseline: str | None = None
@@ -64,9 +68,10 @@ class Options:
     blocks: int = N_BLOCKS
     alpha: float = ALPHA
     horizon_s: float | None = None
-    settings: RobustSettings = field(default_factory=RobustSettings)
+    settings: RobustSettings | None = None
     max_findings: int = 8
     force_unit: str = "A"
+    cutoff_hz: float | None = None
 
 
 @dataclass
@@ -121,6 +126,8 @@ class Diagnosis:
     simulate_note: str = ""
     #: ``{"verdict", "text", "baseline_checks", "final_checks"}`` (:mod:`servo.diagnose.verdict`)
     verdict: dict = field(default_factory=dict)
+    #: why the rows' decimation (:mod:`servo.diagnose.band`)
+    band_note: str = ""
 
 
 def heldout_residual(design: Design, model: Model, blocks, test_rows: np.ndarray) -> np.ndarray:
@@ -139,7 +146,7 @@ def heldout_residual(design: Design, model: Model, blocks, test_rows: np.ndarray
 def memory_estimate(n: int, opt: Options) -> float:
     """Bytes a diagnosis of ``n`` samples adds to the process (the recording excluded):
     linear in the samples and in the rows (``n/decimate``)."""
-    q = max(int(opt.settings.decimate), 1)
+    q = max(int(opt.settings.decimate if opt.settings is not None else CANDIDATES[0]), 1)
     return float(BYTES_PER_SAMPLE * n + BYTES_PER_ROW * (n / q))
 
 
@@ -224,7 +231,13 @@ def prepare(rec: Recording, settings: RobustSettings, opt: Options) -> Design:
     design = Design(sig, train)
     n_train = int(design.train_valid.sum())
     n_test = int((~train & sig.valid).sum())
-    if sig.valid.mean() < 0.2 or n_train < MIN_ROWS_PER_BLOCK * opt.blocks or n_test < MIN_ROWS_PER_BLOCK:
+    short = n_train < MIN_ROWS_PER_BLOCK * opt.blocks or n_test < MIN_ROWS_PER_BLOCK
+    if short and sig.valid.mean() >= 0.5:  # the rows are usable, there are just too few of them
+        raise IdentificationError(
+            f"recording too short to diagnose: {n_train} training and {n_test} test rows (decimation by "
+            f"{settings.decimate}); need at least {MIN_ROWS_PER_BLOCK * opt.blocks} and {MIN_ROWS_PER_BLOCK}"
+        )
+    if sig.valid.mean() < 0.2 or short:
         raise IdentificationError(
             f"too few usable rows: {n_train} training and {n_test} test rows where the direction of motion is "
             f"known ({100 * sig.valid.mean():.0f} % of {m} rows; elsewhere the speed is within its noise, "
@@ -250,7 +263,7 @@ def _quantization(rec: Recording, opt: Options, base: Model, design: Design, H: 
     blk = np.array_split(np.arange(starts_tr.size), opt.blocks)
     e0 = p0_tr.sse()[0]
     best = None
-    paths = candidate_paths(opt.settings, 1.0 / sig.dt)
+    paths = candidate_paths(sig.settings, 1.0 / sig.dt)
     for s in paths:
         try:
             d2 = prepare(rec, s, opt)
@@ -327,7 +340,8 @@ def diagnose(rec: Recording, opt: Options | None = None) -> Diagnosis:
     check_memory(rec.n, opt)
     base = baseline_mod.from_file(opt.model) if opt.model else baseline_mod.from_terms(opt.baseline)
     progress.stage("signals and the baseline fit")
-    design0 = prepare(rec, opt.settings, opt)
+    design0, band_note = choose_band(rec, opt, prepare)
+    check_memory(rec.n, replace(opt, settings=design0.sig.settings))
     baseline_mod.check_baseline(design0, base)
     H = horizon_samples(design0, opt.horizon_s)
 
@@ -400,7 +414,7 @@ def diagnose(rec: Recording, opt: Options | None = None) -> Diagnosis:
         findings=findings, unconfirmed=unconfirmed, rounds=rounds, not_testable=not_testable, implausible=implausible,
         residual_before=r_before, residual_after=r_after, test_rows=test_rows, locate=loc, state=variables,
         pred_before=qfind.prediction if qfind is not None else preds[0], pred_after=preds[-1], errors=errors,
-        lattice=lattice, verdict=verdict,
+        lattice=lattice, verdict=verdict, band_note=band_note,
         simulate_note="; ".join(x for x in (note, qnote) if x),
     )  # fmt: skip
 

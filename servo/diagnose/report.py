@@ -9,6 +9,7 @@ from pathlib import Path
 import numpy as np
 
 from servo.config import MAGNITUDE_MAX, from_dict, to_toml
+from servo.diagnose.band import band_hz
 from servo.diagnose.fit import Fit
 from servo.diagnose.job import Diagnosis, Finding
 from servo.diagnose.terms import VOCABULARY
@@ -135,10 +136,12 @@ def build_report(D: Diagnosis, files: list | None = None) -> dict:
                       "duration_s": float(rec.t[-1] - rec.t[0]), "force_unit": fu},
         "settings": {"baseline": None if D.opt.model else (D.opt.baseline or "J,B,Fc,K,h0"), "model": D.opt.model,
                      "test_fraction": D.opt.test_fraction, "blocks": D.opt.blocks, "alpha": D.opt.alpha,
-                     "horizon_s": D.errors["horizon_s"], "robust": asdict(D.opt.settings)},
+                     "horizon_s": D.errors["horizon_s"], "robust": asdict(D.sig.settings)},
         "rows": {"total": sig.m, "row_dt_s": sig.row_dt, "train": int(D.design.train_rows.sum()),
                  "test": int((~D.design.train_rows).sum()), "usable_fraction": float(sig.valid.mean()),
-                 "direction_threshold_m_s": sig.v_threshold, "position_noise_m": sig.noise_x, "tau_rows": loc["tau"]},
+                 "direction_threshold_m_s": sig.v_threshold, "position_noise_m": sig.noise_x, "tau_rows": loc["tau"],
+                 "decimate": int(sig.settings.decimate), "band_hz": [0.0, band_hz(sig.settings, 1.0 / sig.dt)],
+                 "band_note": D.band_note},
         "baseline": {"source": "model file" if D.opt.model else "terms", "terms": fit_terms(D.baseline_fit, fu),
                      "error": {"train_force_rel_pct": D.errors["train_force_rel_pct"]["before"],
                                "test_force_rel_pct": D.errors["test_force_rel_pct"]["before"],
@@ -221,6 +224,7 @@ def format_summary(report: dict, out: Path) -> str:
         f"servo diagnose: {rc['source']} ({rc['samples']} samples at {rc['sample_rate_hz']:.6g} Hz, {rc['duration_s']:.3g} s)",
         f"  rows: {rows['total']} ({rows['train']} training, {rows['test']} held out for the proof), "
         f"{100 * rows['usable_fraction']:.0f} % usable (direction known)",
+        f"  band: every force-balance test covers 0-{rows['band_hz'][1]:.4g} Hz ({rows['band_note']})",
     ]
     s = report["settings"]
     what = f"terms {s['baseline']}" if s["baseline"] else f"model file {s['model']}"

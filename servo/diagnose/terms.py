@@ -147,7 +147,7 @@ class Coulomb(Physics):
     POSITIVE = {"Fc": "a force pushing along the motion: not friction"}
 
     def full(self, d, theta, u_eff):
-        return np.sign(d.sig.vf)
+        return d.sig.sign_v  # the sign the rows see: its switch placed between samples
 
 
 class Stiffness(Physics):
@@ -192,7 +192,7 @@ class Stribeck(Physics):
 
     def full(self, d, theta, u_eff):
         v = d.sig.vf
-        return np.sign(v) * np.exp(-((v / theta["stribeck_velocity"]) ** 2))
+        return d.sig.sign_v * np.exp(-((v / theta["stribeck_velocity"]) ** 2))
 
     def _range(self, d):
         v = _valid_speed(d)

@@ -25,9 +25,21 @@ COMBOS = list(itertools.product(CONTROLLERS, EXCITATIONS, RATES))
 EFFECT_MIN = 0.2
 
 
+def combo(family: str, size: float, seed: int) -> tuple:
+    """The controller, excitation and rate of one recording: nulls cycle through
+    :data:`COMBOS` with the seed; a family's sizes and seeds are spread over them too
+    (each size starts at another offset), so that no family is measured on a few
+    combinations only."""
+    if family == "null":
+        return COMBOS[(seed * 7) % len(COMBOS)]
+    names = list(FAMILIES)
+    k = names.index(family) * 17 + list(FAMILIES[family].sizes).index(size) * 31 if size in FAMILIES[family].sizes else 0
+    return COMBOS[(seed * 7 + k) % len(COMBOS)]
+
+
 def run_one(job: tuple) -> dict:
     family, size, seed = job
-    ctl, exc, rate = COMBOS[(seed * 7) % len(COMBOS)]
+    ctl, exc, rate = combo(family, size, seed)
     out = {"family": family, "size": size, "seed": seed, "controller": ctl, "excitation": exc, "rate_hz": rate}
     from servo.diagnose.job import diagnose
 
@@ -43,12 +55,19 @@ def run_one(job: tuple) -> dict:
             "base_ratio": v["baseline_checks"]["level"]["ratio"], "final_ratio": v["final_checks"]["level"]["ratio"]}  # fmt: skip
 
 
-def ci(k: int, n: int) -> str:
-    """Clopper-Pearson 95 % interval of ``k/n``, in %."""
-    from scipy import stats
+def wilson(k: int, n: int, z: float = 1.959964) -> tuple[float, float]:
+    """Wilson score 95 % interval of ``k/n`` (fractions)."""
+    if n == 0:
+        return 0.0, 1.0
+    p = k / n
+    c = (p + z * z / (2 * n)) / (1 + z * z / n)
+    h = z * ((p * (1 - p) / n + z * z / (4 * n * n)) ** 0.5) / (1 + z * z / n)
+    return max(0.0, c - h), min(1.0, c + h)
 
-    lo = stats.beta.ppf(0.025, k, n - k + 1) if k > 0 else 0.0
-    hi = stats.beta.ppf(0.975, k + 1, n - k) if k < n else 1.0
+
+def ci(k: int, n: int) -> str:
+    """Wilson 95 % interval of ``k/n``, in %."""
+    lo, hi = wilson(k, n)
     return f"{100 * lo:.1f}-{100 * hi:.1f} %"
 
 

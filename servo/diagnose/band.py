@@ -1,0 +1,136 @@
+"""The rows' band: the decimation of the force-balance rows, chosen from the recording.
+
+The rows (:mod:`servo.diagnose.signals`) are decimated by ``q`` after a zero-phase
+Butterworth on the position at ``fs/q`` (``fs/10`` at the default ``q = 10``); they
+cover ``0 .. 0.4*fs/q`` Hz, the passband of the decimation filter.  Every row whose
+filter reaches a sample where the direction of motion is uncertain (about
+``15*q`` samples either side) is kept out of the fits.  A fixed ``q = 10`` therefore
+fails a recording that reverses often relative to its sample rate: at 750 Hz with a
+reversal every second, nearly every row's filter reaches a reversal, and the
+diagnosis refused with "too few usable rows ... record more motion", which was not
+the cause.
+
+:func:`choose` tries ``q`` in :data:`CANDIDATES` (largest first: the most averaging and
+the fewest rows) and keeps the first whose rows are at least :data:`USABLE_MIN` usable;
+failing that, the one with the most usable training rows; failing every one, it
+refuses with the cause it measured (an arm that barely moves, or reversals too close
+together for any decimation, with their count and spacing).  An explicit
+``Options.settings`` (``--decimate``) is used as given.
+"""
+from __future__ import annotations
+
+from dataclasses import replace
+
+import numpy as np
+
+from servo.identify.regressors import IdentificationError, RobustSettings
+from servo.io.recording import Recording
+
+#: decimation factors tried, the default first
+CANDIDATES = (10, 8, 6, 5, 4, 3)
+#: a decimation is kept when at least this share of its rows is usable
+USABLE_MIN = 0.6
+#: failing that, the decimation with the most usable training rows, if at least this
+#: share of its rows is usable (below it the rows are a few islands between reversals
+#: or sticks, and a diagnosis on them is refused with the cause)
+FALLBACK_MIN = 0.3
+
+
+def settings_for(q: int, fs: float, cutoff_hz: float | None = None) -> RobustSettings:
+    """The path decimating by ``q``: the Butterworth at ``fs/q`` (2.5 x the rows' band
+    edge, as the default ``fs/10`` at ``q = 10``) unless ``cutoff_hz`` is given."""
+    return replace(RobustSettings(), decimate=int(q), cutoff_hz=float(cutoff_hz) if cutoff_hz else fs / q)
+
+
+def band_hz(settings: RobustSettings, fs: float) -> float:
+    """Upper edge of the rows' band (Hz): the decimation filter's passband, ``0.4*fs/q``
+    (the full band, ``fs/2``, without decimation)."""
+    q = max(int(settings.decimate), 1)
+    return 0.4 * fs / q if q > 1 else 0.5 * fs
+
+
+def reversals(sig) -> tuple[int, float]:
+    """Direction changes of the filtered velocity (a Schmitt trigger at the direction
+    threshold) and the median number of samples between them."""
+    v = sig.vf
+    s = np.where(v > sig.v_threshold, 1, np.where(v < -sig.v_threshold, -1, 0))
+    idx = np.flatnonzero(s)
+    if idx.size < 2:
+        return 0, float(sig.n)
+    ch = idx[1:][np.diff(s[idx]) != 0]
+    gaps = np.diff(ch)
+    return int(ch.size), float(np.median(gaps)) if gaps.size else float(sig.n)
+
+
+def choose(rec: Recording, opt, prepare):
+    """The design of the chosen band (module doc): ``(design, note)`` with ``note`` why
+    this decimation.  ``prepare(rec, settings, opt)`` makes a design or raises
+    :class:`IdentificationError` (too short, too few usable rows)."""
+    fs = 1.0 / rec.dt
+    if opt.settings is not None:
+        try:
+            return prepare(rec, opt.settings, opt), f"decimation by {opt.settings.decimate} as given"
+        except IdentificationError as exc:
+            raise _refusal(rec, [(opt.settings.decimate, None, exc)], exc, opt.settings) from None
+    tried, last_exc = [], None
+    for q in CANDIDATES:
+        s = settings_for(q, fs, getattr(opt, "cutoff_hz", None))
+        try:
+            d = prepare(rec, s, opt)
+        except IdentificationError as exc:
+            last_exc = exc
+            tried.append((q, None, exc))
+            continue
+        usable = float(d.sig.valid.mean())
+        tried.append((q, d, None))
+        if usable >= USABLE_MIN:
+            why = "the default" if q == CANDIDATES[0] else (
+                f"by 10 only {100 * _usable(tried, 10):.0f} % of the rows were usable (reversals within the "
+                "decimation filter's reach)")  # fmt: skip
+            return d, f"decimation by {q}: {why}"
+    ok = [(q, d) for q, d, _ in tried if d is not None and d.sig.valid.mean() >= FALLBACK_MIN]
+    if ok:
+        q, d = max(ok, key=lambda t: int(t[1].train_valid.sum()))
+        return d, (f"decimation by {q}: the most usable rows of the decimations tried ({100 * d.sig.valid.mean():.0f} %; "
+                   "reversals within the decimation filter's reach)")  # fmt: skip
+    raise _refusal(rec, tried, last_exc or IdentificationError("too few usable rows"))
+
+
+def _usable(tried, q) -> float:
+    for qq, d, _ in tried:
+        if qq == q and d is not None:
+            return float(d.sig.valid.mean())
+    return 0.0
+
+
+def _refusal(rec: Recording, tried: list, last_exc, settings: RobustSettings | None = None) -> IdentificationError:
+    """Why no decimation works, from what was measured on the least decimated path."""
+    from servo.diagnose.signals import make_signals
+
+    q = tried[-1][0]
+    fs = 1.0 / rec.dt
+    msg = str(last_exc) if last_exc is not None else ""
+    if "too few usable rows" not in msg:
+        return IdentificationError(msg)
+    try:
+        sig = make_signals(rec, settings or settings_for(q, fs))
+    except IdentificationError as exc:
+        return exc
+    slow = float(np.mean(np.abs(sig.vf) <= sig.v_threshold))
+    n_rev, gap = reversals(sig)
+    if slow >= 0.5:
+        return IdentificationError(
+            f"too few usable rows: the speed is within its noise ({sig.v_threshold:.3g} m/s) in {100 * slow:.0f} % of "
+            "the samples, where the direction of motion is unknown; the arm barely moves: record more motion")
+    from servo.diagnose.signals import filter_reach
+
+    reach = filter_reach(sig.settings)
+    return IdentificationError(
+        f"too few usable rows: the motion reverses {n_rev} times, every {gap:.0f} samples (median), and the rows "
+        f"within the decimation filter's reach of a reversal (+-{reach} samples at decimation by {q}, the least tried) "
+        f"are unusable ({100 * sig.valid.mean():.0f} % of rows left); record at a higher sample rate (or with fewer "
+        "reversals) so that reversals are further apart in samples" + ("" if settings is None else
+                                                                         ", or try a smaller --decimate"))  # fmt: skip
+
+
+__all__ = ["CANDIDATES", "USABLE_MIN", "band_hz", "choose", "reversals", "settings_for"]
