@@ -21,7 +21,8 @@ class Record:
 
     def __init__(self, rec: np.ndarray):
         for name in rec.dtype.names:
-            setattr(self, name, float(rec[0][name]))
+            v = rec[0][name]
+            setattr(self, name, v.copy() if np.ndim(v) else float(v))  # nested arrays stay arrays
 
     def to_array(self, like: np.ndarray) -> np.ndarray:
         out = np.zeros_like(like)

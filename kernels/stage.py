@@ -22,6 +22,7 @@ from numba import float64, from_dtype
 from numba.types import UniTuple
 
 from kernels._cache import kernel
+from kernels.cancel import MAX_HARMONICS, coulomb_stribeck, force_constant, periodic, viscous_asymmetry
 from kernels.compensator import SLOW, compensate, direction, regime_switch, velocity_estimate
 from kernels.dahl import dahl_update
 
@@ -43,6 +44,21 @@ STAGE_PARAMS = np.dtype(
         ("v_on", "f8"),  # SLOW -> FAST speed, m/s
         ("v_off", "f8"),  # FAST -> SLOW speed, m/s
         ("xi_on", "f8"),  # SLOW -> FAST distance since the latest turnaround, m
+        # terms beyond eq. (9) (kernels/cancel.py), applied only when ``extras`` is 1
+        ("extras", "f8"),  # 1: any of the terms below is on
+        ("b_asym", "f8"),  # viscous asymmetry: B(s) = B*(1 + s*b_asym)
+        ("coul_c", "f8"),  # Coulomb friction beyond the Dahl element, A
+        ("coul_s", "f8"),  # its static (Stribeck peak) level, A
+        ("coul_vs", "f8"),  # Stribeck velocity, m/s
+        ("coul_asym", "f8"),  # its asymmetry: F(s) = F*(1 + s*coul_asym)
+        ("n_per", "f8"),  # harmonics of the periodic term in use
+        ("per_period", "f8"),  # its period in position, m
+        ("per_amp", "f8", (MAX_HARMONICS,)),  # amplitudes, A
+        ("per_phase", "f8", (MAX_HARMONICS,)),  # phases, rad
+        ("kf_on", "f8"),  # 1: divide the command by kf(x)
+        ("kf1", "f8"),  # force-constant change at +stroke, linear
+        ("kf2", "f8"),  # force-constant change at +-stroke, quadratic
+        ("kf_stroke", "f8"),  # the stroke those refer to, m
     ]
 )
 STAGE_STATE = np.dtype(
@@ -71,10 +87,29 @@ stage_state_rec_t = from_dtype(STAGE_STATE)
 
 
 @kernel(float64(stage_state_rec_t, stage_params_rec_t, float64))
+def _extras(c, p, x):
+    """The terms beyond eq. (9) (:mod:`kernels.cancel`), A.  The Coulomb term acts while
+    the arm moves (``|v|`` beyond the direction deadband), in both regimes: it is a
+    friction element of its own, beside the pivot's Dahl element; at rest it pushes
+    nothing (static friction holds the arm: there is no force to cancel)."""
+    f = 0.0
+    if p.b_asym != 0.0:
+        f += viscous_asymmetry(c.v, c.s, p.B, p.b_asym)
+    if (p.coul_c != 0.0 or p.coul_s != 0.0) and abs(c.v) > p.v_deadband:  # moving: at rest it holds nothing
+        f += coulomb_stribeck(c.v, c.s, p.coul_c, p.coul_s, p.coul_vs, p.coul_asym)
+    if p.n_per > 0.0:
+        f += periodic(x, p.per_amp, p.per_phase, int(p.n_per), p.per_period)
+    return f
+
+
+@kernel(float64(stage_state_rec_t, stage_params_rec_t, float64))
 def _compensation(c, p, x):
     if p.comp_on == 0.0:
         return 0.0
-    return compensate(int(c.regime), x, c.v, c.s, c.H_dahl, p.B, p.Fc, p.K, p.h0)
+    u_c = compensate(int(c.regime), x, c.v, c.s, c.H_dahl, p.B, p.Fc, p.K, p.h0)
+    if p.extras != 0.0:
+        u_c += _extras(c, p, x)
+    return u_c
 
 
 @kernel(float64(stage_state_rec_t, stage_params_rec_t, float64, float64, float64))
@@ -95,10 +130,13 @@ def stage_start(c, p, x, v_meas, u_now):
     c.regime = float(SLOW)
     c.e = 0.0
     u_c = _compensation(c, p, x)
+    force = u_now  # what u_n + u_c must make for the first command to be u_now
+    if p.kf_on != 0.0 and p.comp_on != 0.0:
+        force = u_now * force_constant(x, p.kf1, p.kf2, p.kf_stroke)
     c.u_c = u_c
-    c.u_n = u_now - u_c
+    c.u_n = force - u_c
     c.u = u_now
-    return u_now - u_c
+    return force - u_c
 
 
 @kernel(float64(stage_state_rec_t, stage_params_rec_t, float64, float64))
@@ -135,6 +173,8 @@ def stage_output(c, p, x, r, u_n, u_c):
     """The command ``u = clip(u_n + u_c)`` (A, eq. 8) for the controller's ``u_n`` (A);
     records the error ``(r_base + r) - x`` (m) and the three currents."""
     u = u_n + u_c  # eq. (8)
+    if p.kf_on != 0.0 and p.comp_on != 0.0:  # the force is kf(x)*u: command what makes u_n + u_c of it
+        u = u / force_constant(x, p.kf1, p.kf2, p.kf_stroke)
     u = min(max(u, -p.u_max), p.u_max)
     c.e = (c.r_base + r) - x
     c.u_n = u_n

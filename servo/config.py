@@ -156,6 +156,18 @@ class CompensatorConfig:
     fast_on_speed: float = P(2e-3, "m/s", "SLOW->FAST needs at least this speed", 0.0)
     fast_off_speed: float = P(1e-3, "m/s", "FAST->SLOW below this speed", 0.0)
     fast_on_distance: float = P(1.25e-5, "m", "SLOW->FAST needs this distance since the turnaround", 0.0)
+    b_asymmetry: float = P(0.0, "-", "viscous asymmetry: B(+) = B*(1+a), B(-) = B*(1-a) (cancels drive.b_asymmetry)", -1.0, 1.0)
+    coulomb: float = P(0.0, "A", "Coulomb friction beyond the Dahl element, large motion (cancels drive.Fc)", 0.0, 1.0)
+    coulomb_static: float = P(0.0, "A", "its Stribeck peak at low speed (cancels drive.Fs; 0: no Stribeck rise)", 0.0, 1.0)
+    stribeck_velocity: float = P(1.0e-3, "m/s", "Stribeck velocity of that term", 0.0, None, lo_open=True)
+    coulomb_asymmetry: float = P(0.0, "-", "its asymmetry: F(+) = F*(1+a), F(-) = F*(1-a)", -1.0, 1.0)
+    periodic_amplitudes: list = P([], "A", "force periodic in position, amplitude of harmonics 1, 2, ... (at most 4; "
+                                  "cancels drive.cogging)", 0.0, 1.0)  # fmt: skip
+    periodic_phases: list = P([], "rad", "their phases", -2 * math.pi, 2 * math.pi)
+    periodic_period: float = P(1.0e-4, "m", "the fundamental period in position", 0.0, None, lo_open=True)
+    kf_linear: float = P(0.0, "-", "force-constant change at +stroke, linear in x (the command is divided by kf(x))", -0.9, 0.9)
+    kf_quadratic: float = P(0.0, "-", "force-constant change at +-stroke, quadratic in x", -0.9, 0.9)
+    kf_stroke: float = P(15e-3, "m", "the stroke the force-constant terms refer to", 0.0, None, lo_open=True)
 
 
 @dataclass
@@ -360,6 +372,10 @@ def _check_consistency(cfg: Config) -> None:
     for i, f in enumerate(d.mode_hz):
         if f >= nyquist:
             raise ConfigError(f"config: drive.mode_hz[{i}] = {f!r} is at or above Nyquist ({nyquist:g} Hz)")
+    if len(c.periodic_amplitudes) != len(c.periodic_phases) or len(c.periodic_amplitudes) > 4:
+        raise ConfigError("config: compensator.periodic_amplitudes and periodic_phases must have the same length, at most 4")
+    if 0 < c.coulomb_static < c.coulomb:
+        raise ConfigError("config: compensator.coulomb_static must be 0 (no Stribeck rise) or >= compensator.coulomb")
     if c.fast_off_speed > c.fast_on_speed:
         raise ConfigError("config: compensator.fast_off_speed must be <= compensator.fast_on_speed (switch hysteresis)")
     if len(s.step_times) != len(s.step_positions):

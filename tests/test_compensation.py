@@ -13,6 +13,11 @@ def drive_open_loop(u_n: np.ndarray, compensation: bool):
     switched off (gains 0) to a noise-free drive without modes or delay.  Returns the
     measured positions (n+1,) and the nominal inputs the controller actually applied."""
     cfg = quiet_config(**NO_MODES, input_delay_s=0.0).replace(controller={"pi": dict(kp=0.0, ki=0.0, kd=0.0)})
+    return (*drive_open_loop_cfg(cfg, u_n, compensation), cfg)
+
+
+def drive_open_loop_cfg(cfg, u_n: np.ndarray, compensation: bool | None = None):
+    """:func:`drive_open_loop` on the drive and compensator of ``cfg``: ``(xs, un)``."""
     p = build_plant(cfg.drive, cfg.dt)
     ctl = Controller(cfg, compensation=compensation)
     xs, un = np.zeros(len(u_n) + 1), np.zeros(len(u_n))
@@ -25,7 +30,7 @@ def drive_open_loop(u_n: np.ndarray, compensation: bool):
         un[k] = ctl.stage_state[0]["u_n"] - ctl.state[0]["integ"]  # the excitation part of u_n
         plant_step(p.state, p.params, p.q, p.mab, p.ubuf, u, 0.0)
     xs[-1] = plant_measure(p.state, p.params, p.q, p.gain, 0.0, 0.0)[0]
-    return xs, un, cfg
+    return xs, un
 
 
 def acceleration_error(xs, un, cfg) -> float:

@@ -99,6 +99,12 @@ def run(cfg: Config, fast: bool, tmp_path, name: str):
          "run": {"log_every": 3, "excitation_every": 5, "estimator_every": 7, "duration_s": 0.4},
          "controller": {"velocity_source": "estimated", "direction_deadband": 5e-5},
          "drive": {"Fc": 1e-3, "Fs": 1.5e-3, "cogging": 1e-4, "input_delay_s": 45e-6}},
+        # every cancellation term of the compensator beyond eq. (9) on (kernels/cancel.py)
+        {"drive": {"Fc": 1e-3, "Fs": 1.5e-3, "fc_asymmetry": 0.2, "b_asymmetry": 0.3, "cogging": 1e-4,
+                   "kf_linear": 0.2, "kf_quadratic": -0.1},
+         "compensator": {"coulomb": 1e-3, "coulomb_static": 1.5e-3, "coulomb_asymmetry": 0.2, "b_asymmetry": 0.3,
+                         "periodic_amplitudes": [1e-4, 2e-5], "periodic_phases": [0.0, 1.0],
+                         "kf_linear": 0.2, "kf_quadratic": -0.1}},
     ],
 )  # fmt: skip
 def test_fast_path_is_bit_identical_to_the_tick_path(changes, tmp_path):

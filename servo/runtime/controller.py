@@ -31,8 +31,19 @@ def stage_params(cfg: Config, compensation: bool | None = None) -> np.ndarray:
         B=k.B, Fc=k.Fc, K=k.K, h0=k.h0, sigma=k.sigma, Ha=k.Ha, alpha=k.alpha,
         v_on=k.fast_on_speed, v_off=k.fast_off_speed, xi_on=k.fast_on_distance,
     )  # fmt: skip
+    extras = dict(
+        b_asym=k.b_asymmetry, coul_c=k.coulomb, coul_s=k.coulomb_static or k.coulomb, coul_vs=k.stribeck_velocity,
+        coul_asym=k.coulomb_asymmetry, n_per=len(k.periodic_amplitudes), per_period=k.periodic_period,
+        kf1=k.kf_linear, kf2=k.kf_quadratic, kf_stroke=k.kf_stroke,
+    )  # fmt: skip
+    values.update(extras)
+    values["extras"] = 1.0 if (k.b_asymmetry or k.coulomb or k.coulomb_static or k.periodic_amplitudes) else 0.0
+    values["kf_on"] = 1.0 if (k.kf_linear or k.kf_quadratic) else 0.0
     for name, v in values.items():
         p[name] = v
+    n = len(k.periodic_amplitudes)
+    p["per_amp"][0, :n] = k.periodic_amplitudes
+    p["per_phase"][0, :n] = k.periodic_phases
     return p
 
 
