@@ -119,7 +119,7 @@ def _warm_up(controller, log: RunLog) -> None:
 def _run_ticks(cfg, driver, controller, inputs, log, stats, pacer, durations) -> None:
     dt = cfg.dt
     state = controller.stage_state
-    log_row, buf = controller.kernels.log_row, controller.buf
+    log_row = controller.log_row
     r, u_exc = Window(inputs.reference), Window(inputs.excitation)
     r.load(0), u_exc.load(0)  # the first windows now, not on the first tick
 
@@ -134,7 +134,7 @@ def _run_ticks(cfg, driver, controller, inputs, log, stats, pacer, durations) ->
         error_stats(stats, state[0]["e"])
 
     def logger(k: int) -> None:
-        log_row(log.data[log.rows], k, dt, data.x, data.u_exc, buf)
+        log_row(log.data[log.rows], k, dt, data.x, data.u_exc)
         log.rows += 1
         log.maybe_flush()
 

@@ -18,6 +18,7 @@ import math
 import numpy as np
 
 from kernels.delay import shift_in
+from kernels._cache import entry_point
 from kernels.plant import plant_measure, plant_step
 from servo.config import Config
 from servo.errors import DriverError
@@ -68,8 +69,9 @@ class SimDriver(Driver):
         pay; the draws are the same, only earlier."""
         p = self.plant
         ps, q, ub = p.state.copy(), p.q.copy(), p.ubuf.copy()
-        plant_measure(ps, p.params, q, p.gain, 0.0, 0.0)
-        plant_step(ps, p.params, q, p.mab, ub, p.u_hold, 0.0)
+        # the kernels without per-call dispatch, checked on these copies of the plant's arrays
+        self._measure = entry_point(plant_measure, ps, p.params, q, p.gain, 0.0, 0.0)
+        self._step = entry_point(plant_step, ps, p.params, q, p.mab, ub, p.u_hold, 0.0)
         shift_in(self.latency.copy(), 0.0)
         self.noise(0, 1)
         self._d.load(0)  # the first window of the disturbance, likewise
@@ -79,12 +81,12 @@ class SimDriver(Driver):
         noise = self.noise(k, 1)
         p = self.plant
         self.check_state()  # (a fault here: the base class puts the drive in its safe state)
-        return plant_measure(p.state, p.params, p.q, p.gain, noise[0, 0], noise[0, 1])
+        return self._measure(p.state, p.params, p.q, p.gain, noise[0, 0], noise[0, 1])
 
     def _write(self, u: float) -> None:
         p = self.plant
         u_in = shift_in(self.latency, u)
-        plant_step(p.state, p.params, p.q, p.mab, p.ubuf, u_in, self.disturbance_at(self.tick))
+        self._step(p.state, p.params, p.q, p.mab, p.ubuf, u_in, self.disturbance_at(self.tick))
         self.tick += 1
 
     def _on_deactivate(self) -> None:
