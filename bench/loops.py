@@ -2,7 +2,7 @@
 
 A benchmark times one call of a loop and divides by ``n`` to get the per-sample cost of
 the kernel as it runs in the all-compiled path (Numba links the kernel into the loop, as
-it does into :func:`kernels.loop.closed_loop`).  Two guards against an optimiser that
+it does into the composed fast path of :mod:`kernels.compose`).  Two guards against an optimiser that
 would time nothing: the inputs vary every sample (read from a table of ``M`` rows,
 indexed ``k & (M - 1)``), and every output is accumulated into the value returned.
 Kernel state (Dahl turnaround, integrator, plant) is carried from sample to sample, as in

@@ -85,7 +85,7 @@ def _servo_start(buf, x, v_meas, u_now):
 
 def _servo_step(s, p, c, q, x, v_meas, r, u_exc):
     u_c = stage_update(s, p, x, v_meas)
-    lo, hi = stage_room(p, u_c)
+    lo, hi = stage_room(p, u_c, x)
     u_n = ctrl_tick(c, q, x, s.v, s.r_base, r, u_exc, lo, hi)  # noqa: F821
     return stage_output(s, p, x, r, u_n, u_c)
 

@@ -162,9 +162,13 @@ def stage_update(c, p, x, v_meas):
     return _compensation(c, p, x)  # eq. (9)
 
 
-@kernel(UniTuple(float64, 2)(stage_params_rec_t, float64))
-def stage_room(p, u_c):
-    """``(lo, hi)`` (A): the range of ``u_n`` that keeps ``u_n + u_c`` within the limit."""
+@kernel(UniTuple(float64, 2)(stage_params_rec_t, float64, float64))
+def stage_room(p, u_c, x):
+    """``(lo, hi)`` (A): the range of ``u_n`` that keeps the command within the limit
+    (``u_n + u_c``, divided by ``kf(x)`` when the force constant is cancelled)."""
+    if p.kf_on != 0.0 and p.comp_on != 0.0:
+        m = p.u_max * force_constant(x, p.kf1, p.kf2, p.kf_stroke)
+        return -m - u_c, m - u_c
     return -p.u_max - u_c, p.u_max - u_c
 
 

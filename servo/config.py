@@ -357,7 +357,8 @@ def _controller_section(values: dict) -> "ControllerConfig":
     for k, v in values.items():
         if isinstance(v, dict):
             if k not in KINDS:
-                raise _unknown("controller kind section", f"controller.{k}", KINDS)
+                err = _unknown("controller kind section", f"controller.{k}", KINDS)
+                raise ConfigError(f"{err} (a kind from a plugin? load it with --plugin MODULE)")
             c.kinds[k] = _section(f"controller.{k}", KINDS[k].Section, v)
     return c
 

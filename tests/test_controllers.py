@@ -87,3 +87,36 @@ def test_every_kind_runs_the_same_bits_on_the_tick_and_the_fast_path(tmp_path, k
     assert np.array_equal(logs[0], logs[1])
     x = logs[0][:, ctl.log_columns.index("x")]
     assert np.isfinite(logs[0]).all() and np.ptp(x) > 0.1e-6  # the loop moved (the 0.3 um step at 50 ms)
+
+
+def test_a_kind_cannot_take_a_built_in_name_nor_log_other_than_its_columns(kinds_restored):
+    from servo.controllers.pi import PI
+
+    class Shadow(PI):
+        pass  # name "pi", another class
+
+    with pytest.raises(TypeError, match="name 'pi' is taken by servo.controllers.pi.PI"):
+        register(Shadow)
+
+    class TwoCols(PI):
+        name = "twocols"
+        log_columns, log_units = ("a", "b"), {"a": "-", "b": "-"}  # the PI's log writes none
+
+    with pytest.raises(TypeError, match="leaves some of its 2 log_columns unwritten"):
+        register(TwoCols)
+    assert KINDS["pi"] is PI and "twocols" not in KINDS
+
+
+def test_a_plugin_that_fails_and_a_design_that_cannot_be_are_one_line_before_any_output(tmp_path):
+    (tmp_path / "bad_raise.py").write_text("raise RuntimeError('boom')\n")
+    cases = [
+        (["--plugin", "bad_raise"], "--plugin bad_raise: cannot import it (RuntimeError: boom)"),
+        (["--set", "controller.kind=track", "--set", "controller.track.phase_margin_deg=85"], "is out of reach"),
+        (["--set", "controller.kind=track", "--set", "controller.track.delay_s=0.0009"], "is unstable on the double integrator"),
+    ]  # fmt: skip
+    for i, (args, message) in enumerate(cases):
+        out = tmp_path / f"o{i}"
+        r = subprocess.run([sys.executable, "-m", "servo", "run", *args, "--out", str(out)],
+                           capture_output=True, text=True, cwd=tmp_path)  # fmt: skip
+        assert r.returncode == 2 and r.stderr.count("\n") == 1 and message in r.stderr, r.stderr
+        assert not out.exists() and not (tmp_path / f"o{i}.incomplete").exists()

@@ -74,12 +74,34 @@ class ControllerKind:
 
 
 def source_tag(kind: type) -> str:
-    """Eight hex digits that change whenever the module defining ``kind`` changes."""
-    try:
-        text = inspect.getsource(inspect.getmodule(kind)).encode()
-    except (OSError, TypeError):  # defined where there is no source file: hash the bytecode
-        text = b"".join(getattr(k, "py_func", k).__code__.co_code for k in (kind.start, kind.tick, kind.log))
-    return hashlib.sha256(text).hexdigest()[:8]
+    """Eight hex digits that change whenever the source of ``kind`` or of its kernels
+    changes: the module defining the class, the files defining ``start``/``tick``/``log``,
+    and, followed through their globals, the files of every kernel they call (a plugin's
+    kernels are cached by Numba beside their own files, not in the project's hashed cache
+    folder, so the composed kernels must know when any of them changed)."""
+    h = hashlib.sha256()
+    seen: set = set()
+    todo = [kind.start, kind.tick, kind.log]
+    files = {inspect.getsourcefile(kind) if inspect.getmodule(kind) else None}
+    while todo:
+        k = todo.pop()
+        fn = getattr(k, "py_func", None)
+        if fn is None or id(fn) in seen:
+            continue
+        seen.add(id(fn))
+        try:
+            files.add(inspect.getsourcefile(fn))
+        except TypeError:
+            pass
+        code = fn.__code__  # also the bytecode and constants, for kernels with no source file
+        h.update(code.co_code + repr(code.co_consts).encode())
+        todo += [v for name, v in fn.__globals__.items() if name in code.co_names and hasattr(v, "py_func")]
+    for f in sorted(f for f in files if f):
+        try:
+            h.update(f.encode() + open(f, "rb").read())
+        except OSError:
+            pass
+    return h.hexdigest()[:8]
 
 
 KINDS: dict[str, type[ControllerKind]] = {}
@@ -99,8 +121,35 @@ def register(kind: type[ControllerKind]) -> type[ControllerKind]:
     missing = [c for c in kind.log_columns if c not in kind.log_units]
     if missing:
         raise TypeError(f"controller kind {kind.name}: no unit for log columns {missing}")
+    if kind.name in RESERVED:
+        raise TypeError(f"controller kind {kind.__name__}: name {kind.name!r} is a [controller] key")
+    if KINDS.get(kind.name, kind) is not kind:
+        raise TypeError(f"controller kind {kind.__name__}: name {kind.name!r} is taken by {KINDS[kind.name].__module__}."
+                        f"{KINDS[kind.name].__name__}")  # fmt: skip
+    _check_log(kind)
     KINDS[kind.name] = kind
     return kind
+
+
+#: Names a kind cannot take: the keys and attributes of ``[controller]`` itself.
+RESERVED = {"kind", "kinds", "section", "current_limit", "velocity_source", "velocity_cutoff_hz", "direction_deadband"}
+
+
+def _check_log(kind: type[ControllerKind]) -> None:
+    """The kind's ``log`` writes exactly ``len(log_columns)`` values: every one of them,
+    none beyond (a row past its end would be another column's memory)."""
+    n = len(kind.log_columns)
+    buf = np.full(n + 8, np.nan)
+    state = np.zeros(1, kind.STATE)
+    try:
+        kind.log(buf[:n], state[0])
+    except Exception as exc:
+        raise TypeError(f"controller kind {kind.name}: its log kernel cannot be called as log(out, state): "
+                        f"{type(exc).__name__}: {str(exc).splitlines()[0] if str(exc) else ''}") from None  # fmt: skip
+    if not np.isnan(buf[n:]).all():
+        raise TypeError(f"controller kind {kind.name}: its log writes more than its {n} log_columns")
+    if np.isnan(buf[:n]).any():
+        raise TypeError(f"controller kind {kind.name}: its log leaves some of its {n} log_columns unwritten")
 
 
 def kind_names() -> tuple[str, ...]:

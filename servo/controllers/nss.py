@@ -54,3 +54,4 @@ class NSS(TwoRate):
         for i, f in enumerate(s.notch_hz):
             if f >= nyquist:
                 raise ConfigError(f"config: controller.nss.notch_hz[{i}] = {f!r} is at or above Nyquist ({nyquist:g} Hz)")
+        cls.params(s, cfg)  # a design the numbers do not allow is a config error

@@ -198,3 +198,4 @@ class Track(TwoRate):
                                   f"of its rate ({top:g} Hz)")  # fmt: skip
         if len(s.notch_hz) + (1 if s.lowpass_hz else 0) > MAX_SECTIONS:
             raise ConfigError(f"config: controller.track: at most {MAX_SECTIONS} notches and low-pass sections")
+        cls.params(s, cfg)  # a design the numbers do not allow is a config error, before anything is written

@@ -14,6 +14,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
+import control
 from scipy.optimize import brentq
 
 from servo.design import analog, discretise, loop
@@ -107,6 +108,13 @@ def track_following(
     h, _ = unit_loop(lead_ratio)
     gain = 1.0 / abs(h)
     slow = analog.lead_integrator(crossover_hz, lead_ratio, integrator_ratio, gain)
+    # the margin above is a phase taken mod 360 deg, blind to lag beyond -360 deg (a long
+    # delay): the loop it designs must also be stable, checked on its closed-loop poles
+    cl = control.feedback(loop.open_loop(_build(J, fs, pes_every, method, slow, fast_blocks, {}), plant, delay_s), 1)
+    radius = float(np.max(np.abs(cl.poles()))) if cl.nstates else 0.0
+    if radius >= 1.0:
+        raise ValueError(f"the loop designed for {crossover_hz:g} Hz, {phase_margin_deg} deg is unstable on the double "
+                         f"integrator (closed-loop pole radius {radius:.4f}): lower the crossover or the delay")  # fmt: skip
     info = dict(kind="track_following", J=J, crossover_hz=crossover_hz, phase_margin_deg=phase_margin(lead_ratio),
                 lead_ratio=lead_ratio, integrator_ratio=integrator_ratio, delay_s=delay_s,
                 notches=[list(n) for n in notches], lowpass_hz=lowpass_hz, lowpass_zeta=lowpass_zeta)  # fmt: skip

@@ -96,6 +96,12 @@ class Controller:
 
     def log_row(self, row: np.ndarray, k: int, dt: float, x: float, u_exc: float) -> None:
         """Fill ``row`` (length ``len(log_columns)``) for tick ``k``."""
+        self.kernels.log_row(row, k, dt, x, u_exc, self.buf)
+
+    def unchecked_log_row(self, row: np.ndarray, k: int, dt: float, x: float, u_exc: float) -> None:
+        """:meth:`log_row` through the kernel's entry point, without Numba's argument
+        checks: only for rows the runtime itself owns (a 1-D contiguous float64 row of
+        ``len(log_columns)`` of a run log), after :meth:`warm_up`."""
         self._log_row(row, k, dt, x, u_exc, self.buf)
 
     @property

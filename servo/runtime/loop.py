@@ -119,7 +119,7 @@ def _warm_up(controller, log: RunLog) -> None:
 def _run_ticks(cfg, driver, controller, inputs, log, stats, pacer, durations) -> None:
     dt = cfg.dt
     state = controller.stage_state
-    log_row = controller.log_row
+    log_row = controller.unchecked_log_row  # rows of log.data: 1-D, contiguous, the controller's width
     r, u_exc = Window(inputs.reference), Window(inputs.excitation)
     r.load(0), u_exc.load(0)  # the first windows now, not on the first tick
 
