@@ -47,6 +47,12 @@ def test_the_worked_example_in_the_docs_runs(tmp_path, monkeypatch, kinds_restor
                        capture_output=True, text=True, cwd=tmp_path)  # fmt: skip
     assert r.returncode == 0, r.stderr
     assert "de_dt" in np.load(tmp_path / "cli" / "log_compensated.npz").files
+    # and on a fleet's Dask workers, which load the plugin themselves
+    r = subprocess.run([sys.executable, "-m", "servo", "fleet", "simulate", "--quiet", "--plugin", "my_pd",
+                        "--set", "controller.kind=pd", "--vary", "drive.B=normal(2e-3, 10%)", "--drives", "4",
+                        "--workers", "2", "--duration", "0.02", "--no-plots", "--out", str(tmp_path / "fleet")],
+                       capture_output=True, text=True, cwd=tmp_path)  # fmt: skip
+    assert r.returncode == 0 and "4 drives, 4 ok, 0 failed" in r.stdout, r.stdout + r.stderr
 
 
 def test_a_plugin_that_is_not_there_is_one_line(tmp_path):

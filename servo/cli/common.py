@@ -14,48 +14,10 @@ def add_config_options(p: argparse.ArgumentParser) -> None:
                    help="import MODULE and register the controller kinds it defines (repeatable; docs/controllers.md)")
 
 
-def load_plugins(modules: list[str] | None) -> None:
-    """Import each module and register every :class:`ControllerKind` subclass it defines."""
-    import importlib
-    import importlib.util
-    import inspect
-    from pathlib import Path
-
-    from servo.controllers import ControllerKind, register
-    from servo.errors import ConfigError
-
-    import os
-    import sys
-
-    if modules and os.getcwd() not in sys.path:
-        sys.path.insert(0, os.getcwd())  # a plugin in the current folder, as `python -m` would find it
-    for name in modules or []:
-        try:
-            if name.endswith(".py") or "/" in name:  # a file
-                spec = importlib.util.spec_from_file_location(Path(name).stem, name)
-                if spec is None or spec.loader is None:
-                    raise ImportError(f"no module in {name}")
-                mod = importlib.util.module_from_spec(spec)
-                sys.modules[spec.name] = mod
-                spec.loader.exec_module(mod)
-            else:
-                mod = importlib.import_module(name)
-        except Exception as exc:  # an error in the plugin's code is the plugin's: one line
-            first = str(exc).strip().splitlines()[0] if str(exc).strip() else ""
-            raise ConfigError(f"--plugin {name}: cannot import it ({type(exc).__name__}: {first})") from None
-        kinds = [k for k in vars(mod).values() if inspect.isclass(k) and issubclass(k, ControllerKind)
-                 and k.__module__ == mod.__name__ and "name" in vars(k)]  # fmt: skip
-        if not kinds:
-            raise ConfigError(f"--plugin {name}: it defines no controller kind (a ControllerKind subclass with a name)")
-        for k in kinds:
-            try:
-                register(k)
-            except TypeError as exc:
-                raise ConfigError(f"--plugin {name}: {exc}") from None
-
-
 def config_from_args(args: argparse.Namespace, **sections: dict) -> Config:
     """The config of ``--config`` and ``--set``, then the given section overrides."""
+    from servo.controllers.plugins import load_plugins
+
     load_plugins(getattr(args, "plugin", None))
     cfg = load_config(args.config)
     data = to_dict(cfg)

@@ -215,7 +215,7 @@ def simulate(args: argparse.Namespace) -> tuple[str, ServoError | None]:
         from_dict(centre)
     except ConfigError as exc:
         raise ConfigError(f"fleet: the drive at the distributions' centres is not valid: {exc}") from None
-    settings = simulate.settings(base, {d.key: d.text for d in dists}, args.seed)
+    settings = simulate.settings(base, {d.key: d.text for d in dists}, args.seed, getattr(args, "plugin", None))
     drives = draw_drives(dists, args.drives, args.seed)
     return _run(args, "simulate", simulate.drive_tasks(drives, settings), settings)
 

@@ -11,6 +11,7 @@ from __future__ import annotations
 import hashlib
 
 from servo.config import from_dict
+from servo.controllers.plugins import load_plugins
 from servo.fleet.closedloop import compare
 from servo.fleet.task import Task, canonical, task_key
 
@@ -18,12 +19,16 @@ from servo.fleet.task import Task, canonical, task_key
 BATCH = 16
 
 
-def settings(base: dict, vary: dict, seed: int) -> dict:
+def settings(base: dict, vary: dict, seed: int, plugins: list[str] | None = None) -> dict:
     """The settings of a Monte Carlo fleet: the base config document
     (:func:`servo.config.to_dict`), the distributions' texts and the seed (JSON-able;
     part of the resume key; the fleet's size is not, so a larger fleet of the same
-    seed resumes the drives of a smaller one)."""
-    return {"command": "simulate", "base": base, "vary": dict(vary), "seed": int(seed)}
+    seed resumes the drives of a smaller one); ``plugins``, the modules of controller
+    kinds the workers load (``--plugin``)."""
+    out = {"command": "simulate", "base": base, "vary": dict(vary), "seed": int(seed)}
+    if plugins:
+        out["plugins"] = list(plugins)
+    return out
 
 
 def drive_tasks(drives: list[dict], s: dict) -> list[Task]:
@@ -39,6 +44,7 @@ def drive_tasks(drives: list[dict], s: dict) -> list[Task]:
 
 def config_of(drive: dict, s: dict):
     """The validated config of one drive: the base with its drawn fields."""
+    load_plugins(s.get("plugins"))  # a worker knows the plugin kinds the client loaded
     data = {k: dict(v) for k, v in s["base"].items()}
     data["drive"].update(drive)
     return from_dict(data)
