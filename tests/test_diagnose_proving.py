@@ -133,3 +133,4 @@ def test_an_unrelated_position_is_out_of_scope():
     D = diagnose(rec)
     assert D.verdict["verdict"] == "out_of_scope", D.verdict["text"]
     assert "inertia" in D.verdict["text"]
+    assert D.findings == []  # nothing is named on a recording the force balance does not describe

@@ -30,10 +30,14 @@ from servo.io.recording import Recording
 CANDIDATES = (10, 8, 6, 5, 4, 3)
 #: a decimation is kept when at least this share of its rows is usable
 USABLE_MIN = 0.6
-#: failing that, the decimation with the most usable training rows, if at least this
+#: failing that, the decimation with the largest share of usable rows, if at least this
 #: share of its rows is usable (below it the rows are a few islands between reversals
 #: or sticks, and a diagnosis on them is refused with the cause)
 FALLBACK_MIN = 0.3
+#: ... and only if that share is this many times the default's: where the
+#: rows are few because the arm dwells (not because reversals fall within the filter's
+#: reach) a smaller decimation gains little and widens the band for nothing
+GAIN_MIN = 1.5
 
 
 def settings_for(q: int, fs: float, cutoff_hz: float | None = None) -> RobustSettings:
@@ -88,11 +92,17 @@ def choose(rec: Recording, opt, prepare):
                 f"by 10 only {100 * _usable(tried, 10):.0f} % of the rows were usable (reversals within the "
                 "decimation filter's reach)")  # fmt: skip
             return d, f"decimation by {q}: {why}"
-    ok = [(q, d) for q, d, _ in tried if d is not None and d.sig.valid.mean() >= FALLBACK_MIN]
+    default = next((d for q, d, _ in tried if q == CANDIDATES[0] and d is not None), None)
+    ok = [(q, d) for q, d, _ in tried if d is not None and q != CANDIDATES[0] and d.sig.valid.mean() >= FALLBACK_MIN]
     if ok:
-        q, d = max(ok, key=lambda t: int(t[1].train_valid.sum()))
-        return d, (f"decimation by {q}: the most usable rows of the decimations tried ({100 * d.sig.valid.mean():.0f} %; "
-                   "reversals within the decimation filter's reach)")  # fmt: skip
+        q, d = max(ok, key=lambda t: float(t[1].sig.valid.mean()))  # shares: the row counts differ with q
+        if default is None or d.sig.valid.mean() >= GAIN_MIN * default.sig.valid.mean():
+            return d, (f"decimation by {q}: the most usable rows of the decimations tried ({100 * d.sig.valid.mean():.0f} "
+                       f"%, {100 * _usable(tried, CANDIDATES[0]):.0f} % by {CANDIDATES[0]}; reversals within the "
+                       "decimation filter's reach)")  # fmt: skip
+    if default is not None:  # no decimation does much better: the rows are few for another reason (the arm dwells)
+        return default, (f"decimation by {CANDIDATES[0]}: the default ({100 * default.sig.valid.mean():.0f} % usable; "
+                         "no other decimation tried gives many more usable rows)")  # fmt: skip
     raise _refusal(rec, tried, last_exc or IdentificationError("too few usable rows"))
 
 

@@ -212,6 +212,15 @@ def _select(sel: Selector, model: Model, opt: Options):
     return findings, rounds, not_testable, implausible
 
 
+def _scope_of(design: Design, fit: Fit) -> str:
+    """Why the force balance of ``fit`` does not describe the recording ("" when it
+    does; :func:`servo.diagnose.verdict.out_of_scope`)."""
+    ji = next((i for i, t in enumerate(fit.model.terms) if t.physics == "inertia"), None)
+    J_std = fit.term_std(ji).get("J") if ji is not None and fit.model.terms[ji].free else 0.0
+    return verdict_mod.out_of_scope(fit.combined().get("inertia", {}).get("J"), J_std,
+                                    force_error_pct(design, fit, design.train_valid))  # fmt: skip
+
+
 def _sequence(design: Design, base: Model, findings: list) -> list:
     """Models baseline, +f1, +f1+f2, ... and their fits on the training part."""
     models = [base]
@@ -355,6 +364,13 @@ def diagnose(rec: Recording, opt: Options | None = None) -> Diagnosis:
     progress.stage("held-out proof")
     starts_test = starts_in(design, ~design.train_rows, H)
     fits, errs, nr, preds, unconfirmed, note = _prove(design, base, findings, test_rows, starts_test, H)
+    if findings and _scope_of(design, fits[-1]):
+        # a recording the force balance does not describe: its findings fit noise (an
+        # unrelated position got several); none is named
+        why = _scope_of(design, fits[-1])
+        implausible.update({f.physics: f"the recording is out of scope: {why}" for f in findings})
+        findings = []
+        fits, errs, nr, preds, unconfirmed, note = _prove(design, base, findings, test_rows, starts_test, H)
     for i, f in enumerate(findings):
         f.before = {"force_rel_pct": errs[i], "output_nrmse": nr[i]}
         f.after = {"force_rel_pct": errs[i + 1], "output_nrmse": nr[i + 1]}

@@ -52,7 +52,7 @@ def _evidence(f: Finding) -> dict:
                 "lattice_p": f.lattice.p, "output_t": f.quant_test[0], "output_p": f.quant_test[1], "level": f.level}  # fmt: skip
     s = f.score
     return {
-        "test": "blocked CV, corrected paired t-test + BIC", "t": s.t, "p": s.p, "level": f.level,
+        "test": "blocked CV, sign-flip test on gain blocks + BIC", "t": s.t, "p": s.p, "level": f.level,
         "delta_ic": s.delta_ic, "cv_improvement_pct": s.improvement_pct,
         "blocks_improved": f"{int(np.sum(s.S1 < s.S0))}/{s.S0.size}", "cv_sse_before": s.S0, "cv_sse_after": s.S1,
     }  # fmt: skip
