@@ -20,7 +20,7 @@ references in the same run, where the slowdown cancels):
   ``SimDriver`` (read, controller, write, excitation/estimator/log tasks): 3/4.  A paced
   tick starts at its deadline and must end before the next one; the last quarter is the
   slack that absorbs wake-up jitter and lets the loop catch up after a late tick (a
-  lateness L is recovered in ``L / (T/4)`` ticks).  ~5.3 us measured (27 %), ~9 us when
+  lateness L is recovered in ``L / (T/4)`` ticks).  ~4.1 us measured (21 %), ~7-9 us when
   the host's cores are contended.
 * **fast path**, per simulated sample of the all-compiled loop with logging: 1/4, i.e.
   at least 4x faster than real time (it is the path for long simulations and sweeps;
