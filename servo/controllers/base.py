@@ -70,7 +70,11 @@ class ControllerKind:
     def kernels(cls) -> Composed:
         """Its kernels composed with the stage, the log row and the fast loop (compiled or
         loaded from the cache on the first call in a process)."""
-        return compose(cls.name, source_tag(cls), cls.STATE, cls.PARAMS, cls.start, cls.tick, cls.log)
+        tag = _TAGS.get(cls) or _TAGS.setdefault(cls, source_tag(cls))  # read the sources once per class
+        return compose(cls.name, tag, cls.STATE, cls.PARAMS, cls.start, cls.tick, cls.log)
+
+
+_TAGS: dict[type, str] = {}
 
 
 def source_tag(kind: type) -> str:
