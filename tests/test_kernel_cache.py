@@ -1,8 +1,6 @@
 """The kernels' on-disk cache is keyed by their source, so an edit recompiles them all."""
 import shutil
 
-from numba.core import config
-
 from kernels import _cache
 
 
