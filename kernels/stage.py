@@ -59,6 +59,10 @@ STAGE_PARAMS = np.dtype(
         ("kf1", "f8"),  # force-constant change at +stroke, linear
         ("kf2", "f8"),  # force-constant change at +-stroke, quadratic
         ("kf_stroke", "f8"),  # the stroke those refer to, m
+        # authority: what a wrong model can do is bounded (docs/compensate.md)
+        ("uc_max", "f8"),  # |u_c| <= uc_max, A (inf: eq. 9 unbounded, as the paper writes it)
+        ("kf_lo", "f8"),  # the divisor kf(x) is held within [kf_lo, kf_hi]
+        ("kf_hi", "f8"),
     ]
 )
 STAGE_STATE = np.dtype(
@@ -109,7 +113,13 @@ def _compensation(c, p, x):
     u_c = compensate(int(c.regime), x, c.v, c.s, c.H_dahl, p.B, p.Fc, p.K, p.h0)
     if p.extras != 0.0:
         u_c += _extras(c, p, x)
-    return u_c
+    return min(max(u_c, -p.uc_max), p.uc_max)  # the authority: a bounded input to the loop
+
+
+@kernel(float64(stage_params_rec_t, float64))
+def _kf(p, x):
+    """The divisor ``kf(x)`` of the force-constant term, held within its authority."""
+    return min(max(force_constant(x, p.kf1, p.kf2, p.kf_stroke), p.kf_lo), p.kf_hi)
 
 
 @kernel(float64(stage_state_rec_t, stage_params_rec_t, float64, float64, float64))
@@ -132,7 +142,7 @@ def stage_start(c, p, x, v_meas, u_now):
     u_c = _compensation(c, p, x)
     force = u_now  # what u_n + u_c must make for the first command to be u_now
     if p.kf_on != 0.0 and p.comp_on != 0.0:
-        force = u_now * force_constant(x, p.kf1, p.kf2, p.kf_stroke)
+        force = u_now * _kf(p, x)
     c.u_c = u_c
     c.u_n = force - u_c
     c.u = u_now
@@ -167,7 +177,7 @@ def stage_room(p, u_c, x):
     """``(lo, hi)`` (A): the range of ``u_n`` that keeps the command within the limit
     (``u_n + u_c``, divided by ``kf(x)`` when the force constant is cancelled)."""
     if p.kf_on != 0.0 and p.comp_on != 0.0:
-        m = p.u_max * force_constant(x, p.kf1, p.kf2, p.kf_stroke)
+        m = p.u_max * _kf(p, x)
         return -m - u_c, m - u_c
     return -p.u_max - u_c, p.u_max - u_c
 
@@ -178,7 +188,7 @@ def stage_output(c, p, x, r, u_n, u_c):
     records the error ``(r_base + r) - x`` (m) and the three currents."""
     u = u_n + u_c  # eq. (8)
     if p.kf_on != 0.0 and p.comp_on != 0.0:  # the force is kf(x)*u: command what makes u_n + u_c of it
-        u = u / force_constant(x, p.kf1, p.kf2, p.kf_stroke)
+        u = u / _kf(p, x)
     u = min(max(u, -p.u_max), p.u_max)
     c.e = (c.r_base + r) - x
     c.u_n = u_n

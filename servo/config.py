@@ -168,6 +168,10 @@ class CompensatorConfig:
     kf_linear: float = P(0.0, "-", "force-constant change at +stroke, linear in x (the command is divided by kf(x))", -0.9, 0.9)
     kf_quadratic: float = P(0.0, "-", "force-constant change at +-stroke, quadratic in x", -0.9, 0.9)
     kf_stroke: float = P(15e-3, "m", "the stroke the force-constant terms refer to", 0.0, None, lo_open=True)
+    authority: float = P(0.0, "A", "the largest |u_c| the compensator may command, whatever its model (0: unbounded, "
+                         "eq. 9 as the paper writes it; docs/compensate.md)", 0.0)
+    kf_authority: float = P(0.5, "-", "the force-constant divisor kf(x) is held within 1 +- this", 0.0, 0.95,
+                            lo_open=True)
 
 
 @dataclass

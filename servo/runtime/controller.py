@@ -36,6 +36,7 @@ def stage_params(cfg: Config, compensation: bool | None = None) -> np.ndarray:
         b_asym=k.b_asymmetry, coul_c=k.coulomb, coul_s=k.coulomb_static or k.coulomb, coul_vs=k.stribeck_velocity,
         coul_asym=k.coulomb_asymmetry, n_per=len(k.periodic_amplitudes), per_period=k.periodic_period,
         kf1=k.kf_linear, kf2=k.kf_quadratic, kf_stroke=k.kf_stroke,
+        uc_max=k.authority if k.authority > 0 else math.inf, kf_lo=1.0 - k.kf_authority, kf_hi=1.0 + k.kf_authority,
     )  # fmt: skip
     values.update(extras)
     values["extras"] = 1.0 if (k.b_asymmetry or k.coulomb or k.coulomb_static or k.periodic_amplitudes) else 0.0
