@@ -19,7 +19,7 @@ import tomllib
 
 from servo.errors import ConfigError, Interrupted, ServoError
 
-COMMANDS = ("run", "config", "identify", "hysteresis", "bode", "frf", "paper", "emulate", "diagnose", "recover",
+COMMANDS = ("run", "config", "identify", "hysteresis", "bode", "frf", "paper", "emulate", "diagnose", "compensate", "recover",
             "fleet", "loop")
 
 

@@ -1,0 +1,72 @@
+"""``servo compensate``: a diagnosis or an identification in, a compensator section out.
+
+:func:`compensate` reads the model (:mod:`servo.compensate.model`) and proposes the
+section (:mod:`servo.compensate.propose`); :func:`section_text` is the TOML written
+(the ``[compensator]`` section alone, or the whole base config with it);
+:func:`format_summary` what is printed: each term and its fields, what cannot be
+cancelled and what to do instead, and the authority.
+"""
+from __future__ import annotations
+
+from pathlib import Path
+
+from servo.compensate.model import read_model
+from servo.compensate.propose import MARGIN, Proposal, apply, propose
+from servo.config import Config, to_toml
+from servo.io.atomic import atomic_write
+
+
+def compensate(source: str | Path, base: Config, paper: bool = False, force_constant: float | None = None,
+               authority: float | None = None) -> Proposal:  # fmt: skip
+    """The compensator for the model of ``source`` on the config ``base`` (see
+    :func:`servo.compensate.propose.propose`)."""
+    return propose(read_model(source, base), base, paper, force_constant, authority)
+
+
+def section_text(p: Proposal, base: Config, full: bool = False) -> str:
+    """The TOML: the ``[compensator]`` section (``full``: the whole of ``base`` with it)."""
+    cfg = apply(base, p)
+    head = [f"# servo compensate: from {p.source}" + (" (eq. 9 only, the paper's compensator)" if p.paper else "")]
+    head += [f"#   {t.name}" for t in p.cancelled]
+    head += [f"#   not cancelled: {t.name}" for t in p.not_cancelled]
+    text = to_toml(cfg, comments=False)
+    if not full:
+        text = text[text.index("[compensator]") :].split("\n\n")[0] + "\n"
+    return "\n".join(head) + "\n" + text
+
+
+def write(p: Proposal, base: Config, out: Path, full: bool = False) -> None:
+    """Write :func:`section_text` to ``out`` atomically."""
+    text = section_text(p, base, full)
+    atomic_write(out, lambda f: Path(f).write_text(text))
+
+
+def _fmt(v) -> str:
+    if isinstance(v, list):
+        return "[" + ", ".join(f"{x:.4g}" for x in v) + "]"
+    return f"{v:.4g}"
+
+
+def format_summary(p: Proposal) -> str:
+    a = p.authority
+    lines = [f"servo compensate: {p.source}" + (" (eq. 9 only)" if p.paper else "")]
+    for t in p.cancelled:
+        lines.append(f"  cancel {t.name}: " + ", ".join(f"{k} {_fmt(v)}" for k, v in t.keys.items()))
+    for t in p.not_cancelled:
+        lines.append(f"  cannot cancel {t.name}: {t.advice}")
+    how = (f"{MARGIN:g} x the largest force of the model, {a['largest_force_a']:.4g} A at speeds up to "
+           f"{a['speed_m_s']:.3g} m/s" if a["largest_force_a"] is not None else
+           "half the current limit (the source does not say how fast the arm moved)")  # fmt: skip
+    lines.append(f"  authority: |u_c| <= {a['authority_a']:.4g} A ({how}; current limit {a['current_limit_a']:.4g} A)")
+    if a["worst_um_per_ma"] is not None:
+        lines.append(f"    a wrong force of 1 mA moves the head by at most {a['worst_um_per_ma']:.3g} um at any one frequency "
+                     "(max |P*S| of the designed loop)")  # fmt: skip
+    if a["kf_authority"] is not None:
+        gm = a["gain_margin_db"]
+        lines.append(f"  kf(x) held within 1 +- {a['kf_authority']:.3g} (the model asks for {a['kf_model']:.3g}; "
+                     + (f"half of the loop's {gm:.1f} dB gain margin allows" if gm is not None else "no gain margin known")
+                     + ")")  # fmt: skip
+    return "\n".join(lines)
+
+
+__all__ = ["compensate", "format_summary", "section_text", "write"]

@@ -1,0 +1,222 @@
+"""A compensator for a model: each cancellable term of the drive's physics mirrored by its
+compensator term, with an authority that bounds what a wrong model can do.
+
+**The mirror.**  The compensator cancels the drive's forces one for one (``kernels/stage.py``,
+``kernels/cancel.py``), so with exact estimates the plant the controller sees is
+``J*x'' = u_n`` (eq. 10):
+
+=========================  =============================================================
+drive (``[drive]``)        compensator (``[compensator]``)
+=========================  =============================================================
+``B``, ``K``, ``h0``       ``B``, ``K``, ``h0`` (eq. 9)
+``sigma, Ha, alpha``       ``sigma, Ha, alpha`` (the Dahl element, eq. 6-7, with its
+                           turnaround memory) and ``Fc = Ha`` (its level in eq. 3's
+                           large-motion regime)
+``b_asymmetry``            ``b_asymmetry``
+``Fc, Fs, stribeck_velocity, fc_asymmetry``
+                           ``coulomb, coulomb_static, stribeck_velocity,
+                           coulomb_asymmetry`` (a Coulomb element beyond the Dahl one)
+``cogging*``               ``periodic_amplitudes/phases/period`` (one harmonic)
+``kf_linear, kf_quadratic, stroke``
+                           ``kf_linear, kf_quadratic, kf_stroke`` (the command divided)
+=========================  =============================================================
+
+``paper=True`` writes what eq. (9) alone can hold of the model: one sliding-friction
+level ``Fc = Ha + Fc_extra`` for both the Dahl asymptote and the large-motion regime, and
+none of the terms beyond it (the paper's compensator identified on this drive).
+
+**The authority** (docs/compensate.md).  A compensator term is a feedback of the measured
+motion; a wrong one (a sign, an over-fit, a term extrapolated beyond the motion it was
+fitted on) must not destabilise the loop:
+
+* ``authority`` bounds ``|u_c|``: whatever the model, the loop then sees its designed
+  linear loop plus a bounded input, so nothing diverges; a wrong force of amplitude ``A``
+  at one frequency moves the head by at most ``A*max|P*S|`` (reported).  It is the
+  model's own largest force over the motion it was found on (its speeds and positions),
+  times :data:`MARGIN`, and never more than :data:`U_FRACTION` of the current limit
+  (that fraction alone when the source does not say how fast the arm moved).
+* ``kf_authority`` bounds the divisor ``kf(x)`` within ``1 +- a``: a multiplicative change
+  of the loop gain by at most ``1/(1-a)``.  ``a`` is the model's own largest ``|kf-1|``
+  over the stroke times :data:`MARGIN`, and never more than what half the designed loop's
+  gain margin allows: ``20*log10(1/(1-a)) <= GM/2``.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from servo.compensate.model import NOT_CANCELLABLE, SourceModel
+from servo.config import Config, from_dict, to_dict
+
+#: The authority is this times the largest force (or kf change) the model itself makes.
+MARGIN = 1.5
+#: and never more than this fraction of the current limit.
+U_FRACTION = 0.5
+#: a Dahl element below this fraction of the model's largest force is no Dahl element
+NEGLIGIBLE = 1e-6
+
+
+@dataclass
+class Term:
+    """One line of a proposal: ``name`` what it cancels, ``keys`` the compensator fields
+    it sets; ``advice`` (for what cannot be cancelled) what to do instead."""
+
+    name: str
+    keys: dict = field(default_factory=dict)
+    advice: str = ""
+
+
+@dataclass
+class Proposal:
+    """``section``: the ``[compensator]`` fields (A, m, s; valid for
+    :class:`servo.config.CompensatorConfig`); ``cancelled``/``not_cancelled``: per term;
+    ``authority``: how it is bounded (``authority_a``, ``largest_force_a``,
+    ``kf_authority``, ``kf_model``, ``gain_margin_db``, ``worst_um_per_ma``: the head's
+    largest response (um) to 1 mA of wrong force at any frequency, None if not computed)."""
+
+    source: str
+    paper: bool
+    section: dict
+    cancelled: list
+    not_cancelled: list
+    authority: dict
+
+
+def _f(d: dict, k: str, default: float = 0.0) -> float:
+    return float(d.get(k, default))
+
+
+def mirror(d: dict, paper: bool = False, dahl_length: float = 3.125e-6) -> list[Term]:
+    """The compensator terms of the drive fields ``d`` (see module doc); ``dahl_length``
+    (m) is the Dahl element's when ``paper`` folds a Coulomb level without one."""
+    B, K, h0 = _f(d, "B"), _f(d, "K"), _f(d, "h0")
+    Ha, sigma, alpha = _f(d, "Ha", 1e-12), _f(d, "sigma", 1e-12), _f(d, "alpha", 1.0)
+    Fc, Fs = _f(d, "Fc"), _f(d, "Fs")
+    scale = max(abs(Ha), abs(Fc), abs(Fs), abs(h0), 1e-300)
+    dahl = Ha > NEGLIGIBLE * scale
+    terms = [Term("viscous friction, bias (eq. 9)", dict(B=B, K=K, h0=h0))]
+    if paper:
+        level = (Ha if dahl else 0.0) + Fc  # one sliding level, as eq. (9) has
+        length = Ha / sigma if dahl else dahl_length
+        if level > 0:
+            keys = dict(Fc=level, Ha=level, sigma=level / length, alpha=alpha if dahl else 1.0)
+        else:
+            keys = dict(Fc=0.0, Ha=1e-12, sigma=1e-12, alpha=1.0)
+        terms.append(Term("sliding friction (eq. 9: Coulomb and its Dahl element)", keys))
+        return terms
+    terms.append(Term("Dahl hysteresis (eq. 6-7)" if dahl else "Dahl hysteresis: none in the model (the term off)",
+                      dict(sigma=sigma, Ha=Ha, alpha=alpha, Fc=Ha)))  # fmt: skip
+    if _f(d, "b_asymmetry"):
+        terms.append(Term("asymmetric viscous friction", dict(b_asymmetry=_f(d, "b_asymmetry"))))
+    if Fc > 0 or Fs > 0:
+        keys = dict(coulomb=Fc, coulomb_static=Fs if Fs > Fc else 0.0, coulomb_asymmetry=_f(d, "fc_asymmetry"))
+        if Fs > Fc:
+            keys["stribeck_velocity"] = _f(d, "stribeck_velocity", 1e-3)
+        name = "Coulomb friction beyond the Dahl element" + (" with its Stribeck rise" if Fs > Fc else "")
+        terms.append(Term(name, keys))
+    if _f(d, "cogging"):
+        terms.append(Term("force periodic in position", dict(
+            periodic_amplitudes=[_f(d, "cogging")], periodic_phases=[_f(d, "cogging_phase")],
+            periodic_period=_f(d, "cogging_period", 1e-4))))  # fmt: skip
+    if _f(d, "kf_linear") or _f(d, "kf_quadratic"):
+        terms.append(Term("position-dependent force constant", dict(
+            kf_linear=_f(d, "kf_linear"), kf_quadratic=_f(d, "kf_quadratic"), kf_stroke=_f(d, "stroke", 15e-3))))
+    return terms
+
+
+def largest_force(c: dict, speed: float, position: float) -> float:
+    """The largest ``|u_c|`` (A) the compensator fields ``c`` make at speeds up to
+    ``speed`` (m/s) and positions up to ``|position|`` (m), bounding each term by its
+    largest magnitude (a sum: the terms may line up)."""
+    coul = max(abs(c.get("coulomb", 0.0)), abs(c.get("coulomb_static", 0.0))) * (1 + abs(c.get("coulomb_asymmetry", 0.0)))
+    sliding = max(abs(c.get("Fc", 0.0)), abs(c.get("Ha", 0.0)))
+    viscous = abs(c.get("B", 0.0)) * (1 + abs(c.get("b_asymmetry", 0.0))) * speed
+    bias = abs(c.get("h0", 0.0)) + abs(c.get("K", 0.0)) * position
+    return viscous + sliding + coul + bias + sum(abs(a) for a in c.get("periodic_amplitudes", []))
+
+
+def kf_change(c: dict) -> float:
+    """The largest ``|kf(x) - 1|`` of the force-constant fields over ``|x| <= kf_stroke``."""
+    k1, k2 = c.get("kf_linear", 0.0), c.get("kf_quadratic", 0.0)
+    r = np.linspace(-1.0, 1.0, 2001)
+    return float(np.max(np.abs(k1 * r + k2 * r * r)))
+
+
+def loop_margins(cfg: Config) -> tuple[float | None, float | None]:
+    """``(gain margin dB, max|P*S| m/A)`` of the designed loop of ``cfg`` (its controller
+    on the compensated double integrator, eq. 10); None where they cannot be computed."""
+    from servo.loop.design import design_grid, loop_design
+    from servo.loop.margins import margins
+
+    f = design_grid(cfg, 1.0, 0.45 / cfg.dt, 1500)
+    try:
+        design = loop_design(cfg, f)
+        gm = margins(f, design.L, dense=True)["gain_margin_db"]
+        ps = np.abs(design.P * design.S)
+        worst = float(np.max(ps[np.isfinite(ps)]))
+    except (ValueError, NotImplementedError):
+        return None, None
+    return (float(gm) if gm is not None and math.isfinite(gm) else None), worst
+
+
+def propose(model: SourceModel, base: Config, paper: bool = False, force_constant: float | None = None,
+            authority: float | None = None) -> Proposal:  # fmt: skip
+    """The compensator section for ``model`` on the config ``base`` (its controller, its
+    current limit, its drive's stroke).  ``force_constant`` (N/A) converts a model in N
+    to A; ``authority`` (A) overrides the computed bound on ``|u_c|``."""
+    d = dict(model.drive)
+    if model.force_unit != "A":
+        if not force_constant or not force_constant > 0:
+            raise ValueError(f"the model's forces are in {model.force_unit}: give --force-constant "
+                             f"({model.force_unit}/A) to write a compensator in A")  # fmt: skip
+        for k in ("B", "K", "h0", "Ha", "Fc", "Fs", "cogging", "sigma", "J"):
+            if k in d:
+                d[k] = float(d[k]) / force_constant
+    terms = mirror(d, paper, base.compensator.Ha / base.compensator.sigma)
+    section: dict = {}
+    for t in terms:
+        section.update(t.keys)
+    not_cancelled = [Term(name, advice=NOT_CANCELLABLE[name]) for name in dict.fromkeys(model.physics)
+                     if name in NOT_CANCELLABLE and (name != "input_saturation" or model.kind != "diagnosis"
+                                                     or _saturation_found(model))]  # fmt: skip
+    speed = model.speed_max if model.speed_max else None
+    position = model.position_max if model.position_max else base.drive.stroke
+    largest = largest_force(section, speed, position) if speed is not None else None
+    u_lim = base.controller.current_limit
+    auth = U_FRACTION * u_lim if largest is None else min(U_FRACTION * u_lim, MARGIN * largest)
+    auth = authority if authority is not None else auth
+    section["authority"] = float(auth)
+    info: dict = dict(authority_a=float(auth), largest_force_a=largest, speed_m_s=speed, position_m=position,
+                      current_limit_a=u_lim, kf_model=None, kf_authority=None, gain_margin_db=None,
+                      worst_um_per_ma=None)  # fmt: skip
+    gm, worst = loop_margins(base.replace(compensator={k: v for k, v in section.items()}))
+    info["gain_margin_db"] = gm
+    info["worst_um_per_ma"] = worst * 1e6 * 1e-3 if worst is not None else None
+    if "kf_linear" in section:
+        a_model = kf_change(section)
+        a = MARGIN * a_model
+        if gm is not None and gm > 0:
+            a = min(a, 1.0 - 10.0 ** (-gm / 40.0))
+        a = float(min(max(a, 1e-3), 0.9))
+        section["kf_authority"] = a
+        info.update(kf_model=a_model, kf_authority=a)
+    from_dict({"compensator": section})  # every value within its declared range, or ConfigError
+    return Proposal(model.source, paper, section, terms, not_cancelled, info)
+
+
+def _saturation_found(model: SourceModel) -> bool:
+    lim = model.drive.get("current_limit")
+    return lim is not None and lim < 1e300
+
+
+def apply(base: Config, p: Proposal) -> Config:
+    """``base`` with its ``[compensator]`` replaced by the proposal's (on the defaults of
+    the fields it does not set: a term the model lacks is off)."""
+    data = to_dict(base)
+    data["compensator"] = {"enabled": True, **p.section}
+    return from_dict(data)
+
+
+__all__ = ["MARGIN", "U_FRACTION", "Proposal", "Term", "apply", "largest_force", "loop_margins", "mirror", "propose"]
