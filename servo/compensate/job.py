@@ -62,9 +62,9 @@ def format_summary(p: Proposal) -> str:
         lines.append(f"    a wrong force of 1 mA moves the head by at most {a['worst_um_per_ma']:.3g} um at any one frequency "
                      "(max |P*S| of the designed loop)")  # fmt: skip
     if a["kf_authority"] is not None:
-        gm = a["gain_margin_db"]
+        gm = [f"{g:+.1f} dB" for g in (a["gain_up_db"], a["gain_down_db"]) if g is not None]
         lines.append(f"  kf(x) held within 1 +- {a['kf_authority']:.3g} (the model asks for {a['kf_model']:.3g}; "
-                     + (f"half of the loop's {gm:.1f} dB gain margin allows" if gm is not None else "no gain margin known")
+                     + (f"half of the loop's gain margins, {' and '.join(gm)}, allow" if gm else "the loop has no gain margin")
                      + ")")  # fmt: skip
     return "\n".join(lines)
 

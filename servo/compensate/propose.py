@@ -38,7 +38,8 @@ fitted on) must not destabilise the loop:
 * ``kf_authority`` bounds the divisor ``kf(x)`` within ``1 +- a``: a multiplicative change
   of the loop gain by at most ``1/(1-a)``.  ``a`` is the model's own largest ``|kf-1|``
   over the stroke times :data:`MARGIN`, and never more than what half the designed loop's
-  gain margin allows: ``20*log10(1/(1-a)) <= GM/2``.
+  gain margins allow (:func:`kf_bound`): the gain may rise by ``1/(1-a)`` and fall by
+  ``1/(1+a)``.
 """
 from __future__ import annotations
 
@@ -73,7 +74,7 @@ class Proposal:
     """``section``: the ``[compensator]`` fields (A, m, s; valid for
     :class:`servo.config.CompensatorConfig`); ``cancelled``/``not_cancelled``: per term;
     ``authority``: how it is bounded (``authority_a``, ``largest_force_a``,
-    ``kf_authority``, ``kf_model``, ``gain_margin_db``, ``worst_um_per_ma``: the head's
+    ``kf_authority``, ``kf_model``, ``gain_up_db``/``gain_down_db`` (the loop's gain margins), ``worst_um_per_ma``: the head's
     largest response (um) to 1 mA of wrong force at any frequency, None if not computed)."""
 
     source: str
@@ -144,21 +145,38 @@ def kf_change(c: dict) -> float:
     return float(np.max(np.abs(k1 * r + k2 * r * r)))
 
 
-def loop_margins(cfg: Config) -> tuple[float | None, float | None]:
-    """``(gain margin dB, max|P*S| m/A)`` of the designed loop of ``cfg`` (its controller
-    on the compensated double integrator, eq. 10); None where they cannot be computed."""
+def loop_margins(cfg: Config) -> tuple[float | None, float | None, float | None]:
+    """``(gain up dB, gain down dB, max|P*S| m/A)`` of the designed loop of ``cfg`` (its
+    controller on the compensated drive, eq. 10, with the drive's modes and delay): how much the loop gain may
+    rise (the smallest positive gain margin) and fall (the smallest negative one, a
+    conditionally stable loop: a double integrator under a lead has one) before the loop
+    is unstable; None where there is none or they cannot be computed."""
     from servo.loop.design import design_grid, loop_design
     from servo.loop.margins import margins
 
     f = design_grid(cfg, 1.0, 0.45 / cfg.dt, 1500)
     try:
-        design = loop_design(cfg, f)
-        gm = margins(f, design.L, dense=True)["gain_margin_db"]
+        design = loop_design(cfg, f, model="drive")  # its modes and delay: where the margins are
+        gms = [g for g in margins(f, design.L, dense=True)["all_gain_margins_db"] if g is not None and math.isfinite(g)]
         ps = np.abs(design.P * design.S)
         worst = float(np.max(ps[np.isfinite(ps)]))
     except (ValueError, NotImplementedError):
-        return None, None
-    return (float(gm) if gm is not None and math.isfinite(gm) else None), worst
+        return None, None, None
+    up = min((g for g in gms if g > 0), default=None)
+    down = max((g for g in gms if g < 0), default=None)
+    return up, down, worst
+
+
+def kf_bound(up: float | None, down: float | None) -> float:
+    """The largest ``a`` such that dividing by ``kf`` in ``1 +- a`` moves the loop gain by
+    at most half of each gain margin: ``20*log10(1/(1-a)) <= up/2`` and
+    ``20*log10(1+a) <= |down|/2`` (0.9 when the loop has neither)."""
+    a = 0.9
+    if up is not None:
+        a = min(a, 1.0 - 10.0 ** (-up / 40.0))
+    if down is not None:
+        a = min(a, 10.0 ** (-down / 40.0) - 1.0)
+    return a
 
 
 def propose(model: SourceModel, base: Config, paper: bool = False, force_constant: float | None = None,
@@ -189,17 +207,14 @@ def propose(model: SourceModel, base: Config, paper: bool = False, force_constan
     auth = authority if authority is not None else auth
     section["authority"] = float(auth)
     info: dict = dict(authority_a=float(auth), largest_force_a=largest, speed_m_s=speed, position_m=position,
-                      current_limit_a=u_lim, kf_model=None, kf_authority=None, gain_margin_db=None,
+                      current_limit_a=u_lim, kf_model=None, kf_authority=None, gain_up_db=None, gain_down_db=None,
                       worst_um_per_ma=None)  # fmt: skip
-    gm, worst = loop_margins(base.replace(compensator={k: v for k, v in section.items()}))
-    info["gain_margin_db"] = gm
+    up, down, worst = loop_margins(base.replace(compensator={k: v for k, v in section.items()}))
+    info.update(gain_up_db=up, gain_down_db=down)
     info["worst_um_per_ma"] = worst * 1e6 * 1e-3 if worst is not None else None
     if "kf_linear" in section:
         a_model = kf_change(section)
-        a = MARGIN * a_model
-        if gm is not None and gm > 0:
-            a = min(a, 1.0 - 10.0 ** (-gm / 40.0))
-        a = float(min(max(a, 1e-3), 0.9))
+        a = float(max(min(MARGIN * a_model, kf_bound(up, down)), 1e-3))
         section["kf_authority"] = a
         info.update(kf_model=a_model, kf_authority=a)
     from_dict({"compensator": section})  # every value within its declared range, or ConfigError
@@ -219,4 +234,4 @@ def apply(base: Config, p: Proposal) -> Config:
     return from_dict(data)
 
 
-__all__ = ["MARGIN", "U_FRACTION", "Proposal", "Term", "apply", "largest_force", "loop_margins", "mirror", "propose"]
+__all__ = ["MARGIN", "U_FRACTION", "Proposal", "Term", "apply", "largest_force", "kf_bound", "loop_margins", "mirror", "propose"]
