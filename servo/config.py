@@ -157,12 +157,12 @@ class CompensatorConfig:
     fast_off_speed: float = P(1e-3, "m/s", "FAST->SLOW below this speed", 0.0)
     fast_on_distance: float = P(1.25e-5, "m", "SLOW->FAST needs this distance since the turnaround", 0.0)
     b_asymmetry: float = P(0.0, "-", "viscous asymmetry: B(+) = B*(1+a), B(-) = B*(1-a) (cancels drive.b_asymmetry)", -1.0, 1.0)
-    coulomb: float = P(0.0, "A", "Coulomb friction beyond the Dahl element, large motion (cancels drive.Fc)", 0.0, 1.0)
-    coulomb_static: float = P(0.0, "A", "its Stribeck peak at low speed (cancels drive.Fs; 0: no Stribeck rise)", 0.0, 1.0)
+    coulomb: float = P(0.0, "A", "Coulomb friction beyond the Dahl element, large motion (cancels drive.Fc)", 0.0)
+    coulomb_static: float = P(0.0, "A", "its Stribeck peak at low speed (cancels drive.Fs; 0: no Stribeck rise)", 0.0)
     stribeck_velocity: float = P(1.0e-3, "m/s", "Stribeck velocity of that term", 0.0, None, lo_open=True)
     coulomb_asymmetry: float = P(0.0, "-", "its asymmetry: F(+) = F*(1+a), F(-) = F*(1-a)", -1.0, 1.0)
     periodic_amplitudes: list = P([], "A", "force periodic in position, amplitude of harmonics 1, 2, ... (at most 4; "
-                                  "cancels drive.cogging)", 0.0, 1.0)  # fmt: skip
+                                  "cancels drive.cogging)", 0.0)  # fmt: skip
     periodic_phases: list = P([], "rad", "their phases", -2 * math.pi, 2 * math.pi)
     periodic_period: float = P(1.0e-4, "m", "the fundamental period in position", 0.0, None, lo_open=True)
     kf_linear: float = P(0.0, "-", "force-constant change at +stroke, linear in x (the command is divided by kf(x))", -0.9, 0.9)

@@ -8,10 +8,14 @@ cancelled and what to do instead, and the authority.
 """
 from __future__ import annotations
 
+import dataclasses
 from pathlib import Path
 
-from servo.compensate.model import read_model
+import numpy as np
+
+from servo.compensate.model import CompensateError, read_model
 from servo.compensate.propose import MARGIN, Proposal, apply, propose
+from servo.compensate.residual import BEYOND_EQ9, Residual, at_rate, compensated_residual
 from servo.config import Config, to_toml
 from servo.io.atomic import atomic_write
 
@@ -21,6 +25,36 @@ def compensate(source: str | Path, base: Config, paper: bool = False, force_cons
     """The compensator for the model of ``source`` on the config ``base`` (see
     :func:`servo.compensate.propose.propose`)."""
     return propose(read_model(source, base), base, paper, force_constant, authority)
+
+
+def on_recording(source: str | Path, base: Config, rec, force_constant: float | None = None,
+                 authority: float | None = None, test_fraction: float = 0.25) -> Residual:  # fmt: skip
+    """The held-out force residual each compensator of ``source`` leaves on ``rec``
+    (:mod:`servo.compensate.residual`): the paper's (eq. 9 only), the augmented one, and
+    the augmented one without each term beyond eq. 9 it holds (what that term removes)."""
+    at = at_rate(base, rec)
+    model = read_model(source, at)
+    full = apply(at, propose(model, at, False, force_constant, authority))
+    paper = apply(at, propose(model, at, True, force_constant, authority))
+    configs = {"paper's compensator (eq. 9)": paper, "augmented": full}
+    p = full.compensator
+    for name, off in BEYOND_EQ9.items():
+        if any(getattr(p, k) not in (0.0, []) for k in off):
+            configs[f"augmented without the {name}"] = full.replace(compensator=off)
+    k = force_constant if model.force_unit != "A" and force_constant else 1.0
+    J = float(model.drive.get("J", 0.0)) / k
+    if k != 1.0:  # the recorded force in the compensator's unit, A
+        rec = dataclasses.replace(rec, u=np.asarray(rec.u, dtype=float) / k)
+    if not J > 0:
+        raise CompensateError(f"{source}: the model has no positive inertia J: the residual needs it")
+    return compensated_residual(rec, configs, J, test_fraction)
+
+
+def format_residual(r: Residual) -> str:
+    lines = [f"  on the recording, held-out force residual beyond J*x'' (% of the force, {r.rows} rows; "
+             f"J = {r.J:.4g} A*s^2/m):", f"    no compensator: {r.none_pct:.2f} %"]  # fmt: skip
+    lines += [f"    {name}: {pct:.2f} %" for name, pct in r.pct.items()]
+    return "\n".join(lines)
 
 
 def section_text(p: Proposal, base: Config, full: bool = False) -> str:
@@ -69,4 +103,4 @@ def format_summary(p: Proposal) -> str:
     return "\n".join(lines)
 
 
-__all__ = ["compensate", "format_summary", "section_text", "write"]
+__all__ = ["compensate", "format_residual", "format_summary", "on_recording", "section_text", "write"]
