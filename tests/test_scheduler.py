@@ -105,6 +105,10 @@ def run(cfg: Config, fast: bool, tmp_path, name: str):
          "compensator": {"coulomb": 1e-3, "coulomb_static": 1.5e-3, "coulomb_asymmetry": 0.2, "b_asymmetry": 0.3,
                          "periodic_amplitudes": [1e-4, 2e-5], "periodic_phases": [0.0, 1.0],
                          "kf_linear": 0.2, "kf_quadratic": -0.1}},
+        # the same with the authority acting: |u_c| clipped, kf(x) held near 1
+        {"drive": {"Fc": 1e-3, "Fs": 1.5e-3, "b_asymmetry": 0.3, "cogging": 1e-4, "kf_linear": 0.2},
+         "compensator": {"coulomb": 1e-3, "coulomb_static": 1.5e-3, "b_asymmetry": 0.3, "periodic_amplitudes": [1e-4],
+                         "periodic_phases": [0.0], "kf_linear": 0.2, "authority": 3.2e-3, "kf_authority": 1e-4}},
     ],
 )  # fmt: skip
 def test_fast_path_is_bit_identical_to_the_tick_path(changes, tmp_path):
@@ -116,6 +120,9 @@ def test_fast_path_is_bit_identical_to_the_tick_path(changes, tmp_path):
     assert np.array_equal(tick_log, fast_log)  # bit for bit, not approximately
     assert np.array_equal(tick_stats, fast_stats)
     assert np.ptp(tick_log[:, LOG_COLUMNS.index("x")]) > 1e-6  # something happened
+    if cfg.compensator.authority:  # and the bound acted, exactly at its value
+        uc = np.abs(tick_log[:, LOG_COLUMNS.index("u_c")])
+        assert uc.max() == cfg.compensator.authority and np.mean(uc == cfg.compensator.authority) > 0.01
 
 
 def test_reruns_are_bit_identical_and_seeds_matter(tmp_path):
