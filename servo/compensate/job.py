@@ -20,14 +20,15 @@ from servo.config import Config, to_toml
 from servo.io.atomic import atomic_write
 
 
-def compensate(source: str | Path, base: Config, paper: bool = False, force_constant: float | None = None,
+def compensate(source: str | Path | dict, base: Config, paper: bool = False, force_constant: float | None = None,
                authority: float | None = None) -> Proposal:  # fmt: skip
-    """The compensator for the model of ``source`` on the config ``base`` (see
+    """The compensator for the model of ``source`` (a file, or a report/summary dict:
+    :func:`~servo.compensate.model.read_model`) on the config ``base`` (see
     :func:`servo.compensate.propose.propose`)."""
     return propose(read_model(source, base), base, paper, force_constant, authority)
 
 
-def on_recording(source: str | Path, base: Config, rec, force_constant: float | None = None,
+def on_recording(source: str | Path | dict, base: Config, rec, force_constant: float | None = None,
                  authority: float | None = None, test_fraction: float = 0.25) -> Residual:  # fmt: skip
     """The held-out force residual each compensator of ``source`` leaves on ``rec``
     (:mod:`servo.compensate.residual`): the paper's (eq. 9 only), the augmented one, and

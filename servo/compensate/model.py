@@ -117,9 +117,14 @@ def _from_config(p: Path) -> SourceModel:
     return SourceModel(str(p), "config", drive, physics, "A", None, d.stroke)
 
 
-def read_model(path: str | Path, base: Config) -> SourceModel:
+def read_model(path: str | Path | dict, base: Config) -> SourceModel:
     """The model of ``path`` (a diagnose ``report.json``, an identify ``summary.json`` or a
-    servo config ``.toml``); ``base`` supplies what a source lacks (see module doc)."""
+    servo config ``.toml``; or the dict of such a JSON, e.g.
+    ``servo.diagnose.report.build_report(D)``); ``base`` supplies what a source lacks (see
+    module doc)."""
+    if isinstance(path, dict):
+        name = Path("<report>" if "final_model" in path else "<summary>")
+        return _from_report(name, path) if "final_model" in path else _from_summary(name, path, base)
     p = Path(path)
     if not p.exists():
         raise CompensateError(f"{p}: no such file")
