@@ -66,31 +66,9 @@ def _fixed(physics: str, params: dict) -> Term:
 
 
 def drive_terms(d: DriveConfig) -> Model:
-    """The fixed terms of a simulated drive's physics (``servo.config.DriveConfig``)."""
-    terms = [
-        _fixed("inertia", {"J": d.J}),
-        _fixed("viscous_friction", {"B": d.B}),
-        _fixed("coulomb_friction", {"Fc": d.Fc if d.Fs > 0 else 0.0}),
-        _fixed("stiffness", {"K": d.K}),
-        _fixed("offset", {"h0": d.h0}),
-    ]
-    if d.b_asymmetry:
-        terms.append(_fixed("asymmetric_friction", {"dB": d.B * d.b_asymmetry}))
-    if d.Fs > d.Fc and d.Fs > 0:
-        terms.append(_fixed("stribeck_friction", {"dFs": d.Fs - d.Fc, "stribeck_velocity": d.stribeck_velocity}))
-    if d.Ha > 1e-9 * max(abs(d.h0), d.Fc, 1e-30):
-        terms.append(Term.make("hysteresis", {"dahl_length": d.Ha / d.sigma, "alpha": d.alpha}, (d.Ha,)))
-    for f, z, g in zip(d.mode_hz, d.mode_zeta, d.mode_gain):
-        terms.append(_fixed("resonance", {"frequency_hz": f, "zeta": z, "gain": g}))
-    if d.input_delay_s > 0:
-        terms.append(_fixed("time_delay", {"delay_s": d.input_delay_s}))
-    if d.kf_linear or d.kf_quadratic:
-        terms.append(_fixed("position_dependent_gain", {"kf_linear": d.kf_linear / d.stroke,
-                                                        "kf_quadratic": d.kf_quadratic / d.stroke**2}))  # fmt: skip
-    if d.cogging:
-        terms.append(_fixed("cogging", {"amplitude": d.cogging, "period": d.cogging_period, "phase": d.cogging_phase}))
-    terms.append(_fixed("input_saturation", {"level": d.current_limit}))
-    return Model(terms)
+    """The fixed terms of a simulated drive's physics (``servo.config.DriveConfig``):
+    each vocabulary term as the drive has it (:meth:`~servo.diagnose.terms.Physics.from_drive`)."""
+    return Model([Term.make(phys.name, theta, coef) for phys in VOCABULARY.values() for theta, coef in phys.from_drive(d)])
 
 
 def _basic_complete(model: Model) -> Model:

@@ -19,12 +19,13 @@ with much of it) absorb what they can.
 """
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
 from scipy import signal
 
 from servo.config import Config
+from servo.diagnose.terms import VOCABULARY, Effect
 from servo.experiments.sim import simulate
 from servo.io.recording import Recording
 
@@ -37,61 +38,12 @@ NULL_DRIVE = dict(
 DEFAULT_BASELINE = "J,B,Fc,K,h0"
 
 
-@dataclass(frozen=True)
-class Effect:
-    """One concealed effect: the ``physics`` a diagnosis should name, the drive fields it
-    sets at a ``size`` (in ``unit``), the baseline to diagnose with, the sizes of the
-    detection study and a clearly detectable size for the tests."""
-
-    physics: str
-    unit: str
-    what: str
-    sizes: tuple
-    clear: float
-    baseline: str = DEFAULT_BASELINE
-    fixed: dict = field(default_factory=dict)
-
-    def drive(self, size: float) -> dict:
-        return {**self.fixed, **_SETTERS[self.physics](size)}
-
-
-_SETTERS = {
-    "coulomb_friction": lambda s: {"Fc": s, "Fs": s},
-    "viscous_friction": lambda s: {"B": s},
-    "stiffness": lambda s: {"K": s},
-    "offset": lambda s: {"h0": s},
-    "asymmetric_friction": lambda s: {"b_asymmetry": s, "fc_asymmetry": s},
-    "stribeck_friction": lambda s: {"Fs": NULL_DRIVE["Fc"] + s},
-    "hysteresis": lambda s: {"Ha": s, "sigma": s / 3e-6},
-    "resonance": lambda s: {"mode_hz": [700.0], "mode_zeta": [0.02], "mode_gain": [s]},
-    "time_delay": lambda s: {"input_delay_s": s},
-    "input_saturation": lambda s: {},  # set from a first run: see concealed_recording
-    "position_dependent_gain": lambda s: {"kf_linear": s},
-    "cogging": lambda s: {"cogging": s, "cogging_period": 50e-6},
-    "quantization": lambda s: {"position_quantum": s},
-}
-
-EFFECTS = {
-    "coulomb_friction": Effect("coulomb_friction", "A", "Fc = Fs (Coulomb level)", (1e-6, 2e-6, 5e-6, 1e-5, 2e-5), 2e-4,
-                               baseline="J,B,K,h0", fixed={"Fc": 0.0, "Fs": 0.0}),
-    "viscous_friction": Effect("viscous_friction", "A*s/m", "B", (1e-5, 2e-5, 5e-5, 1e-4, 2e-4), 5e-3,
-                               baseline="J,Fc,K,h0", fixed={"B": 0.0}),
-    "stiffness": Effect("stiffness", "A/m", "K", (2e-3, 5e-3, 1e-2, 2e-2, 5e-2), 0.2, baseline="J,B,Fc,h0",
-                        fixed={"K": 0.0}),
-    "offset": Effect("offset", "A", "h0", (5e-6, 1e-5, 2e-5, 5e-5, 1e-4), 3e-4, baseline="J,B,Fc,K", fixed={"h0": 0.0}),
-    "asymmetric_friction": Effect("asymmetric_friction", "-", "fc_asymmetry = b_asymmetry", (0.01, 0.02, 0.05, 0.1, 0.2), 0.5),
-    "stribeck_friction": Effect("stribeck_friction", "A", "Fs - Fc (Stribeck velocity 2 mm/s)", (2e-5, 5e-5, 1e-4, 2e-4, 5e-4),
-                                5e-4, fixed={"stribeck_velocity": 2e-3}),
-    "hysteresis": Effect("hysteresis", "A", "Dahl Ha (Dahl length 3 um)", (1e-5, 2e-5, 5e-5, 1e-4, 2e-4), 1e-3),
-    "resonance": Effect("resonance", "-", "modal gain of a 700 Hz, zeta 0.02 mode", (2e-4, 5e-4, 1e-3, 2e-3, 5e-3), 0.05),
-    "time_delay": Effect("time_delay", "s", "input delay", (1e-6, 2e-6, 3e-6, 5e-6, 1e-5), 2e-5),
-    "input_saturation": Effect("input_saturation", "-", "fraction of the samples clipped",
-                               (0.002, 0.005, 0.01, 0.02, 0.05), 0.05),
-    "position_dependent_gain": Effect("position_dependent_gain", "-", "kf_linear (force-constant change at +15 mm)",
-                                      (0.02, 0.05, 0.1, 0.2, 0.5), 0.5),
-    "cogging": Effect("cogging", "A", "cogging amplitude (period 50 um)", (1e-6, 2e-6, 5e-6, 1e-5, 2e-5), 1e-4),
-    "quantization": Effect("quantization", "m", "position quantum", (5e-9, 1e-8, 2e-8, 5e-8, 1e-7), 5e-8),
-}  # fmt: skip
+#: the effects of the study, in the order its tables list them: each term's own
+#: :attr:`~servo.diagnose.terms.Physics.effect` (its sizes, its baseline, its drive fields)
+EFFECTS = {name: VOCABULARY[name].effect for name in (
+    "coulomb_friction", "viscous_friction", "stiffness", "offset", "asymmetric_friction", "stribeck_friction",
+    "hysteresis", "resonance", "time_delay", "input_saturation", "position_dependent_gain", "cogging", "quantization",
+)}  # fmt: skip
 
 
 @dataclass(frozen=True)

@@ -42,12 +42,7 @@ class Fit:
         phys = VOCABULARY[t.physics]
         out = {n: float(s) for n, s in zip(phys.coefs, self.std[i])}
         out.update(self.theta_std[i])
-        if t.physics == "hysteresis" and "Ha" in out and "dahl_length" in out:
-            p = self.term_params(i)
-            out["sigma"] = float(p["sigma"] * np.hypot(out["Ha"] / p["Ha"] if p["Ha"] else 0,
-                                                        out["dahl_length"] / p["dahl_length"]))  # fmt: skip
-        if t.physics == "cogging" and self.std[i]:
-            out["amplitude"] = float(np.hypot(*self.std[i]) / np.sqrt(2))
+        out.update(phys.std_extra(self.term_params(i), out))
         return out
 
     def combined(self) -> dict:
@@ -61,6 +56,19 @@ class Fit:
             else:
                 out[t.physics] = p
         return out
+
+    def drive(self) -> dict:
+        """The model as the simulated drive's ``[drive]`` fields (force unit, m, s), each
+        term's own (:meth:`~servo.diagnose.terms.Physics.to_drive`), the ``absent``
+        values of the terms it lacks; not validated (a fitted ``B`` may be negative)."""
+        P = self.combined()
+        d: dict = {}
+        for phys in VOCABULARY.values():
+            d.update(phys.absent)
+        for phys in VOCABULARY.values():  # vocabulary order: a Stribeck term after the Coulomb one
+            if phys.name in P:
+                d.update(phys.to_drive(P, self))
+        return d
 
     def contribution(self, design: Design, i: int) -> np.ndarray:
         """Rows (m,) of term ``i``'s part of the force (zero for an input term)."""

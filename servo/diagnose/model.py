@@ -22,6 +22,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from servo.diagnose.signals import Signals
+from servo.diagnose.terms import VOCABULARY
 
 
 @dataclass(frozen=True)
@@ -73,13 +74,9 @@ class Model:
         return Model([t for t in self.terms if t.physics != physics])
 
     def input_terms(self) -> list:
-        from servo.diagnose.terms import VOCABULARY
-
         return [t for t in self.terms if VOCABULARY[t.physics].kind == "input"]
 
     def column_terms(self) -> list:
-        from servo.diagnose.terms import VOCABULARY
-
         return [t for t in self.terms if VOCABULARY[t.physics].kind == "column"]
 
 
@@ -111,8 +108,6 @@ class Design:
     def u_eff(self, model: Model, extra: Term | None = None) -> np.ndarray:
         """The force that reaches the arm (n,): the recording's input through the model's
         input terms (and ``extra``): saturation first, then the delay, as in the drive."""
-        from servo.diagnose.terms import VOCABULARY
-
         terms = model.input_terms() + ([extra] if extra is not None else [])
         key = tuple(sorted((t.physics, t.theta) for t in terms))
         if not key:
@@ -144,18 +139,18 @@ class Design:
 
     def term_rows(self, term: Term, model: Model) -> np.ndarray:
         """Rows of the columns of ``term`` (m, k) under ``model``'s input."""
-        from servo.diagnose.terms import VOCABULARY
-
         phys = VOCABULARY[term.physics]
         key = (term.physics, term.theta) + (self.input_key(model) if phys.uses_input else ())
         return self.cached_rows(key, lambda: phys.rows(self, term.params, self.u_eff(model)))
+
+    def variant_rows(self, physics: str, theta: dict, model: Model) -> np.ndarray:
+        """:meth:`term_rows` of the vocabulary term ``physics`` at ``theta``."""
+        return self.term_rows(Term.make(physics, theta), model)
 
     def matrix(self, model: Model, extra: Term | None = None) -> tuple[np.ndarray, np.ndarray, list]:
         """``(y, Phi, names)``: the target (force minus the fixed terms, (m,)), the free
         columns (m, p) and their ``(physics, coefficient)`` names.  ``extra`` is an input
         term tried on top of the model (the columns are not recomputed for it)."""
-        from servo.diagnose.terms import VOCABULARY
-
         y = self.target_raw(model, extra).copy()
         cols, names = [], []
         for t in model.column_terms():

@@ -8,7 +8,7 @@ from pathlib import Path
 
 import numpy as np
 
-from servo.config import MAGNITUDE_MAX, from_dict, to_toml
+from servo.config import from_dict, to_toml
 from servo.diagnose.band import band_hz
 from servo.diagnose.fit import Fit
 from servo.diagnose.job import Diagnosis, Finding
@@ -69,44 +69,7 @@ def finding_dict(f: Finding, fu: str) -> dict:
 def drive_section(fit: Fit, lattice_step: float | None) -> tuple[dict | None, str]:
     """The final model as a ``[drive]`` section of a servo config (A, m), validated by
     :func:`servo.config.from_dict`; ``(None, why)`` when it is not a valid drive."""
-    p = fit.combined()
-    stroke = 0.015
-    d = {
-        "J": p.get("inertia", {}).get("J", 0.0), "B": p.get("viscous_friction", {}).get("B", 0.0),
-        "K": p.get("stiffness", {}).get("K", 0.0), "h0": p.get("offset", {}).get("h0", 0.0),
-        "mode_hz": [], "mode_zeta": [], "mode_gain": [], "input_delay_s": 0.0, "position_quantum": lattice_step or 0.0,
-    }  # fmt: skip
-    Fc = p.get("coulomb_friction", {}).get("Fc", 0.0)
-    d["Fc"] = Fc
-    d["Fs"] = Fc + p.get("stribeck_friction", {}).get("dFs", 0.0)
-    if "stribeck_friction" in p:
-        d["stribeck_velocity"] = p["stribeck_friction"]["stribeck_velocity"]
-    if "asymmetric_friction" in p and d["B"]:
-        d["b_asymmetry"] = p["asymmetric_friction"]["dB"] / d["B"]
-    hy = p.get("hysteresis")
-    if hy and hy["Ha"] > 0:
-        d["Ha"], d["sigma"] = hy["Ha"], hy["sigma"]
-        d["alpha"] = fit.model.get("hysteresis").params.get("alpha", 1.0)
-    else:
-        d["Ha"], d["sigma"] = 1e-12, 1e-12
-    if "cogging" in p:
-        c = p["cogging"]
-        d["cogging"], d["cogging_period"] = c["amplitude"], c["period"]
-        d["cogging_phase"] = (c["phase"] + math.pi) % (2 * math.pi) - math.pi
-    if "position_dependent_gain" in p:
-        g = p["position_dependent_gain"]
-        d["kf_linear"], d["kf_quadratic"], d["stroke"] = g["kf_linear"] * stroke, g["kf_quadratic"] * stroke**2, stroke
-    for i, t in enumerate(fit.model.terms):
-        if t.physics == "resonance":
-            q = fit.term_params(i)
-            d["mode_hz"].append(q["frequency_hz"])
-            d["mode_zeta"].append(q["zeta"])
-            d["mode_gain"].append(q["gain"])
-    if "time_delay" in p:
-        d["input_delay_s"] = p["time_delay"]["delay_s"]
-    # without a saturation finding the model has no limit: the config's largest magnitude
-    # (its default, 1 A, would clip a recording in N when the file is held against it)
-    d["current_limit"] = p["input_saturation"]["level"] if "input_saturation" in p else MAGNITUDE_MAX
+    d = {**fit.drive(), "position_quantum": lattice_step or 0.0}
     d = {k: (float(v) if not isinstance(v, list) else [float(x) for x in v]) for k, v in d.items()}
     try:
         from_dict({"drive": d})

@@ -12,8 +12,9 @@ estimated at ``k`` and stepped ``horizon`` samples under the recorded input:
 * the modes (hidden too): driven by the recorded input from the start of the recording.
 
 The model's drive is the simulated drive's own kernel (:func:`kernels.plant.plant_step`)
-with the fitted parameters: every vocabulary term maps onto a field of the drive (the
-input terms are applied to the input beforehand: clipped, then delayed).  The error is
+with the fitted parameters: every vocabulary term maps onto a field of the drive
+(:meth:`~servo.diagnose.terms.Physics.to_drive`; the input terms are applied to the
+input beforehand: clipped, then delayed).  The error is
 normalised by what the force model has to explain, the motion that is not coasting::
 
     NRMSE = ||x_meas[k+i] - x_pred[k+i]|| / ||x_meas[k+i] - xf[k] - vf[k]*i*dt||
@@ -67,46 +68,34 @@ class Unsimulable(Exception):
 
 def drive_params(fit: Fit, design: Design) -> tuple[np.ndarray, dict]:
     """The :data:`~kernels.plant.PLANT_PARAMS` record of a fitted model and its modes
-    (``{"hz", "zeta", "gain"}``).  Raises :class:`Unsimulable` without a positive ``J``."""
-    p = fit.combined()
+    (``{"hz", "zeta", "gain"}``): the model's ``[drive]`` fields (:meth:`Fit.drive`, each
+    term's own) on the plant, with no stops, no limit, no delay (the input terms are
+    applied beforehand), no noise.  Raises :class:`Unsimulable` without a positive ``J``."""
+    d = fit.drive()
     sig = design.sig
-    J = p.get("inertia", {}).get("J", 0.0)
+    J = d["J"]
     if not J > 0:
         raise Unsimulable("the model has no positive inertia J: its output cannot be simulated")
-    B = p.get("viscous_friction", {}).get("B", 0.0)
-    Fc = p.get("coulomb_friction", {}).get("Fc", 0.0)
-    dB = p.get("asymmetric_friction", {}).get("dB", 0.0)
-    st = p.get("stribeck_friction", {})
-    hy = p.get("hysteresis", {})
-    cg = p.get("cogging", {})
-    kf = p.get("position_dependent_gain", {})
-    stroke = 10.0 * float(np.max(np.abs(sig.x))) + 1.0
+    stroke = 10.0 * float(np.max(np.abs(sig.x))) + 1.0  # stops the motion never reaches
     rec = np.zeros(1, PLANT_PARAMS)
-    Fs = Fc + st.get("dFs", 0.0)
-    Ha = hy.get("Ha", 0.0)
+    Fc = d["Fc"]
+    dahl = has_dahl(fit)
     # no Dahl element: a negligible one that never saturates (Dahl length 1 m), since
     # the plant's closed form overflows for a saturated element of vanishing length
     Ha_off = 1e-12 * max(float(np.max(np.abs(sig.u))), TINY)
+    kf_scale = stroke / d.get("stroke", stroke)  # the plant's kf fields are the changes at its stroke
     vals = dict(
-        J=J, B=B, b_asym=dB / B if B else 0.0, Fc=Fc, Fs=max(Fs, 0.0) if Fc > 0 else 0.0, fc_asym=0.0,
-        vs=st.get("stribeck_velocity", 1.0), sigma=Ha / hy["dahl_length"] if Ha > 0 else Ha_off,
-        Ha=Ha if Ha > 0 else Ha_off, alpha=fit.model.get("hysteresis").params.get("alpha", 1.0) if Ha > 0 else 1.0,
-        K=p.get("stiffness", {}).get("K", 0.0), h0=p.get("offset", {}).get("h0", 0.0),
-        cog_amp=cg.get("amplitude", 0.0), cog_period=cg.get("period", 1.0), cog_phase=cg.get("phase", 0.0),
-        kf1=kf.get("kf_linear", 0.0) * stroke, kf2=kf.get("kf_quadratic", 0.0) * stroke**2, stroke=stroke,
+        J=J, B=d["B"], b_asym=d.get("b_asymmetry", 0.0), Fc=Fc, Fs=max(d["Fs"], 0.0) if Fc > 0 else 0.0, fc_asym=0.0,
+        vs=d.get("stribeck_velocity", 1.0), sigma=d["sigma"] if dahl else Ha_off, Ha=d["Ha"] if dahl else Ha_off,
+        alpha=d.get("alpha", 1.0) if dahl else 1.0, K=d["K"], h0=d["h0"],
+        cog_amp=d.get("cogging", 0.0), cog_period=d.get("cogging_period", 1.0), cog_phase=d.get("cogging_phase", 0.0),
+        kf1=d.get("kf_linear", 0.0) * kf_scale, kf2=d.get("kf_quadratic", 0.0) * kf_scale**2, stroke=stroke,
         u_max=1e300, dt=sig.dt, delay_frac=0.0, delay_whole=0.0, n_sub=2.0, noise_x=0.0, noise_v=0.0,
         quantum=0.0, has_velocity=0.0,
     )  # fmt: skip
     for k, v in vals.items():
         rec[k] = v
-    modes = {"hz": [], "zeta": [], "gain": []}
-    for i, t in enumerate(fit.model.terms):
-        if t.physics == "resonance":
-            q = fit.term_params(i)
-            modes["hz"].append(q["frequency_hz"])
-            modes["zeta"].append(q["zeta"])
-            modes["gain"].append(q["gain"])
-    return rec, modes
+    return rec, {"hz": d["mode_hz"], "zeta": d["mode_zeta"], "gain": d["mode_gain"]}
 
 
 def has_dahl(fit: Fit) -> bool:

@@ -17,15 +17,24 @@ model)`` the nonlinear parameters a diagnosis tries (``[{}]`` for a linear term)
 ``screen(design, theta, model)`` a fast approximation of the rows used to scan large
 grids; ``bounds`` for the final refinement; ``physical``/``from_physical`` between the
 internal ``(theta, coef)`` and the reported parameters.
+
+Each term also owns what the rest of the tool needs to know about it: ``to_drive`` /
+``absent`` / ``from_drive`` its fields in the simulated drive's ``[drive]`` section (the
+final model written as a config, its short-horizon simulation, a drive config held as a
+model file), ``std_extra`` the uncertainty of its derived parameters, and ``effect`` /
+``conceal`` how the concealed-effect study (:mod:`servo.diagnose.concealed`) puts it into
+a drive.  Adding a term is one class here and one entry in :data:`VOCABULARY`.
 """
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass, field
 
 import numpy as np
 from scipy import signal
 
 from kernels.hysteresis import dahl_trace
+from servo.config import MAGNITUDE_MAX
 
 #: every physics name a finding can carry, in the order the docs list them
 NAMES = (
@@ -33,6 +42,26 @@ NAMES = (
     "stribeck_friction", "hysteresis", "resonance", "time_delay", "input_saturation",
     "position_dependent_gain", "cogging", "quantization",
 )  # fmt: skip
+
+
+@dataclass(frozen=True)
+class Effect:
+    """How the concealed-effect study (:mod:`servo.diagnose.concealed`) hides a term in the
+    null drive: the ``physics`` a diagnosis should name, the size's ``unit`` and meaning
+    (``what``), the sizes of the detection study, a clearly detectable size for the tests,
+    the baseline to diagnose with and drive fields ``fixed`` at every size."""
+
+    physics: str
+    unit: str
+    what: str
+    sizes: tuple
+    clear: float
+    baseline: str = "J,B,Fc,K,h0"
+    fixed: dict = field(default_factory=dict)
+
+    def drive(self, size: float) -> dict:
+        """The ``[drive]`` fields of the effect at ``size``."""
+        return {**self.fixed, **VOCABULARY[self.physics].conceal(size)}
 
 
 class Physics:
@@ -57,7 +86,7 @@ class Physics:
         return np.column_stack([d.sig.rows(np.ascontiguousarray(F[:, j])) for j in range(F.shape[1])])
 
     def screen(self, d, theta: dict, model) -> np.ndarray:
-        return d.term_rows(_term(self.name, theta), model)
+        return d.variant_rows(self.name, theta, model)
 
     def screen_batch(self, d, thetas: list, model) -> np.ndarray:
         """Approximate rows of several variants at once, (J, k, m)."""
@@ -103,11 +132,31 @@ class Physics:
     def unit(self, name: str, force_unit: str) -> str:
         return self.units.get(name, "-").replace("F", force_unit)
 
+    def std_extra(self, params: dict, std: dict) -> dict:
+        """Std of the derived reported parameters (``std`` holds the fitted ones')."""
+        return {}
 
-def _term(name, theta):
-    from servo.diagnose.model import Term
+    # ---- the simulated drive (servo.config.DriveConfig) ----------------------------
+    #: its ``[drive]`` fields when a model lacks the term
+    absent: dict = {}
 
-    return Term.make(name, theta)
+    def to_drive(self, P: dict, fit) -> dict:
+        """Its ``[drive]`` fields (force unit, m, s) in a fitted model: ``P`` is
+        ``fit.combined()`` (every term's reported parameters), ``fit`` the
+        :class:`~servo.diagnose.fit.Fit`."""
+        return {}
+
+    def from_drive(self, d) -> list:
+        """The term as a simulated drive ``d`` (``DriveConfig``) has it: ``(theta, coef)``
+        pairs (fixed coefficients), ``[]`` when the drive lacks it."""
+        return []
+
+    # ---- the concealed-effect study ------------------------------------------------
+    effect: Effect | None = None
+
+    def conceal(self, size: float) -> dict:
+        """The ``[drive]`` fields that put this term into the null drive at ``size``."""
+        raise NotImplementedError
 
 
 def _geom(lo: float, hi: float, per_decade: float) -> np.ndarray:
@@ -126,6 +175,13 @@ def _valid_speed(d) -> np.ndarray:
 # ------------------------------------------------------------------ rigid-body terms
 class Inertia(Physics):
     name, coefs, units = "inertia", ("J",), {"J": "F*s^2/m"}
+    absent = {"J": 0.0}
+
+    def to_drive(self, P, fit):
+        return {"J": P[self.name]["J"]}
+
+    def from_drive(self, d):
+        return [({}, (d.J,))]
     doc = "inertia J*x''"
 
     def full(self, d, theta, u_eff):
@@ -134,6 +190,18 @@ class Inertia(Physics):
 
 class Viscous(Physics):
     name, coefs, units = "viscous_friction", ("B",), {"B": "F*s/m"}
+    absent = {"B": 0.0}
+    effect = Effect("viscous_friction", "A*s/m", "B", (1e-5, 2e-5, 5e-5, 1e-4, 2e-4), 5e-3, baseline="J,Fc,K,h0",
+                    fixed={"B": 0.0})  # fmt: skip
+
+    def to_drive(self, P, fit):
+        return {"B": P[self.name]["B"]}
+
+    def from_drive(self, d):
+        return [({}, (d.B,))]
+
+    def conceal(self, size):
+        return {"B": size}
     doc = "viscous friction B*x'"
     POSITIVE = {"B": "the force grows against the motion: negative damping, not friction"}
 
@@ -143,6 +211,19 @@ class Viscous(Physics):
 
 class Coulomb(Physics):
     name, coefs, units = "coulomb_friction", ("Fc",), {"Fc": "F"}
+    absent = {"Fc": 0.0, "Fs": 0.0}
+    effect = Effect("coulomb_friction", "A", "Fc = Fs (Coulomb level)", (1e-6, 2e-6, 5e-6, 1e-5, 2e-5), 2e-4,
+                    baseline="J,B,K,h0", fixed={"Fc": 0.0, "Fs": 0.0})  # fmt: skip
+
+    def to_drive(self, P, fit):
+        Fc = P[self.name]["Fc"]
+        return {"Fc": Fc, "Fs": Fc}  # exact sticking; a Stribeck term raises Fs
+
+    def from_drive(self, d):
+        return [({}, (d.Fc if d.Fs > 0 else 0.0,))]
+
+    def conceal(self, size):
+        return {"Fc": size, "Fs": size}
     doc = "Coulomb friction Fc*sgn(x')"
     POSITIVE = {"Fc": "a force pushing along the motion: not friction"}
 
@@ -152,6 +233,17 @@ class Coulomb(Physics):
 
 class Stiffness(Physics):
     name, coefs, units = "stiffness", ("K",), {"K": "F/m"}
+    absent = {"K": 0.0}
+    effect = Effect("stiffness", "A/m", "K", (2e-3, 5e-3, 1e-2, 2e-2, 5e-2), 0.2, baseline="J,B,Fc,h0", fixed={"K": 0.0})
+
+    def to_drive(self, P, fit):
+        return {"K": P[self.name]["K"]}
+
+    def from_drive(self, d):
+        return [({}, (d.K,))]
+
+    def conceal(self, size):
+        return {"K": size}
     doc = "stiffness K*x (flex-cable bias, pivot's average slope)"
 
     def full(self, d, theta, u_eff):
@@ -160,6 +252,17 @@ class Stiffness(Physics):
 
 class Offset(Physics):
     name, coefs, units = "offset", ("h0",), {"h0": "F"}
+    absent = {"h0": 0.0}
+    effect = Effect("offset", "A", "h0", (5e-6, 1e-5, 2e-5, 5e-5, 1e-4), 3e-4, baseline="J,B,Fc,K", fixed={"h0": 0.0})
+
+    def to_drive(self, P, fit):
+        return {"h0": P[self.name]["h0"]}
+
+    def from_drive(self, d):
+        return [({}, (d.h0,))]
+
+    def conceal(self, size):
+        return {"h0": size}
     doc = "constant force h0"
 
     def full(self, d, theta, u_eff):
@@ -174,6 +277,17 @@ class Asymmetric(Physics):
            "and is reported in the offset")  # fmt: skip
     requires = ("viscous_friction", "coulomb_friction", "offset")
 
+    effect = Effect("asymmetric_friction", "-", "fc_asymmetry = b_asymmetry", (0.01, 0.02, 0.05, 0.1, 0.2), 0.5)
+
+    def to_drive(self, P, fit):
+        B = P.get("viscous_friction", {}).get("B", 0.0)
+        return {"b_asymmetry": P[self.name]["dB"] / B} if B else {}
+
+    def from_drive(self, d):
+        return [({}, (d.B * d.b_asymmetry,))] if d.b_asymmetry else []
+
+    def conceal(self, size):
+        return {"b_asymmetry": size, "fc_asymmetry": size}
     def full(self, d, theta, u_eff):
         return np.abs(d.sig.vf)
 
@@ -184,6 +298,20 @@ class Stribeck(Physics):
     doc = "Stribeck friction (Fs - Fc)*exp(-(x'/vs)^2)*sgn(x'): higher friction at low speed"
     requires = ("coulomb_friction",)
 
+    effect = Effect("stribeck_friction", "A", "Fs - Fc (Stribeck velocity 2 mm/s)",
+                    (2e-5, 5e-5, 1e-4, 2e-4, 5e-4), 5e-4, fixed={"Fc": 1e-3, "stribeck_velocity": 2e-3})  # fmt: skip
+
+    def to_drive(self, P, fit):
+        p = P[self.name]
+        return {"Fs": P.get("coulomb_friction", {}).get("Fc", 0.0) + p["dFs"], "stribeck_velocity": p["stribeck_velocity"]}
+
+    def from_drive(self, d):
+        if d.Fs > d.Fc and d.Fs > 0:
+            return [({"stribeck_velocity": d.stribeck_velocity}, (d.Fs - d.Fc,))]
+        return []
+
+    def conceal(self, size):
+        return {"Fs": self.effect.fixed["Fc"] + size}
     def implausible(self, params: dict) -> str:
         if params["dFs"] < 0:
             return (f"the best fit has dFs = {params['dFs']:.3g} < 0: friction lower at low speed than sliding, a "
@@ -212,6 +340,29 @@ class Hysteresis(Physics):
            "reversal, asymptote +-Ha, Dahl length Ha/sigma")  # fmt: skip
     requires = ("coulomb_friction",)
 
+    #: no Dahl element: a negligible one (1e-12 A over a Dahl length of 1 m)
+    absent = {"Ha": 1e-12, "sigma": 1e-12}
+    effect = Effect("hysteresis", "A", "Dahl Ha (Dahl length 3 um)", (1e-5, 2e-5, 5e-5, 1e-4, 2e-4), 1e-3)
+
+    def to_drive(self, P, fit):
+        p = P[self.name]
+        if not p["Ha"] > 0:
+            return dict(self.absent)
+        return {"Ha": p["Ha"], "sigma": p["sigma"], "alpha": fit.model.get(self.name).params.get("alpha", 1.0)}
+
+    def from_drive(self, d):
+        if d.Ha > 1e-9 * max(abs(d.h0), d.Fc, 1e-30):
+            return [({"dahl_length": d.Ha / d.sigma, "alpha": d.alpha}, (d.Ha,))]
+        return []
+
+    def conceal(self, size):
+        return {"Ha": size, "sigma": size / 3e-6}
+
+    def std_extra(self, params, std):
+        if "Ha" in std and "dahl_length" in std:
+            rel = np.hypot(std["Ha"] / params["Ha"] if params["Ha"] else 0, std["dahl_length"] / params["dahl_length"])
+            return {"sigma": float(params["sigma"] * rel)}
+        return {}
     def implausible(self, params: dict) -> str:
         if params["Ha"] < 0:
             return f"the best fit has Ha = {params['Ha']:.3g} < 0: a force released after a reversal, not a Dahl friction"
@@ -253,6 +404,24 @@ class Resonance(Physics):
     ZETA_MAX = 0.1  # a lightly damped mode
     MAX_MODES = 4
 
+    absent = {"mode_hz": [], "mode_zeta": [], "mode_gain": []}
+    effect = Effect("resonance", "-", "modal gain of a 700 Hz, zeta 0.02 mode", (2e-4, 5e-4, 1e-3, 2e-3, 5e-3), 0.05)
+
+    def to_drive(self, P, fit):
+        d = {"mode_hz": [], "mode_zeta": [], "mode_gain": []}
+        for i, t in enumerate(fit.model.terms):  # every mode, not their sum
+            if t.physics == self.name:
+                q = fit.term_params(i)
+                d["mode_hz"].append(q["frequency_hz"])
+                d["mode_zeta"].append(q["zeta"])
+                d["mode_gain"].append(q["gain"])
+        return d
+
+    def from_drive(self, d):
+        return [({"frequency_hz": f, "zeta": z}, (g,)) for f, z, g in zip(d.mode_hz, d.mode_zeta, d.mode_gain)]
+
+    def conceal(self, size):
+        return {"mode_hz": [700.0], "mode_zeta": [0.02], "mode_gain": [size]}
     def eligible(self, model):
         n = sum(t.physics == self.name for t in model.terms)
         return None if n < self.MAX_MODES else f"{n} modes already in the model"
@@ -305,6 +474,17 @@ class TimeDelay(Physics):
     name, kind, thetas, units = "time_delay", "input", ("delay_s",), {"delay_s": "s"}
     doc = "the input reaches the arm delay_s later than recorded (negative: the log lags the motion)"
 
+    absent = {"input_delay_s": 0.0}
+    effect = Effect("time_delay", "s", "input delay", (1e-6, 2e-6, 3e-6, 5e-6, 1e-5), 2e-5)
+
+    def to_drive(self, P, fit):
+        return {"input_delay_s": P[self.name]["delay_s"]}
+
+    def from_drive(self, d):
+        return [({"delay_s": d.input_delay_s}, ())] if d.input_delay_s > 0 else []
+
+    def conceal(self, size):
+        return {"input_delay_s": size}
     @staticmethod
     def transform(u, theta, dt):
         k = np.arange(u.size, dtype=float)
@@ -330,6 +510,19 @@ class Saturation(Physics):
     QUANTILES = (0.9, 0.95, 0.97, 0.98, 0.99, 0.995, 0.998)
     MIN_CLIPPED = 10  # samples
 
+    # without a saturation the model has no limit: the config's largest magnitude (its
+    # default, 1 A, would clip a recording in N when the file is held against it)
+    absent = {"current_limit": MAGNITUDE_MAX}
+    effect = Effect("input_saturation", "-", "fraction of the samples clipped", (0.002, 0.005, 0.01, 0.02, 0.05), 0.05)
+
+    def to_drive(self, P, fit):
+        return {"current_limit": P[self.name]["level"]}
+
+    def from_drive(self, d):
+        return [({"level": d.current_limit}, ())]
+
+    def conceal(self, size):
+        return {}  # the level that clips a fraction `size`: set from a first run (concealed_recording)
     @staticmethod
     def transform(u, theta, dt):
         return np.clip(u, -theta["level"], theta["level"])
@@ -354,6 +547,21 @@ class PositionGain(Physics):
     doc = "force constant varying over the stroke: the arm gets kf(x)*u, kf = 1 + kf_linear*x + kf_quadratic*x^2"
     uses_input = True
 
+    STROKE = 0.015  # m: the drive's kf fields are the changes at this stroke
+    effect = Effect("position_dependent_gain", "-", "kf_linear (force-constant change at +15 mm)",
+                    (0.02, 0.05, 0.1, 0.2, 0.5), 0.5)  # fmt: skip
+
+    def to_drive(self, P, fit):
+        g, s = P[self.name], self.STROKE
+        return {"kf_linear": g["kf_linear"] * s, "kf_quadratic": g["kf_quadratic"] * s**2, "stroke": s}
+
+    def from_drive(self, d):
+        if d.kf_linear or d.kf_quadratic:
+            return [({}, (d.kf_linear / d.stroke, d.kf_quadratic / d.stroke**2))]
+        return []
+
+    def conceal(self, size):
+        return {"kf_linear": size}
     def full(self, d, theta, u_eff):
         ua = d.sig.force(u_eff)
         x = d.sig.xf
@@ -367,6 +575,25 @@ class Cogging(Physics):
     screening = True
     MAX_GRID = 3000
 
+    effect = Effect("cogging", "A", "cogging amplitude (period 50 um)", (1e-6, 2e-6, 5e-6, 1e-5, 2e-5), 1e-4)
+
+    def to_drive(self, P, fit):
+        c = P[self.name]
+        return {"cogging": c["amplitude"], "cogging_period": c["period"], "cogging_phase": c["phase"]}
+
+    def from_drive(self, d):
+        if not d.cogging:
+            return []
+        theta, coef = self.from_physical({"amplitude": d.cogging, "period": d.cogging_period, "phase": d.cogging_phase})
+        return [(theta, coef)]
+
+    def conceal(self, size):
+        return {"cogging": size, "cogging_period": 50e-6}
+
+    def std_extra(self, params, std):
+        if "a_sin" in std and "a_cos" in std:
+            return {"amplitude": float(np.hypot(std["a_sin"], std["a_cos"]) / np.sqrt(2))}
+        return {}
     def full(self, d, theta, u_eff):
         w = 2 * math.pi * d.sig.xf / theta["period"]
         return np.column_stack([np.sin(w), np.cos(w)])
@@ -426,6 +653,11 @@ class Quantization(Physics):
     name, kind, thetas, units = "quantization", "sensor", ("step",), {"step": "m", "offset": "m"}
     doc = "position sensor quantised to a lattice of step `step` (an encoder's count)"
 
+    absent = {"position_quantum": 0.0}  # a found lattice is a finding, not a fitted term
+    effect = Effect("quantization", "m", "position quantum", (5e-9, 1e-8, 2e-8, 5e-8, 1e-7), 5e-8)
+
+    def conceal(self, size):
+        return {"position_quantum": size}
     def eligible(self, model):
         return "a sensor effect: tested on its own (servo.diagnose.quantization)"
 
@@ -438,4 +670,4 @@ VOCABULARY = {
 #: the baseline terms of eq. (3) and the vocabulary term each is
 BASELINE_TERMS = {"J": "inertia", "B": "viscous_friction", "Fc": "coulomb_friction", "K": "stiffness", "h0": "offset"}
 
-__all__ = ["BASELINE_TERMS", "NAMES", "VOCABULARY", "Physics"]
+__all__ = ["BASELINE_TERMS", "NAMES", "VOCABULARY", "Effect", "Physics"]
