@@ -10,8 +10,9 @@ drive (``[drive]``)        compensator (``[compensator]``)
 =========================  =============================================================
 ``B``, ``K``, ``h0``       ``B``, ``K``, ``h0`` (eq. 9)
 ``sigma, Ha, alpha``       ``sigma, Ha, alpha`` (the Dahl element, eq. 6-7, with its
-                           turnaround memory) and ``Fc = Ha`` (its level in eq. 3's
-                           large-motion regime)
+                           turnaround memory), ``Fc = Ha`` (its level in eq. 3's
+                           large-motion regime) and ``fast_on_distance``: 4 Dahl
+                           lengths (:data:`SATURATED`) before that regime takes over
 ``b_asymmetry``            ``b_asymmetry``
 ``Fc, Fs, stribeck_velocity, fc_asymmetry``
                            ``coulomb, coulomb_static, stribeck_velocity,
@@ -57,6 +58,10 @@ MARGIN = 1.5
 U_FRACTION = 0.5
 #: a Dahl element below this fraction of the model's largest force is no Dahl element
 NEGLIGIBLE = 1e-6
+#: Dahl lengths after a turnaround before eq. (3)'s regime may take over: the Dahl
+#: estimate is then within exp(-4) = 2 % of its asymptote (the default config's 12.5 um
+#: over its 3.125 um Dahl length)
+SATURATED = 4.0
 
 
 @dataclass
@@ -102,13 +107,16 @@ def mirror(d: dict, paper: bool = False, dahl_length: float = 3.125e-6) -> list[
         level = (Ha if dahl else 0.0) + Fc  # one sliding level, as eq. (9) has
         length = Ha / sigma if dahl else dahl_length
         if level > 0:
-            keys = dict(Fc=level, Ha=level, sigma=level / length, alpha=alpha if dahl else 1.0)
+            keys = dict(Fc=level, Ha=level, sigma=level / length, alpha=alpha if dahl else 1.0,
+                        fast_on_distance=SATURATED * length)  # fmt: skip
         else:
             keys = dict(Fc=0.0, Ha=1e-12, sigma=1e-12, alpha=1.0)
         terms.append(Term("sliding friction (eq. 9: Coulomb and its Dahl element)", keys))
         return terms
-    terms.append(Term("Dahl hysteresis (eq. 6-7)" if dahl else "Dahl hysteresis: none in the model (the term off)",
-                      dict(sigma=sigma, Ha=Ha, alpha=alpha, Fc=Ha)))  # fmt: skip
+    keys = dict(sigma=sigma, Ha=Ha, alpha=alpha, Fc=Ha)
+    if dahl:
+        keys["fast_on_distance"] = SATURATED * Ha / sigma
+    terms.append(Term("Dahl hysteresis (eq. 6-7)" if dahl else "Dahl hysteresis: none in the model (the term off)", keys))
     if _f(d, "b_asymmetry"):
         terms.append(Term("asymmetric viscous friction", dict(b_asymmetry=_f(d, "b_asymmetry"))))
     if Fc > 0 or Fs > 0:
