@@ -155,10 +155,11 @@ def kf_change(c: dict) -> float:
 
 def loop_margins(cfg: Config) -> tuple[float | None, float | None, float | None]:
     """``(gain up dB, gain down dB, max|P*S| m/A)`` of the designed loop of ``cfg`` (its
-    controller on the compensated drive, eq. 10, with the drive's modes and delay): how much the loop gain may
-    rise (the smallest positive gain margin) and fall (the smallest negative one, a
-    conditionally stable loop: a double integrator under a lead has one) before the loop
-    is unstable; None where there is none or they cannot be computed."""
+    controller on the compensated drive, eq. 10, with the drive's modes and delay): how
+    much the loop gain may rise (the smallest positive gain margin) and fall (the
+    smallest negative one, a conditionally stable loop: a double integrator under a lead
+    has one) before the loop is unstable; None where there is none or they cannot be
+    computed."""
     from servo.loop.design import design_grid, loop_design
     from servo.loop.margins import margins
 
@@ -205,8 +206,7 @@ def propose(model: SourceModel, base: Config, paper: bool = False, force_constan
     for t in terms:
         section.update(t.keys)
     not_cancelled = [Term(name, advice=NOT_CANCELLABLE[name]) for name in dict.fromkeys(model.physics)
-                     if name in NOT_CANCELLABLE and (name != "input_saturation" or model.kind != "diagnosis"
-                                                     or _saturation_found(model))]  # fmt: skip
+                     if name in NOT_CANCELLABLE]  # fmt: skip
     speed = model.speed_max if model.speed_max else None
     position = model.position_max if model.position_max else base.drive.stroke
     largest = largest_force(section, speed, position) if speed is not None else None
@@ -227,11 +227,6 @@ def propose(model: SourceModel, base: Config, paper: bool = False, force_constan
         info.update(kf_model=a_model, kf_authority=a)
     from_dict({"compensator": section})  # every value within its declared range, or ConfigError
     return Proposal(model.source, paper, section, terms, not_cancelled, info)
-
-
-def _saturation_found(model: SourceModel) -> bool:
-    lim = model.drive.get("current_limit")
-    return lim is not None and lim < 1e300
 
 
 def apply(base: Config, p: Proposal) -> Config:
