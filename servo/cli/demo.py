@@ -68,6 +68,9 @@ def handle_cancel(args: argparse.Namespace) -> int:
     print(f"servo demo cancel: {len(summary['cases'])} terms in {time.perf_counter() - t0:.0f} s")
     print(f"  {'term':<26}{'found':>7}{'spread paper':>14}{'augmented':>11}{'step 1 paper':>18}{'augmented':>18}")
     for c in summary["cases"]:
+        if c["before"] is None:
+            print(f"  {c['case']:<26}{'yes' if c['found'] else 'no':>7}  {c['note']}")
+            continue
         st = [c[k]["run"]["steps"][0] for k in ("before", "after")]
         cell = lambda x: f"{x['overshoot_pct']:.1f}%/" + ("never" if x["settling_ms"] is None else f"{x['settling_ms']:.1f}ms")  # noqa: E731
         print(f"  {c['case']:<26}{'yes' if c['found'] else 'no':>7}{c['before']['bode']['spread_db_max']:>11.2f} dB"

@@ -2,7 +2,9 @@
 case, then its table (``TABLE.md``, ``summary.json``) and figures into one folder.
 
 Files: ``<case>/report.json`` (the diagnosis the compensators were written from),
-``<case>/bode_before.png`` and ``<case>/bode_after.png`` (Fig. 8 with each compensator),
+``<case>/drive.toml`` (the drive, whose exact model is the third compensator),
+``<case>/bode_before.png``, ``<case>/bode_after.png`` and ``<case>/bode_exact.png`` (Fig. 8
+with each compensator),
 ``TABLE.md`` (one table per case, before and after), ``summary.json`` (every number).
 """
 from __future__ import annotations
@@ -21,7 +23,7 @@ def case_summary(r: CaseResult) -> dict:
     return {"case": r.case.name, "physics": r.case.physics, "what": r.case.what, "drive": r.case.drive,
             "measured_at_m": r.case.measure_at, "before_is": r.case.before, "found": r.found, "findings": r.findings,
             "diagnosed": r.diagnosed, "note": r.note, "compensators": r.compensators, "before": r.before,
-            "after": r.after}  # fmt: skip
+            "after": r.after, "exact": r.exact}  # fmt: skip
 
 
 def _steps(run: dict) -> list[str]:
@@ -33,39 +35,53 @@ def _steps(run: dict) -> list[str]:
 
 
 def case_table(c: dict) -> list[str]:
-    """The Markdown table of one case (``c``: :func:`case_summary`)."""
-    b, a = c["before"], c["after"]
-    bb, ab = b["bode"], a["bode"]
+    """The Markdown table of one case (``c``: :func:`case_summary`): before, after and,
+    when measured, the drive's exact model."""
+    if c["before"] is None:
+        return [f"### {c['case']}", "", f"Drive: the paper's drive plus {c['what']}. Diagnosis: findings "
+                f"{', '.join(c['findings']) or 'none'}; {c['note']}.", ""]  # fmt: skip
+    cols = [c["before"], c["after"]] + ([c["exact"]] if c.get("exact") else [])
+    head = [BEFORE[c["before_is"]], "augmented"] + (["exact model (ceiling)"] if c.get("exact") else [])
+    bb = cols[0]["bode"]
     found = "found" if c["found"] else "**not found**"
+    row = lambda name, f: f"| {name} | " + " | ".join(f(m) for m in cols) + " |"  # noqa: E731
     L = [f"### {c['case']}", "", f"Drive: the paper's drive plus {c['what']}. Diagnosis: {c['physics']} {found} "
          f"(findings: {', '.join(c['findings']) or 'none'}"
          + (f"; {', '.join(f'{k} {v:.4g}' for k, v in c['diagnosed'].items())}" if c["diagnosed"] else "") + ")."
          + (f" {c['note']}." if c["note"] else ""), "",
-         f"| measurement | {BEFORE[c['before_is']]} | augmented |", "|---|---|---|",
-         f"| Fig. 8 level spread, max / RMS (dB, {bb['band_hz'][0]:.0f}-{bb['band_hz'][1]:.0f} Hz) | "
-         f"{bb['spread_db_max']:.2f} / {bb['spread_db_rms']:.2f} | {ab['spread_db_max']:.2f} / {ab['spread_db_rms']:.2f} |",
-         f"| Fig. 8 slope per level (dB/decade) | {bb['slope_min']:.1f} .. {bb['slope_max']:.1f} | "
-         f"{ab['slope_min']:.1f} .. {ab['slope_max']:.1f} |",
-         f"| Fig. 8 phase (deg) | {bb['phase_deg_min']:.0f} .. {bb['phase_deg_max']:.0f} | "
-         f"{ab['phase_deg_min']:.0f} .. {ab['phase_deg_max']:.0f} |",
-         f"| gain against 1/(J w^2) (dB, worst level) | {bb['gain_error_db']:+.2f} | {ab['gain_error_db']:+.2f} |"]  # fmt: skip
-    for i, (sb, sa) in enumerate(zip(_steps(b["run"]), _steps(a["run"]))):
-        L.append(f"| servo run step {i + 1} overshoot / settling | {sb} | {sa} |")
-    for seg in b["run"]["error_rms_by_segment_m"]:
-        if seg.startswith("step"):
-            continue
-        L.append(f"| servo run error RMS, {seg} (nm) | {b['run']['error_rms_by_segment_m'][seg] * 1e9:.1f} | "
-                 f"{a['run']['error_rms_by_segment_m'][seg] * 1e9:.1f} |")  # fmt: skip
-    L.append(f"| servo run error RMS, whole run (nm) | {b['run']['error_rms_m'] * 1e9:.1f} | {a['run']['error_rms_m'] * 1e9:.1f} |")
-    L.append(f"| tracking error RMS, held-out long stroke (nm) | {b['tracking']['error_rms_m'] * 1e9:.1f} | "
-             f"{a['tracking']['error_rms_m'] * 1e9:.1f} |")  # fmt: skip
+         "| measurement | " + " | ".join(head) + " |", "|---|" + "---|" * len(cols),
+         row(f"Fig. 8 level spread, max / RMS (dB, {bb['band_hz'][0]:.0f}-{bb['band_hz'][1]:.0f} Hz)",
+             lambda m: f"{m['bode']['spread_db_max']:.2f} / {m['bode']['spread_db_rms']:.2f}"),
+         row("Fig. 8 slope per level (dB/decade)", lambda m: f"{m['bode']['slope_min']:.1f} .. {m['bode']['slope_max']:.1f}"),
+         row("Fig. 8 phase (deg)", lambda m: f"{m['bode']['phase_deg_min']:.0f} .. {m['bode']['phase_deg_max']:.0f}"),
+         row("gain against 1/(J w^2) (dB, worst level)", lambda m: f"{m['bode']['gain_error_db']:+.2f}")]  # fmt: skip
+    for i in range(len(cols[0]["run"]["steps"])):
+        L.append(row(f"servo run step {i + 1} overshoot / settling", lambda m: _steps(m["run"])[i]))
+    for seg in cols[0]["run"]["error_rms_by_segment_m"]:
+        if not seg.startswith("step"):
+            L.append(row(f"servo run error RMS, {seg} (nm)", lambda m: f"{m['run']['error_rms_by_segment_m'][seg] * 1e9:.1f}"))
+    L.append(row("servo run error RMS, whole run (nm)", lambda m: f"{m['run']['error_rms_m'] * 1e9:.1f}"))
+    L.append(row("tracking error RMS, held-out long stroke (nm)", lambda m: f"{m['tracking']['error_rms_m'] * 1e9:.1f}"))
+    if "excess_rms_m" in cols[0]["tracking"]:
+        L.append(row("its difference from the exact model's, RMS (nm)",
+                     lambda m: f"{m['tracking']['excess_rms_m'] * 1e9:.1f}"))  # fmt: skip
+    stuck = [f"{lv * 1e3:g} mA" for lv, g in zip(summary_levels(c), bb["gain_error_db_per_level"]) if g < -20]
+    if stuck:
+        L += ["", f"At {', '.join(stuck)} the arm does not break away (the magnitude lies more than 20 dB under "
+              "1/(J w^2)): a static term acts only while the arm moves; the spread includes that level."]  # fmt: skip
     w = c["compensators"].get("after_as_written")
     if w:
         L += ["", "The augmented column folds the diagnosis's leftover Coulomb level (not a finding) into the Dahl "
               "element (`fold_unfound_coulomb`); as `servo compensate` writes it (a sign(v) term of "
               f"{w['section'].get('coulomb', 0) * 1e6:.3g} uA), the steps are "
-              + ", ".join(_steps(w["run"])) + f" and the held-out tracking error {w['tracking']['error_rms_m'] * 1e9:.1f} nm."]
+              + ", ".join(_steps(w["run"])) + f" and the held-out tracking error {w['tracking']['error_rms_m'] * 1e9:.1f} nm"
+              + (f" ({w['tracking']['excess_rms_m'] * 1e9:.1f} nm from the exact model's)." if "excess_rms_m" in w["tracking"] else ".")]
     return L + [""]
+
+
+def summary_levels(c: dict) -> list[float]:
+    """The Bode levels (A) of a case's measurements, in the order of its per-level lists."""
+    return [float(k.split()[0]) * 1e-3 for k in c["before"]["bode"]["slope_db_per_decade"]]
 
 
 def table(summary: dict) -> str:
@@ -87,14 +103,18 @@ def run_chain(cfg: Config, out: Path, s: ChainSettings, names: list[str] | None 
     cases = []
     for name in names or list(CASES):
         r = run_case(cfg, CASES[name], s, out / name)
-        for label in ("before", "after"):
-            title = f"{name}: {BEFORE[r.case.before] if label == 'before' else 'augmented'} compensator (Fig. 8)"
-            plot_bode(r.sweeps[label], out / name / f"bode_{label}.png", title, r.before["bode"]["band_hz"][1])
+        if r.before is None:
+            cases.append(case_summary(r))
+            continue
+        names_ = {"before": BEFORE[r.case.before], "after": "augmented", "exact": "the drive's exact model as"}
+        for label, sweeps in r.sweeps.items():
+            title = f"{name}: {names_[label]} compensator (Fig. 8)"
+            plot_bode(sweeps, out / name / f"bode_{label}.png", title, r.before["bode"]["band_hz"][1])
         cases.append(case_summary(r))
     sw = s.sweep
     summary = {"settings": {"recording_s": s.recording.duration_s, "seed": s.seed, "levels": list(sw.levels),
                             "n_freq": sw.n_freq, "f_min": sw.f_min, "f_max": sw.f_max, "periods": sw.periods,
-                            "tracking_s": s.tracking_s, "tracking_seed": s.tracking_seed},
+                            "tracking_s": s.tracking_s, "tracking_seed": s.tracking_seed, "exact": s.exact},
                "cases": cases}  # fmt: skip
     write_json(out / "summary.json", summary)
     text = table(summary)
