@@ -102,3 +102,21 @@ def test_every_compensator_term_runs_the_same_bits_through_the_emulator_in_locks
     eq9 = base.replace(drive=ALL_TERMS["drive"], compensator={"sigma": 416.0, "Ha": 1.5e-3, "Fc": 1.5e-3})
     plain = _log(eq9, SimDriver(eq9, scenario_inputs(eq9)))
     assert np.max(np.abs(sim["u_c"] - plain["u_c"])) > 1e-4  # the terms beyond eq. 9 acted
+
+
+@pytest.mark.parametrize("args,needle", [
+    (["demo"], "servo: error: demo: name the demonstration (servo demo cancel)"),
+    (["demo", "cancel", "--terms", "friction"], "servo: error: --terms: unknown friction; one of asymmetric_friction,"),
+    (["demo", "cancel", "--levels", "0,1"], "servo: error: --levels must be positive"),
+])  # fmt: skip
+def test_bad_demo_input_is_one_line_and_writes_nothing(args, needle, tmp_path, capsys):
+    from servo.cli import main
+
+    old = signal.getsignal(signal.SIGTERM)
+    try:
+        code = main(args + ["--out", str(tmp_path / "o")] if len(args) > 1 else args)
+    finally:
+        signal.signal(signal.SIGTERM, old)
+    err = capsys.readouterr().err
+    assert code == 2 and err.startswith(needle) and len(err.strip().splitlines()) == 1, err
+    assert not (tmp_path / "o").exists()

@@ -54,7 +54,6 @@ import numpy as np
 from servo.compensate.job import compensate
 from servo.compensate.propose import apply
 from servo.config import Config, to_toml
-from servo.controllers import get_kind  # noqa: F401  (the kinds registered before a Controller is made)
 from servo.diagnose.concealed import RATE_HZ, Scenario, scenario_inputs
 from servo.diagnose.job import Options, diagnose
 from servo.diagnose.report import build_report
