@@ -20,7 +20,7 @@ import tomllib
 from servo.errors import ConfigError, Interrupted, ServoError
 
 COMMANDS = ("run", "config", "identify", "hysteresis", "bode", "frf", "paper", "emulate", "diagnose", "compensate", "recover",
-            "fleet", "loop")
+            "fleet", "loop", "demo")
 
 
 class UsageError(ServoError):
