@@ -37,27 +37,25 @@ def test_controller_tick_uncompensated(benchmark, cfg, record):
 
 def test_controller_tick_every_term(benchmark, cfg, record):
     """The PI tick with every compensator term on (:data:`bench.workload.EVERY_TERM`: the
-    terms of kernels/cancel.py, kf(x) and both authority clips, each branch taken): the
-    figure against issue 14's 100 ns (1/200 of the period, asserted against the paper's
-    tick in :func:`test_every_term_over_the_paper_tick`), held here to the tick's 1/100."""
-    ctl, xin, n = w.controller(cfg.replace(compensator=w.EVERY_TERM)), w.controller_inputs(cfg), 100_000
+    terms of kernels/cancel.py, kf(x) and both authority clips, each branch taken): its
+    figure, recorded against issue 14's 100 ns (1/200 of the period), and that budget
+    asserted in a form the host's load cancels from: against the paper's tick (eq. 6-9)
+    timed in adjacent pairs, at most :data:`EVERY_TERM_OVER_PAPER_MAX` (~100 ns over the
+    paper tick's ~24 ns).  The figure itself is not asserted: at load 7 on the 2 cores it
+    measured 252 ns against ~60-70 ns idle (docs/realtime.md)."""
+    xin, n = w.controller_inputs(cfg), 100_000
+    ctl = w.controller(cfg.replace(compensator=w.EVERY_TERM))
     ns = per_sample_ns(benchmark, loops.loop_controller_tick, n, ROUNDS, setup=lambda: ((n, xin, *ctl.records()), {}))
     record.figure("controller_tick_every_term", ns, "controller_tick_every_term")
-    _assert_budget(cfg, "controller tick (every compensator term)", ns, "controller_tick")
-
-
-def test_every_term_over_the_paper_tick(cfg, record):
-    """The tick with every compensator term on over the paper's tick (eq. 6-9), timed in
-    adjacent pairs: at most :data:`EVERY_TERM_OVER_PAPER_MAX` (~100 ns over ~24 ns)."""
-    xin, n = w.controller_inputs(cfg), 5_000
+    m = 5_000
     a, b = w.controller(cfg.replace(compensator=w.EVERY_TERM)), w.controller(cfg)
-    r = paired(lambda: loops.loop_controller_tick(n, xin, *a.records()),
-               lambda: loops.loop_controller_tick(n, xin, *b.records()), pairs=201)  # fmt: skip
+    r = paired(lambda: loops.loop_controller_tick(m, xin, *a.records()),
+               lambda: loops.loop_controller_tick(m, xin, *b.records()), pairs=201)  # fmt: skip
     record.ratio("every_term_over_paper_tick", r.ratio, f"<= {EVERY_TERM_OVER_PAPER_MAX:g}",
-                 every_term_ns=r.a_ns / n, paper_ns=r.b_ns / n)  # fmt: skip
+                 every_term_ns=r.a_ns / m, paper_ns=r.b_ns / m)  # fmt: skip
     assert r.ratio <= EVERY_TERM_OVER_PAPER_MAX, (
         f"the tick with every compensator term costs {r.ratio:.2f}x the paper's tick "
-        f"({r.a_ns / n:.1f} vs {r.b_ns / n:.1f} ns per sample), over {EVERY_TERM_OVER_PAPER_MAX:g}")
+        f"({r.a_ns / m:.1f} vs {r.b_ns / m:.1f} ns per sample), over {EVERY_TERM_OVER_PAPER_MAX:g}")
 
 
 @pytest.mark.parametrize("kind", ["track", "nss"])
