@@ -15,7 +15,7 @@ references in the same run, where the slowdown cancels):
   1/1000 each (a few multiply-adds, ~1.5 ns).
 * the **controller tick with every compensator term on** (issue 14: viscous and Coulomb
   asymmetry, Stribeck, a 4-harmonic periodic force, the kf(x) divisor, both authority
-  clips), 1/200: 100 ns at 50 kHz, the issue's goal.  ~60-70 ns measured with the host
+  clips), 1/200: 100 ns at 50 kHz, the issue's goal.  68-80 ns measured with the host
   calm, 252 ns at load 7 on the 2 cores: no wall-clock margin holds that, so it is
   asserted in a form the load cancels from, against the paper's tick timed in adjacent
   pairs (:data:`EVERY_TERM_OVER_PAPER_MAX`).
@@ -70,7 +70,7 @@ BUDGETS = {
 #: Numba/C time ratio, same arithmetic, same run: at most this ("near 1").
 NUMBA_OVER_C_MAX = 2.5
 #: Numba/C time ratio of the PI tick with every compensator term on (issue 14's goal: 1.1).
-#: Measured 1.13-1.17 (paired medians at load 1 to 8 on the 2 cores; the paper's tick
+#: Measured 1.13-1.16 (paired medians at load 1 to 8 on the 2 cores; the paper's tick
 #: measured 1.10-1.23 in the same runs): the bound is the worst seen x 1.5.
 NUMBA_OVER_C_EVERY_TERM_MAX = 1.75
 #: The tick with every compensator term on over the paper's tick (eq. 6-9 only), timed in

@@ -42,7 +42,7 @@ def test_controller_tick_every_term(benchmark, cfg, record):
     asserted in a form the host's load cancels from: against the paper's tick (eq. 6-9)
     timed in adjacent pairs, at most :data:`EVERY_TERM_OVER_PAPER_MAX` (~100 ns over the
     paper tick's ~24 ns).  The figure itself is not asserted: at load 7 on the 2 cores it
-    measured 252 ns against ~60-70 ns idle (docs/realtime.md)."""
+    measured 252 ns against 68-80 ns calm (docs/realtime.md)."""
     xin, n = w.controller_inputs(cfg), 100_000
     ctl = w.controller(cfg.replace(compensator=w.EVERY_TERM))
     ns = per_sample_ns(benchmark, loops.loop_controller_tick, n, ROUNDS, setup=lambda: ((n, xin, *ctl.records()), {}))

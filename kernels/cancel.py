@@ -49,8 +49,10 @@ def periodic(x, a, b, n, period):
 
     One ``sin`` and one ``cos`` per sample whatever ``n``: the harmonics come from the
     fundamental by the angle-addition recurrence ``sin((k+1)th) = sin(k*th)*cos(th) +
-    cos(k*th)*sin(th)`` (and its cosine), a few roundings per harmonic (relative error
-    below 1e-15 at ``n = 4``) for what a ``sin`` per harmonic costs (~15 ns each).
+    cos(k*th)*sin(th)`` (and its cosine), a few roundings per harmonic for what a ``sin``
+    per harmonic costs (~15 ns each): within ~2e-14 of ``sum |A_i|`` of the direct sum of
+    sines over the first ten periods from ``x = 0``; further out both forms lose digits
+    alike, as the rounding of ``2*pi*x/period`` grows with it.
     """
     if n <= 0:
         return 0.0

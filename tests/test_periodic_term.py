@@ -31,10 +31,11 @@ def test_periodic_equals_a_sin_per_harmonic(amp, data, x, period):
     a, b = harmonic_coefficients(amp, phase)
     got = periodic(x, padded(a), padded(b), len(amp), period)
     want = direct(x, amp, phase, period)
-    # the argument 2*pi*k*x/period is rounded the same way in both up to k ULPs of it: the error
-    # scales with the number of periods swept, as a sin per harmonic's own does
+    # the two forms round the argument 2*pi*k*x/period differently (by up to k ULPs of it): beyond
+    # a few roundings of the amplitudes, the difference grows with the number of periods from 0
+    # (worst seen over 50 000 random draws: half this bound)
     turns = abs(x / period)
-    assert abs(got - want) <= sum(amp) * (1e-14 + 8 * MAX_HARMONICS * turns * 2.2e-16), (got, want)
+    assert abs(got - want) <= sum(amp) * (5e-14 + 8 * MAX_HARMONICS * turns * 2.2e-16), (got, want)
 
 
 def test_no_harmonics_is_no_force():
