@@ -12,6 +12,7 @@ from bench.conftest import RESULTS_DIR
 ROWS = [
     ("controller_tick", "controller tick, compiled (Dahl + compensator + PI + limits)", "ns"),
     ("controller_tick_uncompensated", "controller tick, compensator off", "ns"),
+    ("controller_tick_every_term", "controller tick, every compensator term on (issue 14)", "ns"),
     ("controller_tick_track", "controller tick, kind track (biquads at two rates) + compensator", "ns"),
     ("controller_tick_nss", "controller tick, kind nss (benchmark PID + notches) + compensator", "ns"),
     ("dahl_update_alpha_1", "Dahl update, alpha = 1", "ns"),
@@ -23,19 +24,24 @@ ROWS = [
     ("shift_in", "link command queue (3 ticks)", "ns"),
     ("closed_loop_kernels", "closed loop, kernels only (measure + tick + step)", "ns"),
     ("tick_path", "tick path: scheduler + driver interface + SimDriver, per tick", "us"),
+    ("tick_path_every_term", "tick path, every compensator term on (issue 14; target 0.25 T)", "us"),
     ("fast_path", "fast path: all-compiled closed loop with logging, per sample", "ns"),
     ("first_tick", "first tick after configure (fresh `servo run`)", "us"),
     ("cold_start", "cold start of `servo run`: process start to first tick", "s"),
     ("controller_tick_c", "C reference: controller tick", "ns"),
+    ("controller_tick_every_term_c", "C reference: controller tick, every compensator term on", "ns"),
     ("plant_step_c", "C reference: plant step", "ns"),
     ("closed_loop_c", "C reference: closed loop", "ns"),
     ("controller_tick_python", "pure Python: controller tick", "ns"),
 ]
 RATIOS = [
     ("numba_over_c_controller_tick", "Numba / C, controller tick"),
+    ("numba_over_c_controller_tick_every_term", "Numba / C, controller tick, every compensator term on"),
+    ("every_term_over_paper_tick", "controller tick, every compensator term / the paper's terms"),
     ("numba_over_c_track_tick", "Numba / C, track-following tick"),
     ("numba_over_c_plant_step", "Numba / C, plant step"),
     ("numba_over_c_closed_loop", "Numba / C, closed loop"),
+    ("tick_path_every_term_over_paper", "tick path, every compensator term / the paper's terms (rounds alternated)"),
     ("python_over_numba_controller_tick", "Python / Numba, controller tick"),
     ("cold_start_over_dependencies", "cold start / import of numba+numpy+scipy+matplotlib"),
 ]

@@ -8,8 +8,8 @@ import pytest
 
 from bench import loops
 from bench import workload as w
-from bench.budgets import BUDGETS
-from bench.timing import per_sample_ns
+from bench.budgets import BUDGETS, EVERY_TERM_OVER_PAPER_MAX
+from bench.timing import paired, per_sample_ns
 
 ROUNDS = 15
 
@@ -33,6 +33,29 @@ def test_controller_tick_uncompensated(benchmark, cfg, record):
     ns = per_sample_ns(benchmark, loops.loop_controller_tick, n, ROUNDS, setup=lambda: ((n, xin, *ctl.records()), {}))
     record.figure("controller_tick_uncompensated", ns, "controller_tick")
     _assert_budget(cfg, "controller tick (uncompensated)", ns, "controller_tick")
+
+
+def test_controller_tick_every_term(benchmark, cfg, record):
+    """The PI tick with every compensator term on (:data:`bench.workload.EVERY_TERM`: the
+    terms of kernels/cancel.py, kf(x) and both authority clips, each branch taken): its
+    figure, recorded against issue 14's 100 ns (1/200 of the period), and that budget
+    asserted in a form the host's load cancels from: against the paper's tick (eq. 6-9)
+    timed in adjacent pairs, at most :data:`EVERY_TERM_OVER_PAPER_MAX` (~100 ns over the
+    paper tick's ~24 ns).  The figure itself is not asserted: at load 7 on the 2 cores it
+    measured 252 ns against 68-80 ns calm (docs/realtime.md)."""
+    xin, n = w.controller_inputs(cfg), 100_000
+    ctl = w.controller(cfg.replace(compensator=w.EVERY_TERM))
+    ns = per_sample_ns(benchmark, loops.loop_controller_tick, n, ROUNDS, setup=lambda: ((n, xin, *ctl.records()), {}))
+    record.figure("controller_tick_every_term", ns, "controller_tick_every_term")
+    m = 5_000
+    a, b = w.controller(cfg.replace(compensator=w.EVERY_TERM)), w.controller(cfg)
+    r = paired(lambda: loops.loop_controller_tick(m, xin, *a.records()),
+               lambda: loops.loop_controller_tick(m, xin, *b.records()), pairs=201)  # fmt: skip
+    record.ratio("every_term_over_paper_tick", r.ratio, f"<= {EVERY_TERM_OVER_PAPER_MAX:g}",
+                 every_term_ns=r.a_ns / m, paper_ns=r.b_ns / m)  # fmt: skip
+    assert r.ratio <= EVERY_TERM_OVER_PAPER_MAX, (
+        f"the tick with every compensator term costs {r.ratio:.2f}x the paper's tick "
+        f"({r.a_ns / m:.1f} vs {r.b_ns / m:.1f} ns per sample), over {EVERY_TERM_OVER_PAPER_MAX:g}")
 
 
 @pytest.mark.parametrize("kind", ["track", "nss"])

@@ -5,7 +5,8 @@ Both run the ``servo run`` scenario through :func:`servo.runtime.loop.run_closed
 standard tasks (excitation, estimator, log) and a run log on disk, as a user runs them.
 """
 
-from bench.budgets import BUDGETS
+from bench import workload as w
+from bench.budgets import BUDGETS, TICK_PATH_EVERY_TERM_OVER_PAPER_MAX
 from bench.timing import per_sample_ns
 from kernels.compose import LOG_COLUMNS
 from servo.io.runlog import RunLog
@@ -16,6 +17,8 @@ from servo.runtime.scenario import scenario_inputs
 from servo.runtime.simdriver import SimDriver
 
 ROUNDS = 9
+#: Round pairs of the tick path with every compensator term against the paper's.
+PAIRS = 3
 
 
 class Runs:
@@ -61,6 +64,40 @@ def test_tick_path_per_tick(benchmark, cfg, record, tmp_path):
                   tick_us_p99=ticks.quantile(0.99) / 1e3, ticks=ticks.count)  # fmt: skip
     limit = BUDGETS["tick_path"].ns(cfg) / 1e3
     assert median_us <= limit, f"tick path: {median_us:.2f} us per tick (median), over its budget of {limit:.1f} us (3/4 of the period)"
+
+
+def test_tick_path_with_every_compensator_term(cfg, record, tmp_path):
+    """The tick path with every compensator term on (issue 14), against the paper's
+    compensator in rounds that alternate (5000 ticks each): the per-tick median against 3/4
+    of the period, as :func:`test_tick_path_per_tick`, and against the paper's path in the
+    same rounds (the terms add ~50 ns to a ~4 us tick: at most 15 %, a guard against a gross
+    regression whatever the load).
+    The issue's target, 1/4 of the period, is recorded (``share``), not asserted: a
+    loaded host takes the tick path past it (docs/realtime.md)."""
+    c = cfg.replace(run={"duration_s": 0.1})
+    (tmp_path / "paper").mkdir(), (tmp_path / "every").mkdir()
+    runs = {"paper": Runs(c, tmp_path / "paper", fast=False),
+            "every term": Runs(c.replace(compensator=w.EVERY_TERM), tmp_path / "every", fast=False)}  # fmt: skip
+    try:
+        for i in range(2 * PAIRS):
+            for name in (("paper", "every term") if i % 2 == 0 else ("every term", "paper")):
+                args, _ = runs[name].setup()
+                runs[name].run(*args)
+    finally:
+        for r in runs.values():
+            r.close()
+    med = {name: r.timing.quantile(0.5) for name, r in runs.items()}
+    ratio = med["every term"] / med["paper"]
+    share = med["every term"] / (cfg.dt * 1e9)
+    record.figure("tick_path_every_term", med["every term"], "tick_path", paper_ns=med["paper"], share_of_period=share,
+                  tick_us_p99=runs["every term"].timing.quantile(0.99) / 1e3, ticks=runs["every term"].timing.count)  # fmt: skip
+    record.ratio("tick_path_every_term_over_paper", ratio, f"<= {TICK_PATH_EVERY_TERM_OVER_PAPER_MAX:g}",
+                 every_term_us=med["every term"] / 1e3, paper_us=med["paper"] / 1e3, share_of_period=share)  # fmt: skip
+    limit = BUDGETS["tick_path"].ns(cfg)
+    assert med["every term"] <= limit, f"tick path, every compensator term: {med['every term'] / 1e3:.2f} us per tick (median), over {limit / 1e3:.1f} us"
+    assert ratio <= TICK_PATH_EVERY_TERM_OVER_PAPER_MAX, (
+        f"the compensator terms make the tick path {ratio:.3f}x the paper's ({med['every term'] / 1e3:.2f} vs "
+        f"{med['paper'] / 1e3:.2f} us per tick)")  # fmt: skip
 
 
 def test_fast_path_samples_per_second(benchmark, cfg, record, tmp_path):

@@ -67,6 +67,19 @@ def motion(cfg: Config, seed: int = 7) -> Motion:
     return Motion(x, v, s)
 
 
+#: The ``[compensator]`` section with every term of :mod:`kernels.cancel` on, sized
+#: against the motion of :func:`motion` (+-30 um at most) so that every branch is taken:
+#: the periodic term's period is 2 um (the large cycles sweep 30 of them), kf(x) is
+#: referred to a 30 um stroke so that it leaves ``1 +- kf_authority`` near both ends of the
+#: large cycles, and the authority (2.5 mA) holds |u_c| on the samples where the paper's
+#: terms, the Coulomb term and the periodic force add up beyond it.
+EVERY_TERM = dict(
+    b_asymmetry=0.2, coulomb=1e-3, coulomb_static=1.5e-3, stribeck_velocity=2e-3, coulomb_asymmetry=0.1,
+    periodic_amplitudes=[1e-4, 5e-5, 2e-5, 1e-5], periodic_phases=[0.3, -1.0, 2.0, 0.5], periodic_period=2e-6,
+    kf_linear=0.9, kf_quadratic=0.5, kf_stroke=30e-6, kf_authority=0.3, authority=2.5e-3,
+)
+
+
 def controller(cfg: Config, compensation: bool = True) -> Controller:
     """A controller that has taken over at rest at x = 0 with the holding current."""
     ctl = Controller(cfg, compensation)

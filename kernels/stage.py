@@ -53,8 +53,8 @@ STAGE_PARAMS = np.dtype(
         ("coul_asym", "f8"),  # its asymmetry: F(s) = F*(1 + s*coul_asym)
         ("n_per", "f8"),  # harmonics of the periodic term in use
         ("per_period", "f8"),  # its period in position, m
-        ("per_amp", "f8", (MAX_HARMONICS,)),  # amplitudes, A
-        ("per_phase", "f8", (MAX_HARMONICS,)),  # phases, rad
+        ("per_sin", "f8", (MAX_HARMONICS,)),  # A_i*cos(phi_i): coefficients of sin(i*th), A
+        ("per_cos", "f8", (MAX_HARMONICS,)),  # A_i*sin(phi_i): coefficients of cos(i*th), A
         ("kf_on", "f8"),  # 1: divide the command by kf(x)
         ("kf1", "f8"),  # force-constant change at +stroke, linear
         ("kf2", "f8"),  # force-constant change at +-stroke, quadratic
@@ -102,7 +102,7 @@ def _extras(c, p, x):
     if (p.coul_c != 0.0 or p.coul_s != 0.0) and abs(c.v) > p.v_deadband:  # moving: at rest it holds nothing
         f += coulomb_stribeck(c.v, c.s, p.coul_c, p.coul_s, p.coul_vs, p.coul_asym)
     if p.n_per > 0.0:
-        f += periodic(x, p.per_amp, p.per_phase, int(p.n_per), p.per_period)
+        f += periodic(x, p.per_sin, p.per_cos, int(p.n_per), p.per_period)
     return f
 
 

@@ -132,13 +132,84 @@ static double holding_pi(double e, double e_p, double v, double *integ, double u
     return u;
 }
 
+/* ------------------------------------------------------------- kernels/cancel.py */
+
+static double viscous_asymmetry(double v, double s, double B, double a) { return B * a * s * v; }
+
+static double coulomb_stribeck(double v, double s, double Fc, double Fs, double vs, double a)
+{
+    double fc = Fc * (1.0 + s * a);
+    double fs = Fs * (1.0 + s * a);
+    double w = v / vs;
+    return s * (fc + (fs - fc) * exp(-(w * w))); /* Numba: (v/vs)**2 == w*w exactly */
+}
+
+static double periodic(double x, const double *a, const double *b, int64_t n, double period)
+{
+    if (n <= 0)
+        return 0.0;
+    double th = 2.0 * PI * x / period;
+    double s1 = sin(th);
+    double c1 = cos(th);
+    double sk = s1, ck = c1;
+    double f = a[0] * sk + b[0] * ck;
+    for (int64_t i = 1; i < n; i++) {
+        double sn = sk * c1 + ck * s1;
+        ck = ck * c1 - sk * s1;
+        sk = sn;
+        f += a[i] * sk + b[i] * ck;
+    }
+    return f;
+}
+
+static double cancel_force_constant(double x, double k1, double k2, double stroke)
+{
+    double r = x / stroke;
+    return 1.0 + k1 * r + k2 * r * r;
+}
+
 /* ------------------------ kernels/stage.py with servo/controllers/pi.py inside it */
+
+/* _extras: the terms beyond eq. (9) */
+static double extras(const stage_state *c, const stage_params *p, double x)
+{
+    double f = 0.0;
+    if (p->b_asym != 0.0)
+        f += viscous_asymmetry(c->v, c->s, p->B, p->b_asym);
+    if ((p->coul_c != 0.0 || p->coul_s != 0.0) && fabs(c->v) > p->v_deadband)
+        f += coulomb_stribeck(c->v, c->s, p->coul_c, p->coul_s, p->coul_vs, p->coul_asym);
+    if (p->n_per > 0.0)
+        f += periodic(x, p->per_sin, p->per_cos, (int64_t)p->n_per, p->per_period);
+    return f;
+}
 
 static double compensation(const stage_state *c, const stage_params *p, double x)
 {
     if (p->comp_on == 0.0)
         return 0.0;
-    return compensate((int64_t)c->regime, x, c->v, c->s, c->H_dahl, p->B, p->Fc, p->K, p->h0);
+    double u_c = compensate((int64_t)c->regime, x, c->v, c->s, c->H_dahl, p->B, p->Fc, p->K, p->h0);
+    if (p->extras != 0.0)
+        u_c += extras(c, p, x);
+    return py_min(py_max(u_c, -p->uc_max), p->uc_max); /* the authority */
+}
+
+/* _kf: the divisor kf(x), held within [kf_lo, kf_hi] */
+static double stage_kf(const stage_params *p, double x)
+{
+    return py_min(py_max(cancel_force_constant(x, p->kf1, p->kf2, p->kf_stroke), p->kf_lo), p->kf_hi);
+}
+
+/* stage_room: the range of u_n that keeps the command within the limit */
+static void stage_room(const stage_params *p, double u_c, double x, double *lo, double *hi)
+{
+    if (p->kf_on != 0.0 && p->comp_on != 0.0) {
+        double m = p->u_max * stage_kf(p, x);
+        *lo = -m - u_c;
+        *hi = m - u_c;
+    } else {
+        *lo = -p->u_max - u_c;
+        *hi = p->u_max - u_c;
+    }
 }
 
 /* stage_update: the signals of one sample and the compensation current (kernels/stage.py) */
@@ -164,6 +235,8 @@ static double stage_update(stage_state *c, const stage_params *p, double x, doub
 static double stage_output(stage_state *c, const stage_params *p, double x, double r, double u_n, double u_c)
 {
     double u = u_n + u_c;
+    if (p->kf_on != 0.0 && p->comp_on != 0.0)
+        u = u / stage_kf(p, x);
     u = py_min(py_max(u, -p->u_max), p->u_max);
     c->e = (c->r_base + r) - x;
     c->u_n = u_n;
@@ -176,8 +249,10 @@ double ref_controller_tick(stage_state *c, const stage_params *p, pi_state *ci, 
                            double v_meas, double r, double u_exc)
 {
     double u_c = stage_update(c, p, x, v_meas);
-    double lo = py_max(-cp->u_n_max, -p->u_max - u_c);
-    double hi = py_min(cp->u_n_max, p->u_max - u_c);
+    double lo, hi;
+    stage_room(p, u_c, x, &lo, &hi);
+    lo = py_max(-cp->u_n_max, lo);
+    hi = py_min(cp->u_n_max, hi);
     double e = (c->r_base + r) - x;
     double e_p = (c->r_base + cp->b * r) - x;
     double u_n = holding_pi(e, e_p, c->v, &ci->integ, u_exc, cp->kp, cp->ki, cp->kd, cp->dt, lo, hi);
@@ -212,7 +287,8 @@ double ref_track_tick(stage_state *c, const stage_params *p, track_state *t, con
                       double v_meas, double r, double u_exc)
 {
     double u_c = stage_update(c, p, x, v_meas);
-    double lo = -p->u_max - u_c, hi = p->u_max - u_c;
+    double lo, hi;
+    stage_room(p, u_c, x, &lo, &hi);
     if (t->phase == 0.0) {
         double e = (c->r_base + r) - x;
         t->pes = e;

@@ -12,6 +12,7 @@ import math
 import numpy as np
 
 from kernels._cache import entry_point
+from kernels.cancel import harmonic_coefficients
 from kernels.compose import LOG_COLUMNS, LOG_UNITS
 from kernels.stage import STAGE_PARAMS
 from servo.config import Config
@@ -44,8 +45,7 @@ def stage_params(cfg: Config, compensation: bool | None = None) -> np.ndarray:
     for name, v in values.items():
         p[name] = v
     n = len(k.periodic_amplitudes)
-    p["per_amp"][0, :n] = k.periodic_amplitudes
-    p["per_phase"][0, :n] = k.periodic_phases
+    p["per_sin"][0, :n], p["per_cos"][0, :n] = harmonic_coefficients(k.periodic_amplitudes, k.periodic_phases)
     return p
 
 
