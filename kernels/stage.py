@@ -23,7 +23,7 @@ from numba.types import UniTuple
 
 from kernels._cache import kernel
 from kernels.cancel import MAX_HARMONICS, coulomb_stribeck, force_constant, periodic, viscous_asymmetry
-from kernels.compensator import SLOW, compensate, direction, regime_switch, velocity_estimate
+from kernels.compensator import FAST, SLOW, compensate, direction, regime_switch, velocity_estimate
 from kernels.dahl import dahl_update
 
 STAGE_PARAMS = np.dtype(
@@ -92,14 +92,16 @@ stage_state_rec_t = from_dtype(STAGE_STATE)
 
 @kernel(float64(stage_state_rec_t, stage_params_rec_t, float64))
 def _extras(c, p, x):
-    """The terms beyond eq. (9) (:mod:`kernels.cancel`), A.  The Coulomb term acts while
-    the arm moves (``|v|`` beyond the direction deadband), in both regimes: it is a
-    friction element of its own, beside the pivot's Dahl element; at rest it pushes
-    nothing (static friction holds the arm: there is no force to cancel)."""
+    """The terms beyond eq. (9) (:mod:`kernels.cancel`), A.  The Coulomb term (with its
+    Stribeck rise and asymmetry) acts while the arm slides: in the large-motion regime
+    (eq. 3), or anywhere at the speed that regime keeps (``v_off``).  Slower, near a
+    turnaround, where a sticking friction holds rather than slides, a sign(v) term would
+    flip at every micro-reversal of a small step (measured: a limit cycle on a 0.3 um
+    step): it rests there."""
     f = 0.0
     if p.b_asym != 0.0:
         f += viscous_asymmetry(c.v, c.s, p.B, p.b_asym)
-    if (p.coul_c != 0.0 or p.coul_s != 0.0) and abs(c.v) > p.v_deadband:  # moving: at rest it holds nothing
+    if (p.coul_c != 0.0 or p.coul_s != 0.0) and (c.regime == FAST or abs(c.v) >= p.v_off):  # sliding
         f += coulomb_stribeck(c.v, c.s, p.coul_c, p.coul_s, p.coul_vs, p.coul_asym)
     if p.n_per > 0.0:
         f += periodic(x, p.per_sin, p.per_cos, int(p.n_per), p.per_period)

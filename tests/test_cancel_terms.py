@@ -22,10 +22,14 @@ CASES = {
 }  # fmt: skip
 
 
-#: Relative acceleration error allowed with the term (0.01 otherwise).  At each reversal a
-#: Coulomb element sticks the arm until the command passes its breakaway level: a static
-#: term cannot cancel that (it cannot know the coming direction), measured 2 %.
-BOUND = {"Coulomb, Stribeck, asymmetry": 0.03}
+#: Relative acceleration error allowed with the term (0.01 otherwise).  The Coulomb term
+#: rests below the sliding speed ``fast_off_speed`` (1 mm/s) near a turnaround, where a
+#: sign(v) term would limit-cycle on a small step (kernels/stage.py): there the drive's
+#: Coulomb and Stribeck friction (its peak, 2.5 mA against the 5 mA command) is not
+#: cancelled, measured 8 % (2 % when the term acted at any speed).
+BOUND = {"Coulomb, Stribeck, asymmetry": 0.1}
+#: ... and how much smaller than without it (5 otherwise): 4.1 measured for the Coulomb term
+GAIN = {"Coulomb, Stribeck, asymmetry": 3.0}
 
 
 @pytest.mark.parametrize("case", list(CASES))
@@ -36,4 +40,4 @@ def test_the_matching_term_restores_the_double_integrator(case):
     xs0, un0 = drive_open_loop_cfg(cfg, LARGE)
     with_term, without = acceleration_error(xs, un, cfg), acceleration_error(xs0, un0, cfg)
     print(f"{case}: {with_term:.4f} with the term, {without:.4f} without")
-    assert with_term < BOUND.get(case, 0.01) and without > 5 * with_term, (with_term, without)
+    assert with_term < BOUND.get(case, 0.01) and without > GAIN.get(case, 5.0) * with_term, (with_term, without)

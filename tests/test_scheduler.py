@@ -108,7 +108,7 @@ def run(cfg: Config, fast: bool, tmp_path, name: str):
         # the same with the authority acting: |u_c| clipped, kf(x) held near 1
         {"drive": {"Fc": 1e-3, "Fs": 1.5e-3, "b_asymmetry": 0.3, "cogging": 1e-4, "kf_linear": 0.2},
          "compensator": {"coulomb": 1e-3, "coulomb_static": 1.5e-3, "b_asymmetry": 0.3, "periodic_amplitudes": [1e-4],
-                         "periodic_phases": [0.0], "kf_linear": 0.2, "authority": 3.2e-3, "kf_authority": 1e-4}},
+                         "periodic_phases": [0.0], "kf_linear": 0.2, "authority": 3.0e-3, "kf_authority": 1e-4}},
     ],
 )  # fmt: skip
 def test_fast_path_is_bit_identical_to_the_tick_path(changes, tmp_path):

@@ -176,7 +176,7 @@ static double extras(const stage_state *c, const stage_params *p, double x)
     double f = 0.0;
     if (p->b_asym != 0.0)
         f += viscous_asymmetry(c->v, c->s, p->B, p->b_asym);
-    if ((p->coul_c != 0.0 || p->coul_s != 0.0) && fabs(c->v) > p->v_deadband)
+    if ((p->coul_c != 0.0 || p->coul_s != 0.0) && (c->regime == FAST || fabs(c->v) >= p->v_off))  /* sliding */
         f += coulomb_stribeck(c->v, c->s, p->coul_c, p->coul_s, p->coul_vs, p->coul_asym);
     if (p->n_per > 0.0)
         f += periodic(x, p->per_sin, p->per_cos, (int64_t)p->n_per, p->per_period);
