@@ -12,7 +12,6 @@ from hil.board import Board
 from hil.emulator import start_in_thread
 from hil.serialdriver import SerialDriver
 from servo.config import Config
-from servo.experiments.cancel import fold_unfound_coulomb
 from servo.experiments.sim import MemoryLog
 from servo.runtime.controller import Controller
 from servo.runtime.loop import log_rows, run_closed_loop
@@ -53,15 +52,6 @@ def test_the_chain_on_a_dahl_pivot_other_than_the_nominal_one(tmp_path, capsys):
     table = (tmp_path / "o" / "TABLE.md").read_text()
     assert "### hysteresis" in table and "| Fig. 8 level spread" in table
     assert {p.name for p in (tmp_path / "o" / "hysteresis").iterdir()} == {"report.json", "bode_before.png", "bode_after.png"}
-
-
-def test_the_leftover_coulomb_is_folded_only_when_no_coulomb_was_found():
-    sec = {"Ha": 1e-3, "sigma": 320.0, "Fc": 1e-3, "coulomb": 1e-5, "coulomb_static": 0.0, "coulomb_asymmetry": 0.0}
-    got, folded = fold_unfound_coulomb(sec, {"findings": [{"physics": "hysteresis"}]})
-    assert folded and got["coulomb"] == 0.0 and got["Ha"] == got["Fc"] == pytest.approx(1.01e-3)
-    assert got["Ha"] / got["sigma"] == pytest.approx(1e-3 / 320.0)  # the Dahl length kept
-    same, folded = fold_unfound_coulomb(sec, {"findings": [{"physics": "stribeck_friction"}]})
-    assert not folded and same == sec
 
 
 ALL_TERMS = {  # every compensator term on, each mirroring the drive's effect

@@ -19,10 +19,7 @@ Per :class:`Case` (:data:`CASES`):
    ``paper=False`` ("augmented").  For the Dahl case, where eq. 9 itself holds the
    diagnosed Dahl element, the *before* is the paper's compensator as published for the
    nominal drive (the default ``[compensator]``, not retuned: Fig. 9-10's situation).
-   The augmented section is taken as written except for one stop-gap,
-   :func:`fold_unfound_coulomb` (the baseline's leftover Coulomb level folded into the
-   Dahl element when no Coulomb friction was *found*); the figures of the section as
-   written are recorded beside it.  A third compensator, the drive's exact model
+   Both are taken as ``servo compensate`` writes them.  A third compensator, the drive's exact model
    (``servo compensate`` of the drive's own config), gives the ceiling
    (:attr:`ChainSettings.exact`).
 5. **The measurements**, each with both compensators on the same drive and inputs:
@@ -235,25 +232,6 @@ class CaseResult:
     note: str = ""
 
 
-def fold_unfound_coulomb(section: dict, report: dict) -> tuple[dict, bool]:
-    """The proposal's ``section`` with the Coulomb level beyond the Dahl element folded
-    into the Dahl element (as eq. 9 does: ``Fc = Ha = Ha + coulomb``, the Dahl length
-    kept) when the diagnosis did not *find* a Coulomb or Stribeck friction: a diagnosis's
-    baseline always fits a Coulomb level, and the few uA left beside a Dahl element,
-    mirrored as a sign(v) term, switch at every micro-reversal of a small step (measured:
-    the 0.3 um step settles in ~70 ms instead of ~6 ms).  Returns ``(section, folded)``.
-    A stop-gap of this chain until :mod:`servo.compensate.propose` decides it."""
-    found = {f["physics"] for f in report.get("findings", [])}
-    c = float(section.get("coulomb", 0.0))
-    if c <= 0.0 or found & {"coulomb_friction", "stribeck_friction"} or section.get("Ha", 0.0) <= 1e-9:
-        return dict(section), False
-    out = dict(section)
-    level = out["Ha"] + c
-    out.update(sigma=out["sigma"] * level / out["Ha"], Ha=level, Fc=level, coulomb=0.0, coulomb_static=0.0,
-               coulomb_asymmetry=0.0)  # fmt: skip
-    return out, True
-
-
 def _diagnosed_params(report: dict, physics: str) -> dict:
     for f in report["findings"]:
         if f["physics"] == physics:
@@ -294,8 +272,7 @@ def run_case(base: Config, case: Case, s: ChainSettings, workdir: Path) -> CaseR
     full = compensate(path, cfg, paper=False)
     at = cfg.replace(drive={"initial_position": case.measure_at})
     cfg_before = at.replace(compensator={"enabled": True}) if case.before == "nominal" else apply(at, paper)
-    section, folded = fold_unfound_coulomb(full.section, report)
-    cfg_after = apply(at, replace(full, section=section))
+    cfg_after = apply(at, full)
     exact, e_exact, sweeps = None, None, {}
     if s.exact:
         progress.stage(f"{case.name}: the paper's measurements, the drive's exact model")
@@ -303,21 +280,15 @@ def run_case(base: Config, case: Case, s: ChainSettings, workdir: Path) -> CaseR
         cfg_exact = apply(at, compensate(workdir / "drive.toml", cfg))
         e_exact = tracking_error(cfg_exact, s.tracking, s.tracking_seed, s.tracking_s)
         exact, sweeps["exact"] = measure(cfg_exact, s, e_exact)
-    as_written = None
-    if folded:  # the step and tracking figures of the section as servo compensate writes it, for the record
-        w = apply(at, full)
-        as_written = {"section": dict(full.section), "run": run_figures(w, s.run_s),
-                      "tracking": tracking_figures(w, s.tracking, s.tracking_seed, s.tracking_s, e_exact)}  # fmt: skip
     progress.stage(f"{case.name}: the paper's measurements, {'nominal' if case.before == 'nominal' else 'paper'} "
                    "compensator")  # fmt: skip
     before, sweeps["before"] = measure(cfg_before, s, e_exact)
     progress.stage(f"{case.name}: the paper's measurements, augmented compensator")
     after, sweeps["after"] = measure(cfg_after, s, e_exact)
-    sections = {"before": {k: getattr(cfg_before.compensator, k) for k in full.section},
-                "after": section, "after_as_written": as_written}  # fmt: skip
+    sections = {"before": {k: getattr(cfg_before.compensator, k) for k in full.section}, "after": dict(full.section)}
     return CaseResult(case, found, names, _diagnosed_params(report, case.physics), report, sections, before, after,
                       exact, sweeps, note)  # fmt: skip
 
 
 __all__ = ["CASES", "QUICK", "TRACKING", "Case", "CaseResult", "ChainSettings", "bode_figures", "drive_config",
-           "fold_unfound_coulomb", "identification_recording", "measure", "run_case", "run_figures", "tracking_error", "tracking_figures"]  # fmt: skip
+           "identification_recording", "measure", "run_case", "run_figures", "tracking_error", "tracking_figures"]  # fmt: skip

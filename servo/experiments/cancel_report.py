@@ -69,13 +69,6 @@ def case_table(c: dict) -> list[str]:
     if stuck:
         L += ["", f"At {', '.join(stuck)} the arm does not break away (the magnitude lies more than 20 dB under "
               "1/(J w^2)): a static term acts only while the arm moves; the spread includes that level."]  # fmt: skip
-    w = c["compensators"].get("after_as_written")
-    if w:
-        L += ["", "The augmented column folds the diagnosis's leftover Coulomb level (not a finding) into the Dahl "
-              "element (`fold_unfound_coulomb`); as `servo compensate` writes it (a sign(v) term of "
-              f"{w['section'].get('coulomb', 0) * 1e6:.3g} uA), the steps are "
-              + ", ".join(_steps(w["run"])) + f" and the held-out tracking error {w['tracking']['error_rms_m'] * 1e9:.1f} nm"
-              + (f" ({w['tracking']['excess_rms_m'] * 1e9:.1f} nm from the exact model's)." if "excess_rms_m" in w["tracking"] else ".")]
     return L + [""]
 
 
