@@ -373,11 +373,15 @@ class Selector:
         r = np.where(w, y0 - Phi @ fit_rows(y0, Phi, w), 0.0)
         K = self.blocks.K
         expl = np.zeros((K, len(grid)))
+        sums = phys.screen_sums(self.d, grid, model, r, self.blocks)  # compiled, no columns
         for j0 in range(0, len(grid), SCREEN_CHUNK):
-            C = phys.screen_batch(self.d, grid[j0 : j0 + SCREEN_CHUNK], model)  # (J, k, m)
-            a, H = screen_stats(C, r, self.blocks)
+            if sums is None:
+                C = phys.screen_batch(self.d, grid[j0 : j0 + SCREEN_CHUNK], model)  # (J, k, m)
+                a, H = screen_stats(C, r, self.blocks)
+            else:
+                a, H = sums[0][:, j0 : j0 + SCREEN_CHUNK], sums[1][:, j0 : j0 + SCREEN_CHUNK]
             At, Ht = a.sum(0)[None] - a, H.sum(0)[None] - H  # fold b: all blocks but b
-            expl[:, j0 : j0 + C.shape[0]] = explained(At, Ht)
+            expl[:, j0 : j0 + a.shape[1]] = explained(At, Ht)
         picks = expl.argmax(axis=1)
         out, cache = [], {}
         for b in range(K):
