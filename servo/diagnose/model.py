@@ -102,6 +102,7 @@ class Design:
         #: full-rate effective inputs, the most recent :data:`U_CACHE` only: a search over
         #: a delay or a saturation level makes one per variant, and their rows are cached
         self._u: dict = {}
+        self._delayed = None
 
     # ---- the input -----------------------------------------------------------------
     @staticmethod
@@ -137,10 +138,31 @@ class Design:
         return self._rows[key]
 
     def target_raw(self, model: Model, extra: Term | None = None) -> np.ndarray:
-        """Rows of the aligned effective force (m,)."""
-        u = self.u_eff(model, extra)
+        """Rows of the aligned effective force (m,).  A delay tried on top of a model
+        without one (``extra``, the screening of ``time_delay``) is interpolated from the
+        force filtered once (:class:`servo.diagnose.delayed.DelayedForce`, equal to the
+        exact chain's rows to rounding); the exact chain serves every other case."""
         key = ("y",) + self.input_key(model) + ((extra.physics, extra.theta) if extra else ())
+        if key in self._rows:
+            return self._rows[key]
+        if extra is not None and extra.physics == "time_delay" and not model.has("time_delay"):
+            shift = extra.params["delay_s"] / self.sig.dt
+            df = self._delayed_force(model)
+            if abs(shift) <= df.max_shift:
+                return self.cached_rows(key, lambda: df.rows(shift))
+        u = self.u_eff(model, extra)
         return self.cached_rows(key, lambda: self.sig.force_rows(u))
+
+    def _delayed_force(self, model: Model):
+        """The :class:`~servo.diagnose.delayed.DelayedForce` of ``model``'s effective input
+        (the most recent model's only: one full-rate array)."""
+        from servo.diagnose.delayed import DelayedForce
+
+        key = self.input_key(model)
+        if self._delayed is None or self._delayed[0] != key:
+            q = self.sig.settings.decimate
+            self._delayed = (key, DelayedForce(self.sig, self.u_eff(model), 2.0 * q + 1.0))
+        return self._delayed[1]
 
     def term_rows(self, term: Term, model: Model) -> np.ndarray:
         """Rows of the columns of ``term`` (m, k) under ``model``'s input."""
