@@ -24,7 +24,7 @@ from __future__ import annotations
 import numpy as np
 from scipy import signal
 
-from servo.diagnose.signals import Signals, align
+from servo.diagnose.signals import Signals, align, cheby_sos
 
 #: rows at each end computed by the exact chain (the interior interpolation differs from
 #: it by up to 7 % of the force's peak within ~110 rows of an end, by rounding beyond)
@@ -48,7 +48,7 @@ class DelayedForce:
         s = sig.settings
         self.sig, self.u, self.max_shift = sig, u, float(max_shift)
         q = s.decimate
-        self.sos = signal.cheby1(s.decimate_order, s.decimate_ripple_db, 0.8 / q, output="sos") if q > 1 else None
+        self.sos = cheby_sos(s.decimate_order, s.decimate_ripple_db, q) if q > 1 else None
         self.pad = 3 * s.decimate_order
         self.piece = s.trim_start + (EDGE_ROWS + SETTLE_ROWS) * q + int(np.ceil(max_shift)) + 2
         #: whether the recording is long enough for the interior path (else every delay
