@@ -78,7 +78,7 @@ def drive_terms(d: DriveConfig) -> Model:
         terms.append(_fixed("asymmetric_friction", {"dB": d.B * d.b_asymmetry}))
     if d.Fs > d.Fc and d.Fs > 0:
         terms.append(_fixed("stribeck_friction", {"dFs": d.Fs - d.Fc, "stribeck_velocity": d.stribeck_velocity}))
-    if d.Ha > 1e-9 * max(abs(d.h0), d.Fc, 1e-30):
+    if d.Ha > 1e-6 * max(abs(d.h0), d.Fc, 1e-30):  # a written model without hysteresis has Ha = 1e-12
         terms.append(Term.make("hysteresis", {"dahl_length": d.Ha / d.sigma, "alpha": d.alpha}, (d.Ha,)))
     for f, z, g in zip(d.mode_hz, d.mode_zeta, d.mode_gain):
         terms.append(_fixed("resonance", {"frequency_hz": f, "zeta": z, "gain": g}))
@@ -91,6 +91,16 @@ def drive_terms(d: DriveConfig) -> Model:
         terms.append(_fixed("cogging", {"amplitude": d.cogging, "period": d.cogging_period, "phase": d.cogging_phase}))
     terms.append(_fixed("input_saturation", {"level": d.current_limit}))
     return Model(terms)
+
+
+def without_idle_inputs(model: Model, u: np.ndarray) -> Model:
+    """``model`` without the input saturations that clip nothing of the recorded input
+    ``u`` (a drive config always has a current limit): such a term changes no row, and
+    held in the model it would keep ``input_saturation`` from being tested, so a drive
+    config and the same fit without a limit (a fitted baseline, a report) would differ
+    in what they can find."""
+    peak = float(np.max(np.abs(u))) if u.size else 0.0
+    return Model([t for t in model.terms if not (t.physics == "input_saturation" and t.params["level"] >= peak)])
 
 
 def _basic_complete(model: Model) -> Model:
@@ -146,4 +156,5 @@ def model_is_excited(design: Design, model: Model) -> None:
         raise IdentificationError("nothing excited: the input is constant")
 
 
-__all__ = ["DEFAULT", "ModelFileError", "check_baseline", "drive_terms", "from_file", "from_terms", "model_is_excited"]
+__all__ = ["DEFAULT", "ModelFileError", "check_baseline", "drive_terms", "from_file", "from_terms", "model_is_excited",
+           "without_idle_inputs"]

@@ -72,6 +72,36 @@ class Model:
     def without(self, physics: str) -> "Model":
         return Model([t for t in self.terms if t.physics != physics])
 
+    def corrects(self, physics: str) -> bool:
+        """Whether a free ``physics`` term added to this model is a *correction* of a
+        fixed term of a model file: the model holds ``physics`` only fixed, and it is a
+        column term with linear coefficients only (``B +0.0008``)."""
+        from servo.diagnose.terms import VOCABULARY
+
+        phys = VOCABULARY[physics]
+        fixed = any(t.physics == physics and not t.free for t in self.terms)
+        return fixed and not self.has_free(physics) and phys.kind == "column" and not phys.thetas
+
+    def refitted(self, keep: str | None = None) -> "Model":
+        """The model as a diagnosis fits it once anything is tried on or added to a model
+        file: the linear coefficients of every fixed column term made free (the file's
+        values are the reference the corrections are reported against and the model
+        judged before any finding, not a constraint), except the terms of ``keep`` and
+        those with a free term of their physics beside them (a correction, which carries
+        the change).  Nonlinear parameters (a Dahl length, a mode's frequency) and input
+        terms stay as the file has them.  A model without fixed terms is returned as is."""
+        from servo.diagnose.terms import VOCABULARY
+
+        if all(t.free for t in self.terms):
+            return self
+        free = {t.physics for t in self.terms if t.free}
+        out = []
+        for t in self.terms:
+            if not t.free and VOCABULARY[t.physics].kind == "column" and t.physics != keep and t.physics not in free:
+                t = Term(t.physics, t.theta, None)
+            out.append(t)
+        return Model(out)
+
     def input_terms(self) -> list:
         from servo.diagnose.terms import VOCABULARY
 

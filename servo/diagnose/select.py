@@ -328,6 +328,11 @@ class Selector:
 
     # ---- one candidate ----------------------------------------------------------------
     def score(self, model: Model, physics: str) -> Score:
+        """Score ``physics`` on top of ``model``.  A model file's terms are refitted in
+        the test (:meth:`Model.refitted`): the term is judged against the file's model
+        structure, as against a fitted baseline, and a correction of a file's term
+        against the file's value of that term with the others refitted."""
+        model = model.refitted(keep=physics)
         phys = VOCABULARY[physics]
         sc = Score(physics)
         grid = phys.grid(self.d, model)
@@ -426,6 +431,7 @@ class Selector:
         phys = VOCABULARY[physics]
         if not phys.thetas:
             return Term.make(physics), {}
+        model = model.refitted(keep=physics)  # as in :meth:`score`
         approx = phys.screening
         uniq = {tuple(sorted(th.items())): th for th in thetas}.values()
         best = min(uniq, key=lambda th: self.train_sse(model, Term.make(physics, th), approx))
