@@ -93,17 +93,18 @@ def cogging_stats(x, r, w, starts, stops, k0, dk, a, H):
 @kernel(void(float64[::1], float64[::1], float64[::1], int64[::1], int64[::1], float64[:, ::1], float64[:, ::1],
              float64, float64[:, :, ::1], float64[:, :, :, ::1]))  # fmt: skip
 def biquad_stats(y, r, w, starts, stops, B, A, sign, a, H):
-    """Screening sums of ``sign * lfilter(B[j], A[j], y)`` for each variant ``j``.
+    """Screening sums of ``sign * lfilter(B[:, j], A[:, j], y)`` for each variant ``j``.
 
     ``y`` (m,) the signal filtered (the rows of the force), ``r``, ``w``, ``starts``,
     ``stops`` as in :func:`cogging_stats` (the folds must be in row order and not
-    overlap); ``B``, ``A`` (J, 3) each variant's biquad with ``A[j, 0] = 1``; the filter
+    overlap); ``B``, ``A`` (3, J): column ``j`` is variant ``j``'s biquad, with
+    ``A[0, j] = 1`` (coefficient-major, so the loop over the variants vectorises); the filter
     runs over all rows from zero state.  Writes ``a`` (K, J, 1) and ``H`` (K, J, 1, 1).
     The filter's arithmetic is scipy's ``lfilter`` (transposed direct form II) operation
     for operation, so the columns are those of the numpy path to the bit."""
     m = y.shape[0]
     K = starts.shape[0]
-    J = B.shape[0]
+    J = B.shape[1]
     z1 = np.zeros(J)
     z2 = np.zeros(J)
     a[:] = 0.0
@@ -117,14 +118,14 @@ def biquad_stats(y, r, w, starts, stops, B, A, sign, a, H):
             ri = r[i]
             wi = w[i]
             for j in range(J):
-                yj = z1[j] + B[j, 0] * xi
-                z1[j] = z2[j] + xi * B[j, 1] - yj * A[j, 1]
-                z2[j] = xi * B[j, 2] - yj * A[j, 2]
+                yj = z1[j] + B[0, j] * xi
+                z1[j] = z2[j] + xi * B[1, j] - yj * A[1, j]
+                z2[j] = xi * B[2, j] - yj * A[2, j]
                 c = sign * yj
                 a[b, j, 0] += c * ri
                 H[b, j, 0, 0] += wi * c * c
         else:
             for j in range(J):
-                yj = z1[j] + B[j, 0] * xi
-                z1[j] = z2[j] + xi * B[j, 1] - yj * A[j, 1]
-                z2[j] = xi * B[j, 2] - yj * A[j, 2]
+                yj = z1[j] + B[0, j] * xi
+                z1[j] = z2[j] + xi * B[1, j] - yj * A[1, j]
+                z2[j] = xi * B[2, j] - yj * A[2, j]

@@ -68,7 +68,7 @@ def test_biquad_stats_filters_as_lfilter():
         B.append(b), A.append(a)
     B, A = np.array(B), np.array(A)
     a, H = np.empty((2, 3, 1)), np.empty((2, 3, 1, 1))
-    biquad_stats(y, r, w, starts, stops, B, A, -1.0, a, H)
+    biquad_stats(y, r, w, starts, stops, np.ascontiguousarray(B.T), np.ascontiguousarray(A.T), -1.0, a, H)
     for j in range(3):
         c = -signal.lfilter(B[j], A[j], y)
         for b in range(2):

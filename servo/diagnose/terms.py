@@ -300,8 +300,8 @@ class Resonance(Physics):
         """All variants' biquads run over the force rows together (:func:`kernels.screen.biquad_stats`)."""
         fs = 1.0 / d.sig.row_dt
         BA = [self.biquad(th["frequency_hz"], th["zeta"], fs) for th in thetas]
-        B = np.ascontiguousarray([b for b, _ in BA], dtype=float)
-        A = np.ascontiguousarray([a for _, a in BA], dtype=float)
+        B = np.ascontiguousarray(np.array([b for b, _ in BA], dtype=float).T)  # (3, J)
+        A = np.ascontiguousarray(np.array([a for _, a in BA], dtype=float).T)
         starts, stops = _fold_ranges(blocks)
         K, J = starts.size, len(thetas)
         a, H = np.empty((K, J, 1)), np.empty((K, J, 1, 1))
