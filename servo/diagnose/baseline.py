@@ -71,6 +71,16 @@ def drive_terms(d: DriveConfig) -> Model:
     return Model([Term.make(phys.name, theta, coef) for phys in VOCABULARY.values() for theta, coef in phys.from_drive(d)])
 
 
+def without_idle_inputs(model: Model, u: np.ndarray) -> Model:
+    """``model`` without the input saturations that clip nothing of the recorded input
+    ``u`` (a drive config always has a current limit): such a term changes no row, and
+    held in the model it would keep ``input_saturation`` from being tested, so a drive
+    config and the same fit without a limit (a fitted baseline, a report) would differ
+    in what they can find."""
+    peak = float(np.max(np.abs(u))) if u.size else 0.0
+    return Model([t for t in model.terms if not (t.physics == "input_saturation" and t.params["level"] >= peak)])
+
+
 def _basic_complete(model: Model) -> Model:
     """Add the missing terms of eq. (3) at zero (fixed), so corrections can be found."""
     for name in BASELINE_TERMS.values():
@@ -124,4 +134,5 @@ def model_is_excited(design: Design, model: Model) -> None:
         raise IdentificationError("nothing excited: the input is constant")
 
 
-__all__ = ["DEFAULT", "ModelFileError", "check_baseline", "drive_terms", "from_file", "from_terms", "model_is_excited"]
+__all__ = ["DEFAULT", "ModelFileError", "check_baseline", "drive_terms", "from_file", "from_terms", "model_is_excited",
+           "without_idle_inputs"]

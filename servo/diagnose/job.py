@@ -183,11 +183,28 @@ def state_variables(sig: Signals) -> dict:
 
 
 def _select(sel: Selector, model: Model, opt: Options):
+    """Greedy rounds, each at the family-wise level ``alpha`` over its candidates: first
+    the corrections of a model file's terms (none for a fitted baseline), then the
+    vocabulary's terms, so the terms are chosen among the same candidates, at the same
+    level, whether the baseline is fitted or a file holds it (docs/diagnosis.md, 2)."""
     findings, rounds, not_testable, implausible = [], [], {}, {}
+    for corrections in (True, False):
+        model = _rounds(sel, model, opt, corrections, findings, rounds, not_testable, implausible)
+    return findings, rounds, not_testable, implausible
+
+
+def _rounds(sel: Selector, model: Model, opt: Options, corrections: bool, findings, rounds, not_testable,
+            implausible) -> Model:  # fmt: skip
+    """The rounds of one stage of :func:`_select` (appending to its lists); returns the
+    model with the stage's findings."""
     while len(findings) < opt.max_findings:
-        sel.set_noise(model)
         cands, why = sel.eligible(model)
-        scores = [sel.score(model, c) for c in progress.each(cands, f"candidate terms, round {len(rounds) + 1}")]
+        cands = [c for c in cands if model.corrects(c) == corrections]
+        if not cands:
+            break
+        sel.set_noise(model.refitted())
+        label = "corrections of the model file" if corrections else "candidate terms"
+        scores = [sel.score(model, c) for c in progress.each(cands, f"{label}, round {len(rounds) + 1}")]
         testable = [s for s in scores if s.S0 is not None]
         for s in scores:
             if s.S0 is None:
@@ -198,7 +215,7 @@ def _select(sel: Selector, model: Model, opt: Options):
         added = False
         for best in ok:
             term, tstd = sel.refine(model, best.physics, best.thetas)
-            trial = fit_model(sel.d, model.plus(term))
+            trial = fit_model(sel.d, model.plus(term).refitted())
             why = VOCABULARY[best.physics].implausible(trial.term_params(len(trial.model.terms) - 1))
             if why:
                 implausible[best.physics] = why
@@ -209,7 +226,7 @@ def _select(sel: Selector, model: Model, opt: Options):
             break
         if not added:
             break
-    return findings, rounds, not_testable, implausible
+    return model
 
 
 def _scope_of(design: Design, fit: Fit) -> str:
@@ -222,13 +239,15 @@ def _scope_of(design: Design, fit: Fit) -> str:
 
 
 def _sequence(design: Design, base: Model, findings: list) -> list:
-    """Models baseline, +f1, +f1+f2, ... and their fits on the training part."""
+    """Models baseline, +f1, +f1+f2, ... and their fits on the training part (a model
+    file's terms as the file has them in the first, refitted once a finding is added:
+    :meth:`Model.refitted`)."""
     models = [base]
     for f in findings:
         if f.physics != "quantization":
             models.append(models[-1].plus(f.term))
     ts = [{} for _ in base.terms] + [f.theta_std for f in findings if f.physics != "quantization"]
-    return [fit_model(design, m, ts[: len(m.terms)]) for m in models]
+    return [fit_model(design, m if i == 0 else m.refitted(), ts[: len(m.terms)]) for i, m in enumerate(models)]
 
 
 def prepare(rec: Recording, settings: RobustSettings, opt: Options) -> Design:
@@ -352,6 +371,7 @@ def diagnose(rec: Recording, opt: Options | None = None) -> Diagnosis:
     design0, band_note = choose_band(rec, opt, prepare)
     check_memory(rec.n, replace(opt, settings=design0.sig.settings))
     baseline_mod.check_baseline(design0, base)
+    base = baseline_mod.without_idle_inputs(base, design0.sig.u)
     H = horizon_samples(design0, opt.horizon_s)
 
     qfind, design, lattice, qnote = _quantization(rec, opt, base, design0, H)

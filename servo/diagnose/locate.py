@@ -41,6 +41,8 @@ from __future__ import annotations
 import numpy as np
 from scipy import signal, stats
 
+from servo.diagnose.select import fft_len
+
 N_WINDOWS = 20
 N_BINS = 10
 
@@ -158,14 +160,16 @@ def xcorr_test(r0: np.ndarray, u: np.ndarray, dt: float, alpha: float, max_lag: 
     n = a.size
     sa, sb = a.std() or 1e-300, b.std() or 1e-300
     lags = np.arange(-max_lag, max_lag + 1)
-    fa, fb = np.fft.rfft(a, 2 * n), np.fft.rfft(b, 2 * n)
-    cc = np.fft.irfft(np.conj(fa) * fb)  # cc[k] = sum a[t]*b[t+k], negative k wrapped at the end
-    rho = np.array([cc[k] if k >= 0 else cc[2 * n + k] for k in lags]) / (n * sa * sb)
+    N = fft_len(n)
+    fa, fb = np.fft.rfft(a, N), np.fft.rfft(b, N)
+    cc = np.fft.irfft(np.conj(fa) * fb, N)  # cc[k] = sum a[t]*b[t+k], negative k wrapped at the end
+    rho = np.array([cc[k] if k >= 0 else cc[N + k] for k in lags]) / (n * sa * sb)
 
     def acf(z, M):
         z = z - z.mean()
-        f = np.fft.rfft(z, 2 * z.size)
-        return np.fft.irfft(f * np.conj(f))[: M + 1] / (z.size * max(z.var(), 1e-300))
+        N = fft_len(z.size)
+        f = np.fft.rfft(z, N)
+        return np.fft.irfft(f * np.conj(f), N)[: M + 1] / (z.size * max(z.var(), 1e-300))
 
     M = min(100, n // 4)
     ra, rb = acf(a, M), acf(b, M)

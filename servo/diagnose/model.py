@@ -73,6 +73,36 @@ class Model:
     def without(self, physics: str) -> "Model":
         return Model([t for t in self.terms if t.physics != physics])
 
+    def corrects(self, physics: str) -> bool:
+        """Whether a free ``physics`` term added to this model is a *correction* of a
+        fixed term of a model file: the model holds ``physics`` only fixed, and it is a
+        column term with linear coefficients only (``B +0.0008``)."""
+        from servo.diagnose.terms import VOCABULARY
+
+        phys = VOCABULARY[physics]
+        fixed = any(t.physics == physics and not t.free for t in self.terms)
+        return fixed and not self.has_free(physics) and phys.kind == "column" and not phys.thetas
+
+    def refitted(self, keep: str | None = None) -> "Model":
+        """The model as a diagnosis fits it once anything is tried on or added to a model
+        file: the linear coefficients of every fixed column term made free (the file's
+        values are the reference the corrections are reported against and the model
+        judged before any finding, not a constraint), except the terms of ``keep`` and
+        those with a free term of their physics beside them (a correction, which carries
+        the change).  Nonlinear parameters (a Dahl length, a mode's frequency) and input
+        terms stay as the file has them.  A model without fixed terms is returned as is."""
+        from servo.diagnose.terms import VOCABULARY
+
+        if all(t.free for t in self.terms):
+            return self
+        free = {t.physics for t in self.terms if t.free}
+        out = []
+        for t in self.terms:
+            if not t.free and VOCABULARY[t.physics].kind == "column" and t.physics != keep and t.physics not in free:
+                t = Term(t.physics, t.theta, None)
+            out.append(t)
+        return Model(out)
+
     def input_terms(self) -> list:
         return [t for t in self.terms if VOCABULARY[t.physics].kind == "input"]
 
@@ -99,6 +129,7 @@ class Design:
         #: full-rate effective inputs, the most recent :data:`U_CACHE` only: a search over
         #: a delay or a saturation level makes one per variant, and their rows are cached
         self._u: dict = {}
+        self._delayed = None
 
     # ---- the input -----------------------------------------------------------------
     @staticmethod
@@ -132,10 +163,31 @@ class Design:
         return self._rows[key]
 
     def target_raw(self, model: Model, extra: Term | None = None) -> np.ndarray:
-        """Rows of the aligned effective force (m,)."""
-        u = self.u_eff(model, extra)
+        """Rows of the aligned effective force (m,).  A delay tried on top of a model
+        without one (``extra``, the screening of ``time_delay``) is interpolated from the
+        force filtered once (:class:`servo.diagnose.delayed.DelayedForce`, equal to the
+        exact chain's rows to rounding); the exact chain serves every other case."""
         key = ("y",) + self.input_key(model) + ((extra.physics, extra.theta) if extra else ())
+        if key in self._rows:
+            return self._rows[key]
+        if extra is not None and extra.physics == "time_delay" and not model.has("time_delay"):
+            shift = extra.params["delay_s"] / self.sig.dt
+            df = self._delayed_force(model)
+            if abs(shift) <= df.max_shift:
+                return self.cached_rows(key, lambda: df.rows(shift))
+        u = self.u_eff(model, extra)
         return self.cached_rows(key, lambda: self.sig.force_rows(u))
+
+    def _delayed_force(self, model: Model):
+        """The :class:`~servo.diagnose.delayed.DelayedForce` of ``model``'s effective input
+        (the most recent model's only: one full-rate array)."""
+        from servo.diagnose.delayed import DelayedForce
+
+        key = self.input_key(model)
+        if self._delayed is None or self._delayed[0] != key:
+            q = self.sig.settings.decimate
+            self._delayed = (key, DelayedForce(self.sig, self.u_eff(model), 2.0 * q + 1.0))
+        return self._delayed[1]
 
     def term_rows(self, term: Term, model: Model) -> np.ndarray:
         """Rows of the columns of ``term`` (m, k) under ``model``'s input."""

@@ -37,6 +37,7 @@ from functools import lru_cache
 
 import numpy as np
 from scipy import optimize, stats
+from scipy.fft import next_fast_len
 
 from servo.diagnose.model import Design, Model, Term
 from servo.diagnose.terms import VOCABULARY
@@ -198,14 +199,22 @@ def fit_rows(y: np.ndarray, Phi: np.ndarray, w: np.ndarray) -> np.ndarray:
     return solve(Z.T @ Z, Z.T @ yy)
 
 
+def fft_len(n: int) -> int:
+    """A fast FFT length for the linear (not circular) correlations of ``n`` samples:
+    at least ``2n``.  Exactly ``2n`` can be a product with a large prime factor, for which
+    an FFT of 150 000 points took 140 ms instead of 2 ms."""
+    return next_fast_len(2 * n, real=True)
+
+
 def integrated_time(r: np.ndarray, max_lag: int = 2000) -> float:
     """Integrated autocorrelation time of ``r`` (rows), ``1 + 2*sum(rho_k)`` with Sokal's
     window (stop at the first lag ``M >= 5*tau``); at least 1."""
     r = r - r.mean()
     n = r.size
     L = min(max_lag, n // 4)
-    f = np.fft.rfft(r, 2 * n)
-    acf = np.fft.irfft(f * np.conj(f))[: L + 1]
+    N = fft_len(n)
+    f = np.fft.rfft(r, N)
+    acf = np.fft.irfft(f * np.conj(f), N)[: L + 1]
     if acf[0] <= 0:
         return 1.0
     rho = acf / acf[0]
@@ -319,6 +328,11 @@ class Selector:
 
     # ---- one candidate ----------------------------------------------------------------
     def score(self, model: Model, physics: str) -> Score:
+        """Score ``physics`` on top of ``model``.  A model file's terms are refitted in
+        the test (:meth:`Model.refitted`): the term is judged against the file's model
+        structure, as against a fitted baseline, and a correction of a file's term
+        against the file's value of that term with the others refitted."""
+        model = model.refitted(keep=physics)
         phys = VOCABULARY[physics]
         sc = Score(physics)
         grid = phys.grid(self.d, model)
@@ -373,11 +387,15 @@ class Selector:
         r = np.where(w, y0 - Phi @ fit_rows(y0, Phi, w), 0.0)
         K = self.blocks.K
         expl = np.zeros((K, len(grid)))
+        sums = phys.screen_sums(self.d, grid, model, r, self.blocks)  # compiled, no columns
         for j0 in range(0, len(grid), SCREEN_CHUNK):
-            C = phys.screen_batch(self.d, grid[j0 : j0 + SCREEN_CHUNK], model)  # (J, k, m)
-            a, H = screen_stats(C, r, self.blocks)
+            if sums is None:
+                C = phys.screen_batch(self.d, grid[j0 : j0 + SCREEN_CHUNK], model)  # (J, k, m)
+                a, H = screen_stats(C, r, self.blocks)
+            else:
+                a, H = sums[0][:, j0 : j0 + SCREEN_CHUNK], sums[1][:, j0 : j0 + SCREEN_CHUNK]
             At, Ht = a.sum(0)[None] - a, H.sum(0)[None] - H  # fold b: all blocks but b
-            expl[:, j0 : j0 + C.shape[0]] = explained(At, Ht)
+            expl[:, j0 : j0 + a.shape[1]] = explained(At, Ht)
         picks = expl.argmax(axis=1)
         out, cache = [], {}
         for b in range(K):
@@ -413,6 +431,7 @@ class Selector:
         phys = VOCABULARY[physics]
         if not phys.thetas:
             return Term.make(physics), {}
+        model = model.refitted(keep=physics)  # as in :meth:`score`
         approx = phys.screening
         uniq = {tuple(sorted(th.items())): th for th in thetas}.values()
         best = min(uniq, key=lambda th: self.train_sse(model, Term.make(physics, th), approx))
@@ -500,5 +519,5 @@ class Selector:
         return ok, why
 
 
-__all__ = ["ALPHA", "Blocks", "Grams", "N_BLOCKS", "Score", "Selector", "fit_rows", "integrated_time",
+__all__ = ["ALPHA", "Blocks", "Grams", "N_BLOCKS", "Score", "Selector", "fit_rows", "fft_len", "integrated_time",
            "make_blocks", "paired_test", "screen_stats", "signflip_test", "solve"]  # fmt: skip

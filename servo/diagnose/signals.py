@@ -39,7 +39,7 @@ from functools import cached_property, lru_cache
 import numpy as np
 from scipy import signal
 
-from servo.identify.regressors import IdentificationError, RobustSettings, matlab_decimate, regressor
+from servo.identify.regressors import IdentificationError, RobustSettings, regressor
 from servo.io.recording import Recording
 
 #: ``|x'|`` below this many noise standard deviations: the direction is uncertain.
@@ -124,7 +124,7 @@ class Signals:
         the filtered full-rate column as a view, which would keep all ``n`` samples
         alive for as long as the rows are cached (the diagnosis caches hundreds)."""
         s = self.settings
-        r = matlab_decimate(z[s.trim_start : self.n - s.trim_end], s.decimate, s.decimate_order, s.decimate_ripple_db)
+        r = decimate(z[s.trim_start : self.n - s.trim_end], s.decimate, s.decimate_order, s.decimate_ripple_db)
         return np.array(r, copy=True, order="C") if r.base is not None else r
 
     def force(self, u_eff: np.ndarray | None = None) -> np.ndarray:
@@ -137,7 +137,7 @@ class Signals:
     def butter(self, z: np.ndarray) -> np.ndarray:
         """``z`` through the zero-phase Butterworth applied to the position."""
         fs = 1.0 / self.dt
-        b, a = signal.butter(self.settings.butter_order, self.settings.cutoff(fs) / (fs / 2))
+        b, a = butter_ba(self.settings.butter_order, self.settings.cutoff(fs) / (fs / 2))
         return signal.filtfilt(b, a, z, padlen=3 * self.settings.butter_order)
 
     def force_rows(self, u_eff: np.ndarray | None = None) -> np.ndarray:
@@ -148,6 +148,30 @@ class Signals:
         """Rows of the regressor of eq. (4) for ``terms`` (as ``robust_regression``)."""
         Phi0 = regressor(self.af, self.vf, self.xf, terms)
         return np.column_stack([self.rows(Phi0[:, j]) for j in range(Phi0.shape[1])])
+
+
+@lru_cache(maxsize=16)
+def butter_ba(order: int, wn: float) -> tuple[np.ndarray, np.ndarray]:
+    """``scipy.signal.butter(order, wn)``, designed once per (order, cutoff): a diagnosis
+    filters a hundred columns with the same filter, and each design took 2 ms."""
+    return signal.butter(order, wn)
+
+
+@lru_cache(maxsize=16)
+def cheby_sos(order: int, ripple_db: float, q: int) -> np.ndarray:
+    """The decimation filter of :func:`servo.identify.regressors.matlab_decimate`
+    (Chebyshev type I, cutoff ``0.8/q`` of Nyquist, second-order sections), designed once."""
+    return signal.cheby1(order, ripple_db, 0.8 / q, output="sos")
+
+
+def decimate(z: np.ndarray, q: int, order: int = 8, ripple_db: float = 0.05) -> np.ndarray:
+    """:func:`servo.identify.regressors.matlab_decimate` with the filter designed once
+    (:func:`cheby_sos`): the same operations, the same result."""
+    z = np.asarray(z, dtype=float)
+    if q == 1:
+        return z.copy()
+    zf = signal.sosfiltfilt(cheby_sos(order, ripple_db, q), z, padlen=min(3 * order, z.size - 1))
+    return zf[slice((z.size - 1) % q, z.size, q)]
 
 
 #: sixth-order central difference, f'(t) = sum(c_j*f(t + j*dt))/dt for j = -3..3
@@ -320,7 +344,7 @@ def filter_reach(settings: RobustSettings) -> int:
     for off in range(q):
         z = np.zeros(n)
         z[n // 2 + off] = 1.0
-        r = np.abs(matlab_decimate(z, q, settings.decimate_order, settings.decimate_ripple_db))
+        r = np.abs(decimate(z, q, settings.decimate_order, settings.decimate_ripple_db))
         big = np.flatnonzero(r > REACH_LEVEL * r.max())
         worst = max(worst, (big.max() - big.min()) // 2 + 1)
     return int(worst * q)

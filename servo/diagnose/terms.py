@@ -34,6 +34,7 @@ import numpy as np
 from scipy import signal
 
 from kernels.hysteresis import dahl_trace
+from kernels.screen import biquad_stats, cogging_stats
 from servo.config import MAGNITUDE_MAX
 
 #: every physics name a finding can carry, in the order the docs list them
@@ -91,6 +92,13 @@ class Physics:
     def screen_batch(self, d, thetas: list, model) -> np.ndarray:
         """Approximate rows of several variants at once, (J, k, m)."""
         return np.stack([np.atleast_2d(self.screen(d, th, model).T) for th in thetas], axis=0)
+
+    def screen_sums(self, d, thetas: list, model, r: np.ndarray, blocks):
+        """Screening sums ``(a, H)`` of all ``thetas`` at once, (K, J, k) and (K, J, k, k)
+        as :func:`servo.diagnose.select.screen_stats` of :meth:`screen_batch`, computed
+        without the columns (a compiled kernel); None: not available, the caller builds
+        the columns in chunks."""
+        return None
 
     def grid(self, d, model) -> list:
         return [{}]
@@ -164,6 +172,17 @@ def _geom(lo: float, hi: float, per_decade: float) -> np.ndarray:
         return np.zeros(0)
     k = max(2, int(math.ceil(math.log10(hi / lo) * per_decade)) + 1)
     return np.geomspace(lo, hi, k)
+
+
+def _c(z) -> np.ndarray:
+    return np.ascontiguousarray(z, dtype=float)
+
+
+def _fold_ranges(blocks) -> tuple[np.ndarray, np.ndarray]:
+    """Each fold's first and past-the-end row (K,), int64."""
+    starts = np.array([sl.start for sl in blocks.slices], dtype=np.int64)
+    stops = np.array([sl.stop for sl in blocks.slices], dtype=np.int64)
+    return starts, stops
 
 
 def _valid_speed(d) -> np.ndarray:
@@ -351,7 +370,7 @@ class Hysteresis(Physics):
         return {"Ha": p["Ha"], "sigma": p["sigma"], "alpha": fit.model.get(self.name).params.get("alpha", 1.0)}
 
     def from_drive(self, d):
-        if d.Ha > 1e-9 * max(abs(d.h0), d.Fc, 1e-30):
+        if d.Ha > 1e-6 * max(abs(d.h0), d.Fc, 1e-30):  # a written model without hysteresis has Ha = 1e-12
             return [({"dahl_length": d.Ha / d.sigma, "alpha": d.alpha}, (d.Ha,))]
         return []
 
@@ -445,6 +464,19 @@ class Resonance(Physics):
         y = d.target_raw(model)
         b, a = self.biquad(theta["frequency_hz"], theta["zeta"], 1.0 / d.sig.row_dt)
         return -signal.lfilter(b, a, y)[:, None]
+
+    def screen_sums(self, d, thetas, model, r, blocks):
+        """All variants' biquads run over the force rows together (:func:`kernels.screen.biquad_stats`)."""
+        fs = 1.0 / d.sig.row_dt
+        BA = [self.biquad(th["frequency_hz"], th["zeta"], fs) for th in thetas]
+        B = np.ascontiguousarray(np.array([b for b, _ in BA], dtype=float).T)  # (3, J)
+        A = np.ascontiguousarray(np.array([a for _, a in BA], dtype=float).T)
+        starts, stops = _fold_ranges(blocks)
+        K, J = starts.size, len(thetas)
+        a, H = np.empty((K, J, 1)), np.empty((K, J, 1, 1))
+        y = np.ascontiguousarray(d.target_raw(model), dtype=float)
+        biquad_stats(y, _c(r), _c(blocks.weights), starts, stops, B, A, -1.0, a, H)
+        return a, H
 
     def _range(self, d):
         s = d.sig
@@ -620,6 +652,19 @@ class Cogging(Physics):
             return out
         z = np.exp(2j * math.pi * k[:, None] * x[None, :])
         return np.stack([z.imag, z.real], axis=1)
+
+    def screen_sums(self, d, thetas, model, r, blocks):
+        """A uniform grid of wavenumbers by rotation, row tile by row tile
+        (:func:`kernels.screen.cogging_stats`); None for another grid."""
+        k = np.array([1.0 / th["period"] for th in thetas])
+        if k.size < 3 or not np.allclose(np.diff(k), k[1] - k[0], rtol=1e-9, atol=0):
+            return None
+        starts, stops = _fold_ranges(blocks)
+        K, J = starts.size, k.size
+        a, H = np.empty((K, J, 2)), np.empty((K, J, 2, 2))
+        dk = (k[-1] - k[0]) / (J - 1)
+        cogging_stats(_c(d.sig.x_rows), _c(r), _c(blocks.weights), starts, stops, float(k[0]), float(dk), a, H)
+        return a, H
 
     def _k_range(self, d):
         s = d.sig
