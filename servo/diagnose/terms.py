@@ -527,9 +527,11 @@ class TimeDelay(Physics):
         return -q * d.sig.dt, 2 * q * d.sig.dt
 
     def grid(self, d, model):
-        """Quarter samples up to two samples either way, whole samples beyond."""
+        """Tenths of a sample up to half a sample, quarter samples up to two either way,
+        whole samples beyond (a 0.1-sample delay on a lead-lag loop was missed with
+        quarter samples alone: 17/20 of the proving ground's delays, 20/20 with tenths)."""
         q = d.sig.settings.decimate
-        steps = sorted({j / 4 for j in range(-8, 9)} | set(range(-q, 2 * q + 1)) - {0})
+        steps = sorted({j / 10 for j in range(-5, 6)} | {j / 4 for j in range(-8, 9)} | set(range(-q, 2 * q + 1)) - {0})
         return [{"delay_s": j * d.sig.dt} for j in steps]
 
     def bounds(self, d, model):
