@@ -55,6 +55,7 @@ Cost: two high-pass filters and three Welch spectra per part: about 0.2 s for
 """
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import dataclass, field
 
@@ -257,12 +258,18 @@ def linear_input(design, fit) -> np.ndarray:
 
 
 # ------------------------------------------------------------------ the model's response
+@functools.lru_cache(maxsize=16)
+def _zoh_tf(num: tuple, den: tuple, dt: float) -> tuple:
+    bd, ad, _ = signal.cont2discrete((list(num), list(den)), dt, method="zoh")
+    return np.ravel(bd), np.asarray(ad)
+
+
 def _zoh(num, den, dt: float, f: np.ndarray) -> np.ndarray:
     """Frequency response at ``f`` (Hz) of the continuous ``num/den`` driven through a
     zero-order hold and sampled every ``dt`` (exact, ``cont2discrete``)."""
-    bd, ad, _ = signal.cont2discrete((num, den), dt, method="zoh")
+    bd, ad = _zoh_tf(tuple(map(float, num)), tuple(map(float, den)), float(dt))
     z = np.exp(2j * np.pi * f * dt)
-    return np.polyval(np.ravel(bd), z) / np.polyval(ad, z)
+    return np.polyval(bd, z) / np.polyval(ad, z)
 
 
 def kernel(nperseg: int) -> tuple[np.ndarray, np.ndarray]:
