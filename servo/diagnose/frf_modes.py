@@ -4,59 +4,63 @@ The force-balance rows are decimated (:mod:`servo.diagnose.band`): they cover ``
 0.4*fs/q`` Hz, and a mode above that edge never shows in them.  This path works at the
 full sample rate on the input-to-position frequency response instead:
 
-1. **Measured response.**  ``H1 = P_ux/P_uu`` over Welch segments (Hann, 50 % overlap,
-   :func:`servo.frf.estimate.spectra`) with the coherence ``g2``, separately on the
-   training part (the samples up to the last training row) and on the test part (the
-   rest).  Both signals first go through the same zero-phase high-pass (Butterworth,
-   order 4, at half the band edge): a filter common to ``u`` and ``x`` cancels in the
-   ratio, and it keeps the position's large low-frequency motion from leaking through
-   the window's side lobes into the bins above the band, where the response is
-   nanometres.  Each complex component of ``H1`` has the standard deviation
-   ``|H1|*sqrt((1 - g2)/(2*K_eq*g2))`` (Bendat & Piersol, *Random Data*, eq. 9.90;
-   ``K_eq`` the equivalent independent averages of overlapping segments).
+1. **Measured response.**  ``H1 = P_ux/P_uu`` over Welch segments (Hann, 50 % overlap)
+   with the coherence ``g2``, separately on the training part (the samples up to the
+   last training row) and on the test part (the rest), from the force the model's
+   linear part sees (:func:`linear_input`: the friction's force, which a loop feeds
+   back into the input, taken off) to the measured position, over the segments in
+   which the arm slides (a stuck arm does not follow the input).  Both signals first
+   go through the same zero-phase high-pass (Butterworth, order 4, at half the band
+   edge): a filter common to ``u`` and ``x`` cancels in the ratio, and it keeps the
+   position's large low-frequency motion from leaking through the window's side lobes
+   into the bins above the band, where the response is nanometres.  Each complex
+   component of ``H1`` has the standard deviation ``|H1|*sqrt((1 - g2)/(2*K_eq*g2))``
+   (Bendat & Piersol, *Random Data*, eq. 9.90; ``K_eq`` the equivalent independent
+   averages of overlapping segments).
 2. **The model's response** over the same bins: the rigid body ``1/(J s^2 + B s + K)``
    plus every mode of the model (``x_meas = x + gain*q``, ``q'' + 2*zeta*w*q' + w^2*q =
-   u/J``, the :mod:`~servo.diagnose.terms` ``resonance`` term), times the model's input
-   delay, each part discretised exactly for the recorded zero-order-hold input
-   (``scipy.signal.cont2discrete``), and averaged over the Welch window's spectral
-   kernel (what a Welch estimate of the same response would read, for a locally flat
-   input spectrum).
-3. **Departure test** (level fixed before any scoring): in every bin of the **FRF
-   band** (from the rows' band edge to ``0.45*fs``) where the estimate is usable, the
-   squared complex departure over its variance is chi-square with 2 degrees of freedom
-   under the model; a bin departs when it exceeds the ``alpha/N_bins`` quantile
-   (Bonferroni over the bins) *and* the departure is at least :data:`REL_MARGIN` of the
-   model's response.  A bin is usable when the coherence is at least :data:`COH_MIN`
-   (the first-order variance holds there) and the position power the model predicts
-   from the measured input is at least :data:`SNR_MIN` times the sensor noise's
-   (white, ``sigma_x`` of :mod:`servo.diagnose.signals`).  The second condition is for
-   closed loops: where the input is mostly sensor noise fed back through the
-   controller, ``H1`` reads ``-1/C`` (the controller's inverse), not the plant; with
-   the model's output power ``SNR_MIN`` times the noise's, that bias is at most
-   ``|loop gain|/SNR_MIN`` of ``|H|``.  Fewer than :data:`MIN_BINS` usable bins: the
-   recording has no input power above the band, and the path says so and stops.
+   u/J``, the :mod:`~servo.diagnose.terms` ``resonance`` term), each part discretised
+   exactly for the recorded zero-order-hold input, and averaged over the Welch window's
+   spectral kernel (what a Welch estimate of the same response would read, for a
+   locally flat input spectrum).
+3. **Departure test** (level fixed before any scoring): in every usable bin of the
+   **FRF band** (from the rows' band edge to ``0.45*fs``), the squared complex
+   departure over its variance, after a smooth factor ``c0 + c1*log f`` is taken off
+   (:func:`detrended`), is chi-square with 2 degrees of freedom under the model; a bin
+   departs beyond the ``alpha/N_bins`` quantile (Bonferroni over the bins) *and* by at
+   least :func:`margin` of the model's response; the response departs where two
+   neighbouring bins do.  A bin is usable when the coherence is at least
+   :data:`COH_MIN` and the position power the model predicts from the measured input
+   is at least :data:`SNR_MIN` times the sensor noise's (white, ``sigma_x`` of
+   :mod:`servo.diagnose.signals`).  Closed loops: where the input is partly sensor
+   noise fed back through the controller, ``H1`` turns towards ``-1/C`` (the
+   controller's inverse), by ``|L/(1 + L)|/SNR`` of ``|H|`` (``L`` the loop gain); the
+   margin ``BIAS_FACTOR/SNR`` and the smooth factor keep that bias from counting.
+   Fewer than :data:`MIN_BINS` usable bins: the recording has no input power above the
+   band, and the path says so and stops.
 4. **Fit.**  Where the training part departs, a mode (``frequency_hz``, ``zeta``,
    ``gain``: the ``resonance`` term's parameters, so that ``final_model.toml`` and
    :func:`servo.diagnose.simulate.drive_params` carry it) is fitted to the measured
    response by weighted complex least squares (``scipy.optimize.least_squares``,
-   started from a grid of damping values at the worst bin, the gain linear in between),
-   with standard deviations from the Jacobian (inflated by the Hann window's noise
-   bandwidth, 1.5 bins, for the correlation of neighbouring bins).  A mode at the
-   damping bound of the vocabulary is not a mode (the ``resonance`` term's rule).  Up to
-   :data:`MAX_MODES` modes, one at a time, while the training part still departs.
+   started from a grid of damping values around the worst bin, the smooth factor
+   solved linearly inside), with standard deviations from the Jacobian (inflated by the
+   Hann window's noise bandwidth, 1.5 bins, for the correlation of neighbouring bins).
+   A mode at the damping bound of the vocabulary is not a mode (the ``resonance``
+   term's rule).  Up to :data:`MAX_MODES` modes, one at a time, while the training part
+   still departs.
 5. **Proof on the test part**: the held-out part's own ``H1`` against the model without
    and with the mode (the sum of squared departures over their variances on the test
-   part's usable bins); a mode that does not lower it is dropped (reported with its
-   parameters).  The caller also requires the short-horizon output NRMSE at full rate
-   (:mod:`servo.diagnose.simulate`, which steps the modes) not to rise.
+   part's usable bins, the smooth factor refitted for each); a mode that does not lower
+   it is dropped (reported with its parameters).
 
-Cost: two high-pass filters and three Welch spectra per part: about 0.2 s for
-1 000 000 samples.
+Cost: 0.4 s of a 1 000 000-sample diagnosis (two high-pass filters, the friction's
+force at full rate, the spectra of both parts).  ``docs/diagnosis.md`` section 6b.
 """
 from __future__ import annotations
 
 import functools
 import math
+import time
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -70,7 +74,8 @@ from servo.frf.estimate import n_segments
 #: order; below ~0.5 the ratio of noisy spectra has heavier tails than it says)
 COH_MIN = 0.5
 #: ... and where the model's position power from the measured input is at least this
-#: many times the sensor noise's (closed-loop bias of H1 at most |loop gain|/SNR_MIN)
+#: many times the sensor noise's (below, the closed-loop bias margin, ``BIAS_FACTOR/SNR``,
+#: exceeds 67 %: nothing short of a large peak could count)
 SNR_MIN = 3.0
 #: a departure must be at least this share of the model's response, whatever the test
 #: says (an inertia 1 % off, or the closed-loop bias above, is not a mode)
@@ -95,8 +100,8 @@ NPERSEG_MAX = 8192
 NPERSEG_MIN = 64
 #: the FRF band's upper edge, a share of the sample rate
 TOP = 0.45
-#: the bound of the damping of a mode (the ``resonance`` term's)
-ZETA_BOUNDS = (0.001, 0.1)
+#: the bounds of the damping of a mode (the ``resonance`` term's)
+ZETA_BOUNDS = (0.001, VOCABULARY["resonance"].ZETA_MAX)
 #: equivalent noise bandwidth of the Hann window, bins: neighbouring bins are correlated
 ENBW = 1.5
 #: samples of the window's spectral kernel per bin, and its half-width in bins
@@ -129,7 +134,6 @@ class Mode:
     params: dict
     std: dict
     evidence: dict = field(default_factory=dict)
-    confirmed: bool = False
     reason: str = ""
 
 
@@ -497,8 +501,6 @@ def run(design, fit, alpha: float) -> Result:
     """The path on ``design``'s recording against the fitted model ``fit`` (module doc):
     the modes it proposes, each judged on the test part's own ``H1`` (the caller adds
     the output check and the model's refit)."""
-    import time
-
     t0 = time.perf_counter()
     sig = design.sig
     fs = 1.0 / sig.dt
@@ -545,7 +547,7 @@ def run(design, fit, alpha: float) -> Result:
     res.ran = True
     kept: list = []
     for _ in range(MAX_MODES):
-        if len(pl.modes) + len(kept) >= 4:  # the vocabulary's MAX_MODES
+        if len(pl.modes) + len(kept) >= VOCABULARY["resonance"].MAX_MODES:
             break
         cur = plant_with(pl, kept)
         Hm = model_response(cur, tr.f, sig.dt, df, ker)
@@ -565,9 +567,9 @@ def run(design, fit, alpha: float) -> Result:
                       "train_departure": public(dep), "train_after": public(departure(tr, Htr1, use_tr, alpha, noise_psd)),
                       "test_sse_before": d0["sse"], "test_sse_after": d1["sse"], "test_bins": d0["bins"],
                       "fit_chi2": chi2}  # fmt: skip
-        if z >= 0.95 * ZETA_BOUNDS[1]:
-            m.reason = (f"the best mode sits at the damping bound (zeta {z:.3g}): what the response shows is not a "
-                        "lightly damped mode")  # fmt: skip
+        why = VOCABULARY["resonance"].implausible(m.params)  # at the damping bound: not a lightly damped mode
+        if why:
+            m.reason = why
             res.dropped.append(m)
             break
         if not d1["sse"] < d0["sse"]:
