@@ -141,3 +141,17 @@ def test_no_input_power_above_the_band_is_said_not_guessed():
     assert not D.verdict["final_checks"]["frf"]["failed"]
     text = format_summary(build_report(D, []), "out")
     assert "band above: the frequency response at full rate covers 200-2250 Hz (the input has no power" in text
+
+
+def test_the_figure_shows_both_parts_and_the_model_before_and_after(tmp_path):
+    from matplotlib.figure import Figure
+
+    from servo.diagnose.plots import plot_frf, write_plots
+
+    rec, _ = recording(Case("mode_above_band", 0.03, "leadlag", "prbs", 5000.0), seed=11)
+    D = diagnose(rec)
+    fig = plot_frf(D)
+    assert isinstance(fig, Figure) and not list(tmp_path.iterdir())
+    labels = {ln.get_label() for ln in fig.axes[0].get_lines()}
+    assert {"H1, training part", "H1, test part", "model before", "model with the modes found"} <= labels
+    assert "frf.png" in write_plots(D, tmp_path) and (tmp_path / "frf.png").stat().st_size > 0

@@ -154,6 +154,11 @@ class Result:
     before: dict | None = None
     after: dict | None = None
     seconds: float = 0.0
+    #: the model's response in the test part's bins without and with the modes kept, and
+    #: the bins the tests used there (for the figure)
+    model_before: np.ndarray | None = None
+    model_after: np.ndarray | None = None
+    usable_test: np.ndarray | None = None
 
     def summary(self) -> dict:
         """JSON-ready description (``report.json``'s ``frf``)."""
@@ -578,7 +583,9 @@ def run(design, fit, alpha: float) -> Result:
             break
         kept.append(m)
     res.modes = kept
-    res.after = public(departure(te, model_response(plant_with(pl, kept), te.f, sig.dt, df, ker), use_te, alpha, noise_psd))
+    res.model_before, res.usable_test = Hm_te, use_te
+    res.model_after = model_response(plant_with(pl, kept), te.f, sig.dt, df, ker)
+    res.after = public(departure(te, res.model_after, use_te, alpha, noise_psd))
     res.seconds = time.perf_counter() - t0
     return res
 
