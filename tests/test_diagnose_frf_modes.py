@@ -103,6 +103,7 @@ def test_a_mode_above_the_rows_band_is_found_fitted_and_carried_to_the_final_mod
     assert frf[0].after["frf_sse"] < frf[0].before["frf_sse"]
     assert D.verdict["verdict"] == "explained", D.verdict["text"]
     assert D.verdict["baseline_checks"]["frf"]["failed"] and not D.verdict["final_checks"]["frf"]["failed"]
+    assert "frequency response above the rows' band within its interval" in D.verdict["text"]
     _, modes = drive_params(D.final_fit, D.design)  # the simulated drive steps the mode
     assert modes["hz"] == [pytest.approx(p["frequency_hz"])] and modes["gain"] == [pytest.approx(p["gain"])]
     rep = build_report(D, ["report.json"])

@@ -574,11 +574,11 @@ def run(design, fit, alpha: float) -> Result:
                       "fit_chi2": chi2}  # fmt: skip
         why = VOCABULARY["resonance"].implausible(m.params)  # at the damping bound: not a lightly damped mode
         if why:
-            m.reason = why
+            m.reason = f"not a mode: {why}"
             res.dropped.append(m)
             break
         if not d1["sse"] < d0["sse"]:
-            m.reason = "did not lower the held-out part's H1 departure"
+            m.reason = "not confirmed: it did not lower the held-out part's H1 departure"
             res.dropped.append(m)
             break
         kept.append(m)

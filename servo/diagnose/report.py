@@ -267,7 +267,7 @@ def format_summary(report: dict, out: Path) -> str:
                      f"(family-wise false-alarm level {100 * s['alpha']:.0f} %); see the verdict")  # fmt: skip
     for u in report["unconfirmed"]:
         if u["test_error_before"].get("frf_sse") is not None:
-            lines.append(f"  not confirmed on the held-out part (dropped): {u['physics']} (frequency response): "
+            lines.append(f"  dropped: {u['physics']} (frequency response): "
                          f"{_fmt_params(u['params'], u['units'], u['std'])} ({u['reason']}; held-out departure "
                          f"{u['test_error_before']['frf_sse']:.4g} -> {u['test_error_after']['frf_sse']:.4g})")  # fmt: skip
             continue

@@ -284,9 +284,11 @@ def decide(base: dict, final: dict, n_findings: int, scope: str, force_unit: str
                     "text": f"the model explains the recording to its noise: held-out residual {lv['ratio']:.3g} x the "
                             "noise floor the position noise implies, no structure, no train/test gap"}  # fmt: skip
         b = base["level"]
+        above = (" and the held-out frequency response above the rows' band within its interval"
+                 if base.get("frf", {}).get("failed") else "")  # fmt: skip
         return {"verdict": "explained",
                 "text": f"the findings bring the held-out residual from {b['ratio']:.3g} to {lv['ratio']:.3g} x the noise "
-                        "floor, with no structure left and no train/test gap"}  # fmt: skip
+                        f"floor{above}, with no structure left and no train/test gap"}  # fmt: skip
     return {"verdict": "unexplained",
             "text": f"the model still fails: {where_text(final, force_unit)}; no term of the vocabulary accounts for it"}
 
