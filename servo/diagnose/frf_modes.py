@@ -278,7 +278,8 @@ def _zoh(num, den, dt: float, f: np.ndarray) -> np.ndarray:
     zero-order hold and sampled every ``dt`` (exact, ``cont2discrete``)."""
     bd, ad = _zoh_tf(tuple(map(float, num)), tuple(map(float, den)), float(dt))
     z = np.exp(2j * np.pi * f * dt)
-    return np.polyval(bd, z) / np.polyval(ad, z)
+    with np.errstate(divide="ignore", invalid="ignore"):  # a double integrator's pole at DC
+        return np.polyval(bd, z) / np.polyval(ad, z)
 
 
 def kernel(nperseg: int) -> tuple[np.ndarray, np.ndarray]:
