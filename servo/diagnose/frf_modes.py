@@ -128,8 +128,10 @@ class Response:
 
 @dataclass
 class Mode:
-    """A mode fitted by this path: the ``resonance`` parameters, their std, and the
-    evidence (``train``: departure before, ``test_sse_before``/``_after``...)."""
+    """A mode fitted by this path: the ``resonance`` parameters, their std, the evidence
+    (``train_departure``/``train_after``: the training part's departure tests without and
+    with it, ``test_sse_before``/``_after``: the held-out sums of ``z2``) and, if it was
+    dropped, why."""
 
     params: dict
     std: dict
