@@ -143,7 +143,7 @@ def test_the_diagnosis_reports_its_stages_in_order():
     stages = [s for s in seen if not s.startswith("  ")]
     assert stages[0] == "signals and the baseline fit"
     assert stages[1:3] == ["candidate terms, round 1", "candidate terms, round 2"]  # one finding, then none pays
-    assert stages[-2:] == ["held-out proof", "locate tests and the verdict"]
+    assert stages[-3:] == ["held-out proof", "the frequency response above the rows' band", "locate tests and the verdict"]
     first_round = seen[seen.index("candidate terms, round 1") + 1 : seen.index("candidate terms, round 2")]
     assert "  hysteresis" in first_round and len(first_round) >= 5  # each candidate term named in turn
 

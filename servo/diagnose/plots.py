@@ -170,12 +170,48 @@ def plot_fits(D: Diagnosis, path: Path | None = None) -> Figure:
     return finish(fig, path)
 
 
+def plot_frf(D: Diagnosis, path: Path | None = None) -> Figure | None:
+    """Above the rows' band (the frequency-domain path): the measured response of the
+    training and test parts against the model's without and with the modes it found,
+    and the coherence; None when that path did not compare."""
+    r = D.frf
+    if r is None or not r.ran:
+        return None
+    lo, hi = r.band_hz
+    fig, ax = subplots(2, 1, figsize=(11, 7), sharex=True)
+    for resp, color, name in ((r.train, "0.6", "training part"), (r.test, "tab:blue", "test part")):
+        sel = (resp.f > 0.5 * lo) & (resp.f <= hi)
+        ax[0].loglog(resp.f[sel], np.abs(resp.H[sel]), color=color, lw=0.8, label=f"H1, {name}")
+        ax[1].semilogx(resp.f[sel], resp.coh[sel], color=color, lw=0.8, label=name)
+    te = r.test
+    sel = (te.f > 0.5 * lo) & (te.f <= hi)
+    ax[0].loglog(te.f[sel], np.abs(r.model_before[sel]), color="tab:red", label="model before")
+    if r.modes:
+        ax[0].loglog(te.f[sel], np.abs(r.model_after[sel]), color="k", ls="--", label="model with the modes found")
+    use = r.usable_test & sel
+    ax[0].plot(te.f[use], np.abs(te.H[use]), ".", color="tab:green", ms=4, zorder=3, label="test bins used")
+    for a in ax:
+        a.axvspan(0.5 * lo, lo, color="0.9", label="rows' band" if a is ax[0] else None)
+        a.grid(alpha=0.3, which="both")
+        a.legend(fontsize=8)
+    ax[0].set_ylabel(f"|x/u| (m/{D.opt.force_unit})")
+    ax[1].set_ylabel("coherence")
+    ax[1].set_ylim(0, 1)
+    ax[1].set_xlabel("frequency (Hz)")
+    ax[0].set_title(f"{_title(D)}\nabove the rows' band: the frequency response at full rate ({lo:.4g}-{hi:.4g} Hz)")
+    return finish(fig, path)
+
+
 def write_plots(D: Diagnosis, out: Path) -> list:
-    """Write the four figures into ``out``; returns their file names."""
+    """Write the figures into ``out`` (the four of every diagnosis, and ``frf.png`` when
+    the frequency-domain path compared); returns their file names."""
     names = ["residual_time.png", "residual_state.png", "residual_spectrum.png", "fits.png"]
     for fn, name in zip((plot_time, plot_state, plot_spectrum, plot_fits), names):
         fn(D, out / name)
+    if D.frf is not None and D.frf.ran:
+        plot_frf(D, out / "frf.png")
+        names.append("frf.png")
     return names
 
 
-__all__ = ["plot_fits", "plot_spectrum", "plot_state", "plot_time", "write_plots"]
+__all__ = ["plot_fits", "plot_frf", "plot_spectrum", "plot_state", "plot_time", "write_plots"]

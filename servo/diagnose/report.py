@@ -37,16 +37,23 @@ def _units(physics: str, params: dict, fu: str) -> dict:
     return {k: VOCABULARY[physics].unit(k, fu) for k in params}
 
 
-def fit_terms(fit: Fit, fu: str) -> list:
+def fit_terms(fit: Fit, fu: str, frf_terms=()) -> list:
+    """The terms of ``fit``; those of ``frf_terms`` (modes the frequency-domain path
+    fitted, their gain held in the rows) are marked ``fitted_on: frequency response``."""
     out = []
     for i, t in enumerate(fit.model.terms):
         p = fit.term_params(i)
-        out.append({"physics": t.physics, "params": p, "std": fit.term_std(i), "units": _units(t.physics, p, fu),
-                    "fixed": not t.free})  # fmt: skip
+        d = {"physics": t.physics, "params": p, "std": fit.term_std(i), "units": _units(t.physics, p, fu),
+             "fixed": not t.free and t not in frf_terms}  # fmt: skip
+        if t in frf_terms:
+            d["fitted_on"] = "frequency response"
+        out.append(d)
     return out
 
 
 def _evidence(f: Finding) -> dict:
+    if f.frf is not None:
+        return {k: v for k, v in f.frf.items() if k != "reason"}
     if f.physics == "quantization":
         return {"test": "lattice + output improvement", "fraction_on_lattice": f.lattice.fraction,
                 "lattice_p": f.lattice.p, "output_t": f.quant_test[0], "output_p": f.quant_test[1], "level": f.level}  # fmt: skip
@@ -111,15 +118,17 @@ def build_report(D: Diagnosis, files: list | None = None) -> dict:
                                "test_force_rel_pct": D.errors["test_force_rel_pct"]["before"],
                                "test_output_nrmse": D.errors["test_output_nrmse"]["before"]}},
         "findings": [finding_dict(f, fu) for f in D.findings],
-        "final_model": {"terms": fit_terms(D.final_fit, fu) + [
+        "final_model": {"terms": fit_terms(D.final_fit, fu, D.frf_terms) + [
                             {"physics": "quantization", "params": f.params, "std": {}, "units": {"step": "m", "offset": "m"},
                              "fixed": False} for f in D.findings if f.physics == "quantization"],
                         "drive": drive, "drive_note": why,
                         "error": {"train_force_rel_pct": D.errors["train_force_rel_pct"]["after"],
                                   "test_force_rel_pct": D.errors["test_force_rel_pct"]["after"],
                                   "test_output_nrmse": D.errors["test_output_nrmse"]["after"]}},
-        "unconfirmed": [{**finding_dict(f, fu), "reason": "did not lower the held-out error of the test part",
+        "unconfirmed": [{**finding_dict(f, fu), "reason": (f.frf or {}).get("reason") or
+                         "did not lower the held-out error of the test part",
                          "test_error_before": a, "test_error_after": b} for f, a, b in D.unconfirmed],
+        "frf": D.frf.summary() if D.frf is not None else None,
         "not_testable": D.not_testable,
         "implausible": D.implausible,
         "candidates": rounds,
@@ -174,6 +183,10 @@ def _err(e: dict) -> str:
 
 def _change(f: dict) -> str:
     b, a = f["error_before"], f["error_after"]
+    if b.get("frf_sse") is not None:
+        o = (f"; output NRMSE {b['output_nrmse']:.3g} -> {a['output_nrmse']:.3g}"
+             if b.get("output_nrmse") is not None and a.get("output_nrmse") is not None else "")  # fmt: skip
+        return f"held-out frequency-response departure (sum of z^2) {b['frf_sse']:.4g} -> {a['frf_sse']:.4g}{o}"
     if a.get("rows_differ"):
         return (f"output NRMSE {b['output_nrmse']:.3g} -> {a['output_nrmse']:.3g} (force error {b['force_rel_pct']:.3g} % "
                 f"-> {a['force_rel_pct']:.3g} %, on the narrower rows)")  # fmt: skip
@@ -190,6 +203,14 @@ def format_summary(report: dict, out: Path) -> str:
         f"{100 * rows['usable_fraction']:.0f} % usable (direction known)",
         f"  band: every force-balance test covers 0-{rows['band_hz'][1]:.4g} Hz ({rows['band_note']})",
     ]
+    fr = report.get("frf")
+    if fr and fr["band_hz"]:
+        what = (f"{fr['nperseg']}-sample Welch segments in which the arm slides, {fr['train']['segments']} training "
+                f"and {fr['test']['segments']} held out" if fr["ran"] else fr["note"])  # fmt: skip
+        lines.append(f"  band above: the frequency response at full rate covers {fr['band_hz'][0]:.4g}-"
+                     f"{fr['band_hz'][1]:.4g} Hz ({what})")  # fmt: skip
+    elif fr:
+        lines.append(f"  band above: the frequency response was not compared ({fr['note']})")
     s = report["settings"]
     what = f"terms {s['baseline']}" if s["baseline"] else f"model file {s['model']}"
     be = b["error"]
@@ -209,6 +230,11 @@ def format_summary(report: dict, out: Path) -> str:
         lines.append(f"  no finding: no vocabulary term lowers the held-out error enough to pass the test "
                      f"(family-wise false-alarm level {100 * s['alpha']:.0f} %); see the verdict")  # fmt: skip
     for u in report["unconfirmed"]:
+        if u["test_error_before"].get("frf_sse") is not None:
+            lines.append(f"  dropped: {u['physics']} (frequency response): "
+                         f"{_fmt_params(u['params'], u['units'], u['std'])} ({u['reason']}; held-out departure "
+                         f"{u['test_error_before']['frf_sse']:.4g} -> {u['test_error_after']['frf_sse']:.4g})")  # fmt: skip
+            continue
         lines.append(f"  not confirmed on the held-out part (dropped): {u['physics']}: "
                      f"{_fmt_params(u['params'], u['units'], u['std'])} ({_err(u['test_error_before'])} -> "
                      f"{_err(u['test_error_after'])})")  # fmt: skip
@@ -222,7 +248,8 @@ def format_summary(report: dict, out: Path) -> str:
     lines.append(f"  final model ({where}; the findings' parameters above are as fitted when each was added):")
     for t in fm["terms"]:
         lines.append(f"    {t['physics']}: {_fmt_params(t['params'], t['units'], t['std'], digits=6)}"
-                     + (" (fixed)" if t.get("fixed") else ""))  # fmt: skip
+                     + (" (fixed)" if t.get("fixed") else "")
+                     + (f" (fitted on the {t['fitted_on']})" if t.get("fitted_on") else ""))  # fmt: skip
     lines.append(f"  wrote {out}/: " + ", ".join(report["files"]))
     return "\n".join(lines)
 

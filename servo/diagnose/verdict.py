@@ -25,7 +25,10 @@ detectable but negligible excess does not count:
 * ``state``: bin means of the residual against position, velocity, direction and
   distance since reversal (:func:`servo.diagnose.locate.state_test`);
 * ``output``: the short-horizon simulated output does worse than coasting
-  (NRMSE > 1).
+  (NRMSE > 1);
+* ``frf``: above the rows' band, the test part's frequency response departs from the
+  model's (:mod:`servo.diagnose.frf_modes`, added by :func:`add_frf`; not failed when
+  that path could not run, e.g. no input power above the band).
 
 The verdict (:func:`decide`) is one of
 
@@ -176,6 +179,22 @@ def assess(design, residual: np.ndarray, J: float, tau: float, variables: dict, 
     return checks
 
 
+def add_frf(checks: dict, departure: dict | None, result) -> None:
+    """The ``frf`` check (module doc) from the test part's departure test of the
+    frequency-domain path (:func:`servo.diagnose.frf_modes.departure`, None when it did
+    not run); ``checks["failed"]`` gets ``"frf"`` when it fails."""
+    ran = bool(result is not None and result.ran and departure is not None)
+    d = departure or {}
+    failed = bool(ran and d.get("departs"))
+    checks["frf"] = {"ran": ran, "band_hz": list(result.band_hz) if result is not None else [],
+                     "bins": d.get("bins", 0), "flagged_hz": d.get("flagged_hz", []),
+                     "flagged_bins": d.get("flagged_bins", 0), "worst_hz": d.get("worst_hz"),
+                     "worst_rel": d.get("worst_rel"), "failed": failed,
+                     "note": "" if ran else (result.note if result is not None else "")}  # fmt: skip
+    if failed:
+        checks["failed"] = list(checks["failed"]) + ["frf"]
+
+
 def _fmt_range(r: dict) -> str:
     if r["variable"] == "direction":
         return f"moving {'+' if r['test_range'][0] > 0 else '-'}, never seen in training ({100 * r['share_of_test_rows']:.0f} % of test rows)"
@@ -217,6 +236,12 @@ def where_text(checks: dict, force_unit: str = "F") -> str:
                      "whole recording)")  # fmt: skip
     if checks["output"]["failed"]:
         parts.append(f"the simulated output is worse than coasting (NRMSE {checks['output']['nrmse']:.3g})")
+    fr = checks.get("frf", {})
+    if fr.get("failed"):
+        lo, hi = fr["flagged_hz"][0], fr["flagged_hz"][-1]
+        parts.append(f"above the rows' band: the held-out frequency response departs from the model's in "
+                     f"{fr['flagged_bins']} of {fr['bins']} bins at {lo:.4g}-{hi:.4g} Hz (by up to "
+                     f"{100 * fr['worst_rel']:.0f} % at {fr['worst_hz']:.4g} Hz)")  # fmt: skip
     return "; ".join(parts)
 
 
@@ -259,12 +284,14 @@ def decide(base: dict, final: dict, n_findings: int, scope: str, force_unit: str
                     "text": f"the model explains the recording to its noise: held-out residual {lv['ratio']:.3g} x the "
                             "noise floor the position noise implies, no structure, no train/test gap"}  # fmt: skip
         b = base["level"]
+        above = (" and the held-out frequency response above the rows' band within its interval"
+                 if base.get("frf", {}).get("failed") else "")  # fmt: skip
         return {"verdict": "explained",
                 "text": f"the findings bring the held-out residual from {b['ratio']:.3g} to {lv['ratio']:.3g} x the noise "
-                        "floor, with no structure left and no train/test gap"}  # fmt: skip
+                        f"floor{above}, with no structure left and no train/test gap"}  # fmt: skip
     return {"verdict": "unexplained",
             "text": f"the model still fails: {where_text(final, force_unit)}; no term of the vocabulary accounts for it"}
 
 
-__all__ = ["MARGIN", "VERDICTS", "acceleration_noise_gain", "assess", "decide", "force_floor", "out_of_scope",
+__all__ = ["MARGIN", "VERDICTS", "acceleration_noise_gain", "add_frf", "assess", "decide", "force_floor", "out_of_scope",
            "ranges_beyond_training", "where_text"]

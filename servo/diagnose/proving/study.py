@@ -52,7 +52,10 @@ def run_one(job: tuple) -> dict:
     v = D.verdict
     return {**out, "seconds": time.perf_counter() - t0, "findings": [f.physics for f in D.findings],
             "verdict": v["verdict"], "expect": truth["expect"], "verdicts": truth["verdicts"],
-            "base_ratio": v["baseline_checks"]["level"]["ratio"], "final_ratio": v["final_checks"]["level"]["ratio"]}  # fmt: skip
+            "base_ratio": v["baseline_checks"]["level"]["ratio"], "final_ratio": v["final_checks"]["level"]["ratio"],
+            "frf_ran": bool(D.frf is not None and D.frf.ran),
+            "frf_findings": [f.physics for f in D.findings if getattr(f, "frf", None) is not None],
+            "frf_failed": bool(v["final_checks"].get("frf", {}).get("failed"))}  # fmt: skip
 
 
 def wilson(k: int, n: int, z: float = 1.959964) -> tuple[float, float]:
@@ -86,6 +89,11 @@ def tables(runs: list) -> str:
             c = sum(r["verdict"] == "consistent" for r in sel)
             lines.append(f"| {'all' if val is None else f'{key} {val:g}' if isinstance(val, float) else f'{key} {val}'} | "
                          f"{_rate(k, len(sel))} | {_rate(c, len(sel))} |")  # fmt: skip
+    if nulls and "frf_ran" in nulls[0]:
+        ran = [r for r in nulls if r.get("frf_ran")]
+        lines += ["", f"Frequency-domain path above the rows' band: compared on {len(ran)}/{len(nulls)} nulls (the rest "
+                  f"have no input power above the band); a mode named there on {_rate(sum(bool(r['frf_findings']) for r in ran), len(ran))}; "
+                  f"its held-out check failed on {_rate(sum(r.get('frf_failed', False) for r in ran), len(ran))}."]  # fmt: skip
     named: dict = {}
     for r in nulls:
         for f in r["findings"]:

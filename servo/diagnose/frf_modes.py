@@ -1,0 +1,597 @@
+"""The frequency-domain path: flexible modes above the force-balance rows' band.
+
+The force-balance rows are decimated (:mod:`servo.diagnose.band`): they cover ``0 ..
+0.4*fs/q`` Hz, and a mode above that edge never shows in them.  This path works at the
+full sample rate on the input-to-position frequency response instead:
+
+1. **Measured response.**  ``H1 = P_ux/P_uu`` over Welch segments (Hann, 50 % overlap)
+   with the coherence ``g2``, separately on the training part (the samples up to the
+   last training row) and on the test part (the rest), from the force the model's
+   linear part sees (:func:`linear_input`: the friction's force, which a loop feeds
+   back into the input, taken off) to the measured position, over the segments in
+   which the arm slides (a stuck arm does not follow the input).  Both signals first
+   go through the same zero-phase high-pass (Butterworth, order 4, at half the band
+   edge): a filter common to ``u`` and ``x`` cancels in the ratio, and it keeps the
+   position's large low-frequency motion from leaking through the window's side lobes
+   into the bins above the band, where the response is nanometres.  Each complex
+   component of ``H1`` has the standard deviation ``|H1|*sqrt((1 - g2)/(2*K_eq*g2))``
+   (Bendat & Piersol, *Random Data*, eq. 9.90; ``K_eq`` the equivalent independent
+   averages of overlapping segments).
+2. **The model's response** over the same bins: the rigid body ``1/(J s^2 + B s + K)``
+   plus every mode of the model (``x_meas = x + gain*q``, ``q'' + 2*zeta*w*q' + w^2*q =
+   u/J``, the :mod:`~servo.diagnose.terms` ``resonance`` term), each part discretised
+   exactly for the recorded zero-order-hold input, and averaged over the Welch window's
+   spectral kernel (what a Welch estimate of the same response would read, for a
+   locally flat input spectrum).
+3. **Departure test** (level fixed before any scoring): in every usable bin of the
+   **FRF band** (from the rows' band edge to ``0.45*fs``), the squared complex
+   departure over its variance, after a smooth factor ``c0 + c1*log f`` is taken off
+   (:func:`detrended`), is chi-square with 2 degrees of freedom under the model; a bin
+   departs beyond the ``alpha/N_bins`` quantile (Bonferroni over the bins) *and* by at
+   least :func:`margin` of the model's response; the response departs where two
+   neighbouring bins do.  A bin is usable when the coherence is at least
+   :data:`COH_MIN` and the position power the model predicts from the measured input
+   is at least :data:`SNR_MIN` times the sensor noise's (white, ``sigma_x`` of
+   :mod:`servo.diagnose.signals`).  Closed loops: where the input is partly sensor
+   noise fed back through the controller, ``H1`` turns towards ``-1/C`` (the
+   controller's inverse), by ``|L/(1 + L)|/SNR`` of ``|H|`` (``L`` the loop gain); the
+   margin ``BIAS_FACTOR/SNR`` and the smooth factor keep that bias from counting.
+   Fewer than :data:`MIN_BINS` usable bins: the recording has no input power above the
+   band, and the path says so and stops.
+4. **Fit.**  Where the training part departs, a mode (``frequency_hz``, ``zeta``,
+   ``gain``: the ``resonance`` term's parameters, so that ``final_model.toml`` and
+   :func:`servo.diagnose.simulate.drive_params` carry it) is fitted to the measured
+   response by weighted complex least squares (``scipy.optimize.least_squares``,
+   started from a grid of damping values around the worst bin, the smooth factor
+   solved linearly inside), with standard deviations from the Jacobian (inflated by the
+   Hann window's noise bandwidth, 1.5 bins, for the correlation of neighbouring bins).
+   A mode at the damping bound of the vocabulary is not a mode (the ``resonance``
+   term's rule).  Up to :data:`MAX_MODES` modes, one at a time, while the training part
+   still departs.
+5. **Proof on the test part**: the held-out part's own ``H1`` against the model without
+   and with the mode (the sum of squared departures over their variances on the test
+   part's usable bins, the smooth factor refitted for each); a mode that does not lower
+   it is dropped (reported with its parameters).
+
+Cost: 0.4 s of a 1 000 000-sample diagnosis (two high-pass filters, the friction's
+force at full rate, the spectra of both parts).  ``docs/diagnosis.md`` section 6b.
+"""
+from __future__ import annotations
+
+import functools
+import math
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+from scipy import optimize, signal, stats
+
+from servo.diagnose.band import band_hz
+from servo.diagnose.terms import VOCABULARY
+from servo.frf.estimate import n_segments
+
+#: a bin is usable where the coherence is at least this (the variance formula is first
+#: order; below ~0.5 the ratio of noisy spectra has heavier tails than it says)
+COH_MIN = 0.5
+#: ... and where the model's position power from the measured input is at least this
+#: many times the sensor noise's (below, the closed-loop bias margin, ``BIAS_FACTOR/SNR``,
+#: exceeds 67 %: nothing short of a large peak could count)
+SNR_MIN = 3.0
+#: a departure must be at least this share of the model's response, whatever the test
+#: says (an inertia 1 % off, or the closed-loop bias above, is not a mode)
+REL_MARGIN = 0.1
+#: the closed-loop bias of H1 is ``|L/(1 + L)|/SNR`` of ``|H|`` (``L`` the loop gain,
+#: unknown here): a departure counts only beyond ``BIAS_FACTOR/SNR`` (a sensitivity peak
+#: of 2); on null recordings of the lead-lag loop the response read 5-9 % high where the
+#: SNR was 10-17
+BIAS_FACTOR = 2.0
+#: fewer usable bins than this in the FRF band: no input power above the rows' band
+MIN_BINS = 8
+#: a Welch segment is used when at most this share of its samples is where the arm may
+#: stick (speed within its noise): a stuck arm does not follow the input, and segments
+#: that hold one read a response too small by the share of time stuck (0.83 x the rigid
+#: body on null seek strokes with dwells, before this rule)
+STUCK_MAX = 0.02
+#: modes this path adds at most
+MAX_MODES = 2
+#: the test part gets at least this many Welch segments (the segment length follows)
+MIN_SEGMENTS = 8
+NPERSEG_MAX = 8192
+NPERSEG_MIN = 64
+#: the FRF band's upper edge, a share of the sample rate
+TOP = 0.45
+#: the bounds of the damping of a mode (the ``resonance`` term's)
+ZETA_BOUNDS = (0.001, VOCABULARY["resonance"].ZETA_MAX)
+#: equivalent noise bandwidth of the Hann window, bins: neighbouring bins are correlated
+ENBW = 1.5
+#: samples of the window's spectral kernel per bin, and its half-width in bins
+KERNEL_RES, KERNEL_HALF = 4, 3
+
+
+@dataclass
+class Response:
+    """One part's measured response: ``f`` (k,) Hz, ``H`` (k,) complex m/F, ``coh`` (k,),
+    ``rel_std`` (k,) of each complex component relative to ``|H|``, ``Puu`` (k,)
+    the (high-passed) input's spectrum, ``K``/``K_eq`` segments used, ``samples``,
+    ``segments_all`` the segments before those where the arm may stick were left out."""
+
+    f: np.ndarray
+    H: np.ndarray
+    coh: np.ndarray
+    rel_std: np.ndarray
+    Puu: np.ndarray
+    K: int
+    K_eq: float
+    samples: int
+    segments_all: int = 0
+
+
+@dataclass
+class Mode:
+    """A mode fitted by this path: the ``resonance`` parameters, their std, the evidence
+    (``train_departure``/``train_after``: the training part's departure tests without and
+    with it, ``test_sse_before``/``_after``: the held-out sums of ``z2``) and, if it was
+    dropped, why."""
+
+    params: dict
+    std: dict
+    evidence: dict = field(default_factory=dict)
+    reason: str = ""
+
+
+@dataclass
+class Result:
+    """What the path did: ``band_hz`` the FRF band, ``note`` (why it stopped, if it
+    did), the measured responses, the modes kept and dropped, the departure tests of
+    the model before and after on the test part (``None`` when skipped)."""
+
+    band_hz: list
+    note: str = ""
+    ran: bool = False
+    nperseg: int = 0
+    train: Response | None = None
+    test: Response | None = None
+    modes: list = field(default_factory=list)
+    dropped: list = field(default_factory=list)
+    before: dict | None = None
+    after: dict | None = None
+    seconds: float = 0.0
+    #: the model's response in the test part's bins without and with the modes kept, and
+    #: the bins the tests used there (for the figure)
+    model_before: np.ndarray | None = None
+    model_after: np.ndarray | None = None
+    usable_test: np.ndarray | None = None
+
+    def summary(self) -> dict:
+        """JSON-ready description (``report.json``'s ``frf``)."""
+        def part(r):
+            return None if r is None else {"samples": r.samples, "segments": r.K, "segments_all": r.segments_all,
+                                           "equivalent_averages": r.K_eq}
+
+        return {"band_hz": self.band_hz, "ran": self.ran, "note": self.note, "nperseg": self.nperseg,
+                "resolution_hz": (float(self.train.f[1] - self.train.f[0]) if self.train is not None else None),
+                "train": part(self.train), "test": part(self.test),
+                "level": {"coherence_min": COH_MIN, "snr_min": SNR_MIN, "rel_margin": REL_MARGIN},
+                "test_departure_before": self.before, "test_departure_after": self.after,
+                "modes": [{"params": m.params, "std": m.std, "evidence": m.evidence} for m in self.modes],
+                "dropped": [{"params": m.params, "std": m.std, "evidence": m.evidence, "reason": m.reason}
+                            for m in self.dropped]}  # fmt: skip
+
+
+# ------------------------------------------------------------------ the measured response
+def sliding_segments(moving: np.ndarray, nperseg: int) -> int:
+    """Welch segments of ``nperseg`` (50 % overlap) in which the arm slides (at most
+    :data:`STUCK_MAX` of the samples outside ``moving``)."""
+    if moving.size < nperseg:
+        return 0
+    starts = np.arange(0, moving.size - nperseg + 1, nperseg // 2)
+    c = np.concatenate([[0], np.cumsum(~moving)])
+    return int(np.sum((c[starts + nperseg] - c[starts]) / nperseg <= STUCK_MAX))
+
+
+def choose_nperseg(moving_train: np.ndarray, moving_test: np.ndarray, shortest: int) -> int:
+    """The largest power of two from :data:`NPERSEG_MAX` down to ``shortest`` that gives
+    the test part and the training part :data:`MIN_SEGMENTS` Welch segments in which the
+    arm slides each; 0 if none does."""
+    nper = NPERSEG_MAX
+    while nper >= shortest:
+        if sliding_segments(moving_test, nper) >= MIN_SEGMENTS and sliding_segments(moving_train, nper) >= MIN_SEGMENTS:
+            return nper
+        nper //= 2
+    return 0
+
+
+def measure(u: np.ndarray, x: np.ndarray, moving: np.ndarray, dt: float, nperseg: int, highpass_hz: float) -> Response:
+    """``H1`` from ``u`` to ``x`` ((n,) each) over the Welch segments of ``nperseg``
+    samples (Hann, 50 % overlap) in which the arm slides: at most :data:`STUCK_MAX` of
+    their samples outside ``moving`` (n,) bool; after a common zero-phase high-pass at
+    ``highpass_hz`` (module doc, step 1).  Spectra one-sided, per Hz."""
+    fs = 1.0 / dt
+    sos = signal.butter(4, highpass_hz / (fs / 2), btype="high", output="sos")
+    uf = signal.sosfiltfilt(sos, u)
+    xf = signal.sosfiltfilt(sos, x)
+    hop = nperseg // 2
+    starts = np.arange(0, u.size - nperseg + 1, hop)
+    c = np.concatenate([[0], np.cumsum(~moving)])
+    stuck = (c[starts + nperseg] - c[starts]) / nperseg
+    ok = stuck <= STUCK_MAX
+    sel = starts[ok]
+    w = signal.get_window("hann", nperseg)
+    scale = 2.0 / (fs * np.sum(w**2))
+    k = sel.size
+    nf = nperseg // 2 + 1
+    Puu, Pxx, Pux = np.zeros(nf), np.zeros(nf), np.zeros(nf, complex)
+    for a in range(0, k, 64):  # chunks: a 1e6-sample recording's frames need not all be held at once
+        idx = sel[a : a + 64, None] + np.arange(nperseg)[None, :]
+        fu, fx = uf[idx], xf[idx]
+        U = np.fft.rfft((fu - fu.mean(axis=1, keepdims=True)) * w, axis=1)
+        X = np.fft.rfft((fx - fx.mean(axis=1, keepdims=True)) * w, axis=1)
+        Puu += np.sum(np.abs(U) ** 2, axis=0)
+        Pxx += np.sum(np.abs(X) ** 2, axis=0)
+        Pux += np.sum(np.conj(U) * X, axis=0)
+    f = np.fft.rfftfreq(nperseg, dt)
+    if k == 0:
+        nan = np.full(nf, np.nan)
+        return Response(f, nan.astype(complex), np.zeros(nf), np.full(nf, np.inf), np.zeros(nf), 0, 0.0, u.size)
+    Puu, Pxx, Pux = Puu * scale / k, Pxx * scale / k, Pux * scale / k
+    # overlapping neighbours are correlated (Welch 1967): rho = 0.028 for Hann at 50 %
+    rho = (np.sum(w[:hop] * w[hop:]) / np.sum(w**2)) ** 2
+    pairs = int(np.sum(np.diff(sel) == hop))
+    K_eq = k / (1.0 + 2.0 * rho * pairs / k)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        H = Pux / Puu
+        coh = np.clip(np.abs(Pux) ** 2 / (Puu * Pxx), 0.0, 1.0)
+        rel = np.sqrt((1.0 - coh) / (2.0 * K_eq * coh))
+    return Response(f, H, np.nan_to_num(coh), np.nan_to_num(rel, nan=np.inf), Puu, k, float(K_eq), u.size,
+                    int(starts.size))
+
+
+#: the terms whose force the response's linear part holds (every other column term's
+#: force is taken off the input first, :func:`linear_input`)
+LINEAR = ("inertia", "viscous_friction", "stiffness", "resonance")
+
+
+def linear_input(design, fit) -> np.ndarray:
+    """The force the linear part of ``fit`` sees (n,): the recorded input through the
+    model's input terms (saturation, delay) less every other column term's force at full
+    rate (friction, offset, hysteresis, cogging...).  In a loop the friction's force is
+    fed back into the input, and ``H1`` from the recorded input reads it as a response
+    (on null recordings up to 25 % and 10 degrees off near the band edge)."""
+    u = design.u_eff(fit.model)
+    d = np.zeros(u.size)
+    for i, t in enumerate(fit.model.terms):
+        phys = VOCABULARY[t.physics]
+        if phys.kind != "column" or t.physics in LINEAR:
+            continue
+        F = np.asarray(phys.full(design, t.params, u), dtype=float).reshape(u.size, -1)
+        d += F @ np.asarray(fit.coefs[i], dtype=float)
+    return u - d
+
+
+# ------------------------------------------------------------------ the model's response
+@functools.lru_cache(maxsize=16)
+def _zoh_tf(num: tuple, den: tuple, dt: float) -> tuple:
+    bd, ad, _ = signal.cont2discrete((list(num), list(den)), dt, method="zoh")
+    return np.ravel(bd), np.asarray(ad)
+
+
+def _zoh(num, den, dt: float, f: np.ndarray) -> np.ndarray:
+    """Frequency response at ``f`` (Hz) of the continuous ``num/den`` driven through a
+    zero-order hold and sampled every ``dt`` (exact, ``cont2discrete``)."""
+    bd, ad = _zoh_tf(tuple(map(float, num)), tuple(map(float, den)), float(dt))
+    z = np.exp(2j * np.pi * f * dt)
+    with np.errstate(divide="ignore", invalid="ignore"):  # a double integrator's pole at DC
+        return np.polyval(bd, z) / np.polyval(ad, z)
+
+
+def kernel(nperseg: int) -> tuple[np.ndarray, np.ndarray]:
+    """The Hann window's power kernel: offsets (bins) and weights summing to 1."""
+    w = signal.get_window("hann", nperseg)
+    m = nperseg * KERNEL_RES
+    W = np.abs(np.fft.fft(w, m)) ** 2
+    k = np.arange(-KERNEL_HALF * KERNEL_RES, KERNEL_HALF * KERNEL_RES + 1)
+    wt = W[k % m]
+    return k / KERNEL_RES, wt / wt.sum()
+
+
+@dataclass
+class Plant:
+    """The linear part of a model seen from the input to the measured position: ``J``,
+    ``B``, ``K``, ``delay_s``, its modes ``[(hz, zeta, gain)]``.  :meth:`of` leaves the
+    delay at 0: :func:`linear_input` applies the model's delay to the input."""
+
+    J: float
+    B: float
+    K: float
+    delay_s: float = 0.0
+    modes: list = field(default_factory=list)
+
+    @classmethod
+    def of(cls, fit) -> "Plant":
+        p = fit.combined()
+        modes = []
+        for i, t in enumerate(fit.model.terms):
+            if t.physics == "resonance":
+                q = fit.term_params(i)
+                modes.append((q["frequency_hz"], q["zeta"], q["gain"]))
+        return cls(p.get("inertia", {}).get("J", 0.0), p.get("viscous_friction", {}).get("B", 0.0),
+                   p.get("stiffness", {}).get("K", 0.0), 0.0, modes)  # fmt: skip
+
+
+def rigid_response(pl: Plant, f: np.ndarray, dt: float) -> np.ndarray:
+    return _zoh([1.0], [pl.J, pl.B, pl.K], dt, f) * np.exp(-2j * np.pi * f * pl.delay_s)
+
+
+def mode_response(pl: Plant, hz: float, zeta: float, f: np.ndarray, dt: float) -> np.ndarray:
+    """Response of one mode of unit gain, ``1/(J (s^2 + 2 zeta w s + w^2))`` through a
+    zero-order hold (``zeta < 1``: distinct poles ``l``, ``sum r/l (p - 1)/(z - p)``
+    with ``p = exp(l*dt)``, the step-invariant transform in closed form)."""
+    w = 2 * math.pi * hz
+    wd = w * math.sqrt(max(1.0 - zeta * zeta, 1e-12))
+    l1 = complex(-zeta * w, wd)
+    l2 = l1.conjugate()
+    r1 = 1.0 / (pl.J * (l1 - l2))
+    z = np.exp(2j * np.pi * f * dt)
+    h = 0.0
+    for lam, r in ((l1, r1), (l2, -r1)):
+        p = np.exp(lam * dt)
+        h = h + (r / lam) * (p - 1.0) / (z - p)
+    return h * np.exp(-2j * np.pi * f * pl.delay_s)
+
+
+def _smooth(fun, f: np.ndarray, df: float, ker) -> np.ndarray:
+    off, wt = ker
+    ff = (f[:, None] + off[None, :] * df).ravel()
+    return (fun(ff).reshape(f.size, off.size) * wt[None, :]).sum(axis=1)
+
+
+def model_response(pl: Plant, f: np.ndarray, dt: float, df: float, ker) -> np.ndarray:
+    """What a Welch ``H1`` of the model would read in the bins ``f`` (module doc, step 2)."""
+
+    def fun(ff):
+        h = rigid_response(pl, ff, dt)
+        for hz, z, g in pl.modes:
+            h = h + g * mode_response(pl, hz, z, ff, dt)
+        return h
+
+    return _smooth(fun, f, df, ker)
+
+
+# ------------------------------------------------------------------ the departure test
+def snr(resp: Response, Hm: np.ndarray, noise_psd: float) -> np.ndarray:
+    """Per bin, the position power the model predicts from the measured input over the
+    sensor noise's."""
+    return np.abs(Hm) ** 2 * resp.Puu / max(noise_psd, 1e-300)
+
+
+def usable(resp: Response, Hm: np.ndarray, band: np.ndarray, noise_psd: float) -> np.ndarray:
+    """Bins of ``band`` where the estimate is usable (module doc, step 3)."""
+    return band & (resp.coh >= COH_MIN) & (snr(resp, Hm, noise_psd) >= SNR_MIN) & np.isfinite(resp.H)
+
+
+def margin(resp: Response, Hm: np.ndarray, noise_psd: float) -> np.ndarray:
+    """Per bin, the relative departure that counts (module doc, step 3): at least
+    :data:`REL_MARGIN`, and at least the closed-loop bias bound ``BIAS_FACTOR/SNR``."""
+    return np.maximum(REL_MARGIN, BIAS_FACTOR / np.maximum(snr(resp, Hm, noise_psd), 1e-300))
+
+
+def _columns(H: np.ndarray) -> list:
+    """Real least-squares columns of a complex coefficient ``c`` times ``H``: ``c.real``
+    and ``c.imag`` each give ``[Re; Im]`` of the product."""
+    return [np.concatenate([H.real, H.imag]), np.concatenate([-H.imag, H.real])]
+
+
+def detrended(resp: Response, Hm: np.ndarray, use: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The measured response less the model's times the smooth factor ``c0 + c1*log f``
+    (complex ``c``, weighted least squares over ``use``): residual (k,) complex, zero
+    outside ``use``, and its standard deviations (k,).  The factor takes a level or a
+    slowly turning phase off the comparison (an inertia a percent off, the closed loop's
+    bias of ``H1`` where the input is partly fed-back noise, which turns ``H1``
+    smoothly towards ``-1/C``); a mode's peak is narrow and stays."""
+    sd = np.abs(resp.H) * resp.rel_std
+    e = np.zeros(resp.f.size, complex)
+    idx = np.flatnonzero(use)
+    if idx.size == 0:
+        return e, sd
+    L = np.log(resp.f[idx] / np.exp(np.mean(np.log(resp.f[idx]))))
+    w = 1.0 / np.maximum(sd[idx], 1e-300)
+    h = Hm[idx] * w
+    A = np.column_stack(_columns(h) + _columns(h * L))
+    y = np.concatenate([(resp.H[idx] * w).real, (resp.H[idx] * w).imag])
+    c, *_ = np.linalg.lstsq(A, y, rcond=None)
+    r = y - A @ c
+    k = idx.size
+    e[idx] = (r[:k] + 1j * r[k:]) / w
+    return e, sd
+
+
+def departure(resp: Response, Hm: np.ndarray, use: np.ndarray, alpha: float, noise_psd: float) -> dict:
+    """The departure test of the model's response ``Hm`` on the usable bins ``use``
+    (module doc, step 3): per bin ``z2`` (chi-square, 2 dof) of the detrended departure
+    (:func:`detrended`); a bin departs beyond the Bonferroni bound and the margin; the
+    response departs where two neighbouring bins do (the Hann window spreads any
+    feature, however narrow, over its main lobe of 4 bins: a departure in one bin alone
+    is the heavy tail of a ratio of noisy spectra); ``sse`` the sum of ``z2``."""
+    n = int(use.sum())
+    if n == 0:
+        return {"bins": 0, "bound": None, "departs": False, "sse": 0.0, "flagged_hz": [], "worst_hz": None}
+    e, sd = detrended(resp, Hm, use)
+    z2 = np.where(use, np.abs(e) ** 2 / np.maximum(sd, 1e-300) ** 2, 0.0)
+    rel = np.where(use, np.abs(e) / np.maximum(np.abs(Hm), 1e-300), 0.0)
+    bound = float(stats.chi2.isf(alpha / n, 2))
+    hot = use & (z2 > bound) & (rel > margin(resp, Hm, noise_psd))
+    pair = hot[1:] & hot[:-1]
+    flag = np.zeros_like(hot)
+    flag[1:] |= pair
+    flag[:-1] |= pair
+    cand = flag if flag.any() else use
+    worst = int(np.argmax(np.where(cand, z2, -1.0)))
+    return {"bins": n, "bound": bound, "departs": bool(flag.any()), "sse": float(z2[use].sum()),
+            "flagged_hz": [float(v) for v in resp.f[flag]], "worst_hz": float(resp.f[worst]),
+            "worst_z2": float(z2[worst]), "worst_rel": float(rel[worst]), "flag": flag, "z2": z2}  # fmt: skip
+
+
+def public(dep: dict | None) -> dict | None:
+    """``dep`` without its per-bin arrays (for the report)."""
+    if dep is None:
+        return None
+    out = {k: v for k, v in dep.items() if k not in ("flag", "z2")}
+    fl = out.get("flagged_hz") or []
+    out["flagged_hz"] = [fl[0], fl[-1]] if fl else []
+    out["flagged_bins"] = len(fl)
+    return out
+
+
+# ------------------------------------------------------------------ the fit
+def fit_mode(resp: Response, pl: Plant, use: np.ndarray, dep: dict, dt: float, df: float, ker, band_lo: float,
+             f_top: float):  # fmt: skip
+    """A mode fitted to the departure at its worst bin (module doc, step 4): ``(hz,
+    zeta, gain, std, chi2)`` or None.  The model ``(Hm + gain*M(hz, zeta))*(c0 + c1*log
+    f)`` over the usable bins, the smooth factor solved linearly inside (as in
+    :func:`detrended`), ``hz``, ``zeta`` and ``gain`` by ``least_squares`` from the best
+    of a grid around the worst bin."""
+    Hm = model_response(pl, resp.f, dt, df, ker)
+    f0 = dep["worst_hz"]
+    idx = np.flatnonzero(use)
+    if idx.size < 4:
+        return None
+    f = resp.f[idx]
+    L = np.log(f / np.exp(np.mean(np.log(f))))
+    w = 1.0 / np.maximum(np.abs(resp.H[idx]) * resp.rel_std[idx], 1e-300)
+    y = np.concatenate([(resp.H[idx] * w).real, (resp.H[idx] * w).imag])
+    hm = Hm[idx] * w
+
+    def unit(hz, z):
+        return _smooth(lambda ff: mode_response(pl, hz, z, ff, dt), f, df, ker) * w
+
+    def resid(p):
+        hz, lz, g = p
+        h = hm + g * unit(hz, math.exp(lz))
+        A = np.column_stack(_columns(h) + _columns(h * L))
+        c, *_ = np.linalg.lstsq(A, y, rcond=None)
+        return y - A @ c
+
+    best = None
+    A0 = np.column_stack(_columns(hm) + _columns(hm * L))
+    for z in (0.005, 0.01, 0.02, 0.04, 0.08):
+        for hz in f0 * np.array([0.97, 0.99, 1.0, 1.01, 1.03]):
+            m = unit(hz, z)
+            A = np.column_stack([A0, np.concatenate([m.real, m.imag])])
+            c, *_ = np.linalg.lstsq(A, y, rcond=None)
+            cost = float(np.sum((y - A @ c) ** 2))
+            if best is None or cost < best[0]:
+                best = (cost, hz, z, float(c[-1]))
+    _, hz0, z0, g0 = best
+    lo = [max(band_lo, f0 / 1.5), math.log(ZETA_BOUNDS[0]), -np.inf]
+    hi = [min(f_top, f0 * 1.5), math.log(ZETA_BOUNDS[1]), np.inf]
+    x0 = [min(max(hz0, lo[0] + 1e-9 * df), hi[0] - 1e-9 * df), min(max(math.log(z0), lo[1] + 1e-9), hi[1] - 1e-9), g0]
+    sol = optimize.least_squares(resid, x0, bounds=(lo, hi), x_scale=[df, 0.1, abs(g0) or 1.0], max_nfev=80)
+    hz, lz, g = sol.x
+    z = math.exp(lz)
+    chi2 = float(np.sum(sol.fun**2))
+    dof = max(sol.fun.size - 7, 1)
+    try:
+        cov = np.linalg.inv(sol.jac.T @ sol.jac) * ENBW * max(chi2 / dof, 1.0)
+        sd = np.sqrt(np.clip(np.diag(cov), 0, None))
+        std = {"frequency_hz": float(sd[0]), "zeta": float(z * sd[1]), "gain": float(sd[2])}
+    except np.linalg.LinAlgError:
+        std = {}
+    return float(hz), float(z), float(g), std, chi2
+
+
+# ------------------------------------------------------------------ the path
+def plant_with(pl: Plant, modes) -> Plant:
+    return Plant(pl.J, pl.B, pl.K, pl.delay_s, list(pl.modes) + [(m.params["frequency_hz"], m.params["zeta"],
+                                                                   m.params["gain"]) for m in modes])  # fmt: skip
+
+
+def run(design, fit, alpha: float) -> Result:
+    """The path on ``design``'s recording against the fitted model ``fit`` (module doc):
+    the modes it proposes, each judged on the test part's own ``H1`` (the caller adds
+    the output check and the model's refit)."""
+    t0 = time.perf_counter()
+    sig = design.sig
+    fs = 1.0 / sig.dt
+    edge = band_hz(sig.settings, fs)
+    top = TOP * fs
+    res = Result(band_hz=[float(edge), float(top)])
+    pl = Plant.of(fit)
+    if not pl.J > 0:
+        res.note = "the model has no positive inertia J: no response to compare above the rows' band"
+        return res
+    if sig.settings.decimate <= 1 or edge >= 0.9 * top:
+        res.note = "the rows cover the whole band: nothing above it"
+        return res
+    n_train = int(design.train_samples.sum())
+    moving = np.abs(sig.vf) > sig.v_threshold
+    shortest = max(NPERSEG_MIN, 1 << int(math.ceil(math.log2(4.0 * fs / edge))))  # 4 bins over the rows' band
+    nper = choose_nperseg(moving[:n_train], moving[n_train:], shortest)
+    if nper == 0:
+        res.note = (f"too few Welch segments of at least {shortest} samples in which the arm slides (speed above its "
+                    f"noise): fewer than {MIN_SEGMENTS} in the test part or the training part")  # fmt: skip
+        return res
+    res.nperseg = nper
+    hp = 0.5 * edge
+    u = linear_input(design, fit)
+    tr = measure(u[:n_train], sig.x[:n_train], moving[:n_train], sig.dt, nper, hp)
+    te = measure(u[n_train:], sig.x[n_train:], moving[n_train:], sig.dt, nper, hp)
+    res.train, res.test = tr, te
+    df = float(tr.f[1] - tr.f[0])
+    ker = kernel(nper)
+    band = (tr.f > edge) & (tr.f <= top)
+    noise_psd = 2.0 * sig.noise_x**2 * sig.dt  # one-sided, white
+    Hm_tr = model_response(pl, tr.f, sig.dt, df, ker)
+    Hm_te = model_response(pl, te.f, sig.dt, df, ker)
+    use_tr = usable(tr, Hm_tr, band, noise_psd)
+    use_te = usable(te, Hm_te, band, noise_psd)
+    res.before = public(departure(te, Hm_te, use_te, alpha, noise_psd))
+    if use_tr.sum() < MIN_BINS or use_te.sum() < MIN_BINS:
+        res.note = (f"the input has no power above the rows' band: {int(use_tr.sum())} training and "
+                    f"{int(use_te.sum())} test bins of {edge:.4g}-{top:.4g} Hz are usable (coherence >= {COH_MIN:g} "
+                    f"and the model's position there >= {SNR_MIN:g} x the sensor noise's power)")  # fmt: skip
+        res.after = res.before
+        res.seconds = time.perf_counter() - t0
+        return res
+    res.ran = True
+    kept: list = []
+    for _ in range(MAX_MODES):
+        if len(pl.modes) + len(kept) >= VOCABULARY["resonance"].MAX_MODES:
+            break
+        cur = plant_with(pl, kept)
+        Hm = model_response(cur, tr.f, sig.dt, df, ker)
+        dep = departure(tr, Hm, use_tr, alpha, noise_psd)
+        if not dep["departs"]:
+            break
+        got = fit_mode(tr, cur, use_tr, dep, sig.dt, df, ker, edge, top)
+        if got is None:
+            break
+        hz, z, g, std, chi2 = got
+        m = Mode({"gain": g, "frequency_hz": hz, "zeta": z}, std)
+        Hte0 = model_response(cur, te.f, sig.dt, df, ker)
+        Hte1 = model_response(plant_with(cur, [m]), te.f, sig.dt, df, ker)
+        d0, d1 = departure(te, Hte0, use_te, alpha, noise_psd), departure(te, Hte1, use_te, alpha, noise_psd)
+        Htr1 = model_response(plant_with(cur, [m]), tr.f, sig.dt, df, ker)
+        m.evidence = {"test": "H1 departure (chi-square 2 dof per bin, Bonferroni) + held-out H1 fit",
+                      "train_departure": public(dep), "train_after": public(departure(tr, Htr1, use_tr, alpha, noise_psd)),
+                      "test_sse_before": d0["sse"], "test_sse_after": d1["sse"], "test_bins": d0["bins"],
+                      "fit_chi2": chi2}  # fmt: skip
+        why = VOCABULARY["resonance"].implausible(m.params)  # at the damping bound: not a lightly damped mode
+        if why:
+            m.reason = f"not a mode: {why}"
+            res.dropped.append(m)
+            break
+        if not d1["sse"] < d0["sse"]:
+            m.reason = "not confirmed: it did not lower the held-out part's H1 departure"
+            res.dropped.append(m)
+            break
+        kept.append(m)
+    res.modes = kept
+    res.model_before, res.usable_test = Hm_te, use_te
+    res.model_after = model_response(plant_with(pl, kept), te.f, sig.dt, df, ker)
+    res.after = public(departure(te, res.model_after, use_te, alpha, noise_psd))
+    res.seconds = time.perf_counter() - t0
+    return res
+
+
+__all__ = ["COH_MIN", "MAX_MODES", "MIN_BINS", "Mode", "Plant", "REL_MARGIN", "Response", "Result", "SNR_MIN",
+           "choose_nperseg", "departure", "measure", "model_response", "run", "sliding_segments"]
