@@ -68,7 +68,6 @@ from scipy import optimize, signal, stats
 
 from servo.diagnose.band import band_hz
 from servo.diagnose.terms import VOCABULARY
-from servo.frf.estimate import n_segments
 
 #: a bin is usable where the coherence is at least this (the variance formula is first
 #: order; below ~0.5 the ratio of noisy spectra has heavier tails than it says)
