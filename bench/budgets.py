@@ -79,10 +79,12 @@ NUMBA_OVER_C_EVERY_TERM_MAX = 1.75
 EVERY_TERM_OVER_PAPER_MAX = 4.0
 #: The tick path (scheduler + driver interface + SimDriver) with every compensator term on
 #: over the paper's, rounds alternated: the terms are ~50 ns of a ~4 us tick (~1 %);
-#: measured 0.98-1.06 at load 7-8 on 2 cores.  A guard against a gross regression (a
-#: term falling out of compiled code), not a measure of the terms' cost: that is the
-#: controller tick's ratios above.
-TICK_PATH_EVERY_TERM_OVER_PAPER_MAX = 1.15
+#: measured 0.98-1.06 at load 7-8 on 2 cores, but 0.62 and 1.36 in two CI runs of the
+#: same code on an idle machine (each run's two loops differ by up to 40 % in their
+#: medians, whichever has the terms: a per-process effect the alternation does not
+#: cancel).  A guard against a gross regression (a term falling out of compiled code
+#: costs 10x), not a measure of the terms' cost: that is the controller tick's ratios.
+TICK_PATH_EVERY_TERM_OVER_PAPER_MAX = 2.0
 #: Python/Numba time ratio of the controller tick: at least this (compiling must pay).
 PYTHON_OVER_NUMBA_MIN = 20.0
 #: Cold start (process start to first tick of ``servo run``) at most this multiple of the

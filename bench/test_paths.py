@@ -70,8 +70,8 @@ def test_tick_path_with_every_compensator_term(cfg, record, tmp_path):
     """The tick path with every compensator term on (issue 14), against the paper's
     compensator in rounds that alternate (5000 ticks each): the per-tick median against 3/4
     of the period, as :func:`test_tick_path_per_tick`, and against the paper's path in the
-    same rounds (the terms add ~50 ns to a ~4 us tick: at most 15 %, a guard against a gross
-    regression whatever the load).
+    same rounds (the terms add ~50 ns to a ~4 us tick; the bound, 2x, is a guard against a
+    gross regression whatever the load: bench/budgets.py says why it is that wide).
     The issue's target, 1/4 of the period, is recorded (``share``), not asserted: a
     loaded host takes the tick path past it (docs/realtime.md)."""
     c = cfg.replace(run={"duration_s": 0.1})
