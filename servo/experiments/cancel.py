@@ -56,15 +56,12 @@ from servo.diagnose.job import Options, diagnose
 from servo.diagnose.report import build_report
 from servo.experiments.bode import SweepSettings, check_holding_loop, sweep
 from servo.experiments.bode_analysis import band_max, linearity
-from servo.experiments.sim import MemoryLog, simulate
+from servo.experiments.sim import run_in_memory, simulate
 from servo.io import progress
 from servo.io.atomic import atomic_write, write_json
 from servo.io.recording import Recording
 from servo.run.reduce import RunFigures
-from servo.runtime.controller import Controller
-from servo.runtime.loop import log_rows, run_closed_loop
 from servo.runtime.scenario import scenario_inputs as run_inputs
-from servo.runtime.simdriver import SimDriver
 
 
 @dataclass(frozen=True)
@@ -167,24 +164,13 @@ def bode_figures(cfg: Config, s: SweepSettings) -> tuple[dict, list]:
     }, sweeps
 
 
-def _memory_run(cfg: Config, inputs) -> MemoryLog:
-    controller = Controller(cfg, compensation=True)
-    log = MemoryLog(log_rows(cfg), controller.log_columns)
-    driver = SimDriver(cfg, inputs)
-    try:
-        run_closed_loop(cfg, driver, controller, inputs, log, fast=True, timing=False)
-    finally:
-        driver.close()
-    return log
-
-
 def run_figures(cfg: Config, duration_s: float | None = None) -> dict:
     """The step and tracking figures ``servo run`` reports (:class:`RunFigures`) of the
     run scenario of ``cfg`` with its compensator, on the fast path."""
     if duration_s is not None:
         cfg = cfg.replace(run={"duration_s": duration_s})
     cfg = cfg.replace(run={"log_every": 1})
-    log = _memory_run(cfg, run_inputs(cfg))
+    log = run_in_memory(cfg, run_inputs(cfg), compensation=True)
     fig = RunFigures(cfg)
     fig(log.data[: log.rows])
     return fig.result()

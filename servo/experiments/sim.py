@@ -50,7 +50,12 @@ def simulate(cfg: Config, u_exc: np.ndarray, r: np.ndarray | None = None, compen
     cfg = cfg.replace(run={"duration_s": n * cfg.dt, "log_every": 1})
     if cfg.n_ticks != n:  # rounding of duration_s * rate
         raise ValueError(f"tick count mismatch: {cfg.n_ticks} != {n}")
-    inputs = ArrayInputs(r=r, u_exc=u_exc, d=d)
+    return run_in_memory(cfg, ArrayInputs(r=r, u_exc=u_exc, d=d), compensation).as_dict()
+
+
+def run_in_memory(cfg: Config, inputs, compensation: bool | None = None) -> MemoryLog:
+    """The closed loop of ``cfg`` on its simulated drive under ``inputs`` (a scenario's
+    inputs), all compiled, logged in memory; ``compensation`` overrides the config's."""
     controller = Controller(cfg, compensation=compensation)
     log = MemoryLog(log_rows(cfg), controller.log_columns)
     driver = SimDriver(cfg, inputs)
@@ -58,7 +63,7 @@ def simulate(cfg: Config, u_exc: np.ndarray, r: np.ndarray | None = None, compen
         run_closed_loop(cfg, driver, controller, inputs, log, fast=True, timing=False)
     finally:
         driver.close()
-    return log.as_dict()
+    return log
 
 
-__all__ = ["MemoryLog", "simulate"]
+__all__ = ["MemoryLog", "run_in_memory", "simulate"]
