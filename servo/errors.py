@@ -2,6 +2,14 @@
 non-zero for any of these; anything else is a bug and says so."""
 
 
+def first_line(exc: BaseException | str, limit: int = 240) -> str:
+    """A foreign library's message made fit for one error line: its first line, at most
+    ``limit`` characters (a corrupt file's reader may quote kilobytes of raw bytes)."""
+    text = str(exc).strip()
+    line = text.splitlines()[0] if text else type(exc).__name__
+    return line if len(line) <= limit else line[: limit - 3] + "..."
+
+
 class ServoError(Exception):
     """Base class: a problem with the user's input or environment, in one line."""
 

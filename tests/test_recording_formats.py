@@ -212,6 +212,22 @@ def test_fuzzed_binary_files_load_or_are_one_error_line(tmp_path, data):
     _one_line_or_loaded(p)
 
 
+def test_an_npz_whose_member_name_is_corrupt_is_one_short_line(tmp_path):
+    """numpy's zip reader quotes the whole raw member header when a name in it differs
+    from the directory's; the error line keeps its start only (found by the fuzz above)."""
+    src = tmp_path / "src.npz"
+    np.savez(src, t=T, u=U, x=X)
+    raw = bytearray(src.read_bytes())
+    raw[27] = 1  # inside the first local file header's name
+    p = tmp_path / "bad.npz"
+    p.write_bytes(bytes(raw))
+    with pytest.raises(RecordingError) as err:
+        load_recording(p, min_samples=2)
+    msg = str(err.value)
+    assert msg.startswith("recording: cannot read") and "\n" not in msg and len(msg) < 600
+    assert str(p) in msg
+
+
 def test_a_large_csv_is_parsed_by_numpy_not_row_by_row(tmp_path, monkeypatch):
     """200 000 rows: read through numpy.loadtxt in one call (the row-by-row scan only runs
     to name a bad line), values exact."""

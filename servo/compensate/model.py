@@ -23,7 +23,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from servo.config import Config, ConfigError, load_config, to_dict
-from servo.errors import ServoError
+from servo.errors import ServoError, first_line
 
 #: Terms of a model no static compensator term can cancel, and what to do instead.
 NOT_CANCELLABLE = {
@@ -62,7 +62,7 @@ def _read_json(p: Path) -> dict:
     try:
         doc = json.loads(p.read_text(encoding="utf-8"))
     except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
-        raise CompensateError(f"{p}: cannot read as JSON: {str(exc).splitlines()[0]}") from None
+        raise CompensateError(f"{p}: cannot read as JSON: {first_line(exc)}") from None
     if not isinstance(doc, dict):
         raise CompensateError(f"{p}: not a report.json of servo diagnose nor a summary.json of servo identify")
     return doc

@@ -30,6 +30,7 @@ from typing import TYPE_CHECKING, ClassVar
 import numpy as np
 
 from kernels.compose import Composed, compose
+from servo.errors import first_line
 
 if TYPE_CHECKING:
     from servo.config import Config
@@ -149,7 +150,7 @@ def _check_log(kind: type[ControllerKind]) -> None:
         kind.log(buf[:n], state[0])
     except Exception as exc:
         raise TypeError(f"controller kind {kind.name}: its log kernel cannot be called as log(out, state): "
-                        f"{type(exc).__name__}: {str(exc).splitlines()[0] if str(exc) else ''}") from None  # fmt: skip
+                        f"{type(exc).__name__}: {first_line(exc)}") from None  # fmt: skip
     if not np.isnan(buf[n:]).all():
         raise TypeError(f"controller kind {kind.name}: its log writes more than its {n} log_columns")
     if np.isnan(buf[:n]).any():

@@ -25,7 +25,7 @@ import numpy as np
 from servo.config import DriveConfig, load_config
 from servo.diagnose.model import Design, Model, Term
 from servo.diagnose.terms import BASELINE_TERMS, VOCABULARY
-from servo.errors import ConfigError, ServoError
+from servo.errors import ConfigError, ServoError, first_line
 from servo.identify.least_squares import check_identifiable
 from servo.identify.regressors import TERMS, IdentificationError, Regression, parse_terms
 
@@ -103,7 +103,7 @@ def from_file(path: str | Path) -> Model:
     try:
         doc = json.loads(p.read_text(encoding="utf-8"))
     except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
-        raise ModelFileError(f"model: cannot read {p} as JSON: {str(exc).splitlines()[0]}") from None
+        raise ModelFileError(f"model: cannot read {p} as JSON: {first_line(exc)}") from None
     if isinstance(doc, dict) and "final_model" in doc:
         terms = []
         for t in doc["final_model"].get("terms", []):

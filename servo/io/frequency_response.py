@@ -34,7 +34,7 @@ from pathlib import Path
 
 import numpy as np
 
-from servo.errors import ServoError
+from servo.errors import ServoError, first_line
 from servo.io.atomic import atomic_write, strict_json
 
 FORMAT = "servo-frequency-response/1"
@@ -161,7 +161,7 @@ def load_frequency_responses(path: str | Path) -> dict[str, FrequencyResponse]:
     except FileNotFoundError:
         raise FrequencyResponseError(f"frequency response: no such file: {path}") from None
     except Exception as exc:
-        raise FrequencyResponseError(f"frequency response: cannot read {path}: {exc}".splitlines()[0]) from None
+        raise FrequencyResponseError(f"frequency response: cannot read {path}: {first_line(exc)}") from None
     raise FrequencyResponseError(f"frequency response: {path}: unknown format {path.suffix!r} (use .npz or .csv)")
 
 

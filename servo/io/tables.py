@@ -28,7 +28,7 @@ from pathlib import Path
 
 import numpy as np
 
-from servo.errors import RecordingError
+from servo.errors import RecordingError, first_line
 
 TEXT_SUFFIXES = (".csv", ".tsv", ".txt", ".dat")
 HDF5_SUFFIXES = (".h5", ".hdf5", ".he5")
@@ -68,7 +68,7 @@ def read_table(path: str | Path) -> Table:
         raise RecordingError(f"recording: {path} is a directory, not a file") from None
     except Exception as exc:  # corrupt or foreign file: one line, whatever the reader raised
         what = suffix[1:].upper() or "a recording"
-        raise RecordingError(f"recording: cannot read {path} as {what}: {exc}".splitlines()[0]) from None
+        raise RecordingError(f"recording: cannot read {path} as {what}: {first_line(exc)}") from None
     known = ", ".join(TEXT_SUFFIXES + (".npz", ".mat") + HDF5_SUFFIXES)
     raise RecordingError(f"recording: {path}: unknown format {suffix!r} (use {known}; export spreadsheets as CSV)")
 
