@@ -228,6 +228,24 @@ def test_an_npz_whose_member_name_is_corrupt_is_one_short_line(tmp_path):
     assert str(p) in msg
 
 
+def test_a_mat_file_with_an_unknown_type_tag_is_one_line_not_a_crash(tmp_path):
+    """scipy's compiled MAT v5 reader crashes the process (SIGSEGV) on a data type tag it
+    does not know; the tags are checked first (found by the fuzz above)."""
+    from scipy.io import savemat
+
+    src = tmp_path / "src.mat"
+    savemat(src, {"t": T, "u": U, "x": X})
+    raw = bytearray(src.read_bytes())
+    real_part = np.array([9, 8 * N], "<u4").tobytes()  # miDOUBLE, N doubles
+    i = raw.find(real_part, raw.find(real_part) + 1)  # the second variable's values
+    assert i > 0
+    raw[i] = 22
+    p = tmp_path / "bad.mat"
+    p.write_bytes(bytes(raw))
+    with pytest.raises(RecordingError, match=r"unknown data type 22 at byte"):
+        load_recording(p, min_samples=2)
+
+
 def test_a_large_csv_is_parsed_by_numpy_not_row_by_row(tmp_path, monkeypatch):
     """200 000 rows: read through numpy.loadtxt in one call (the row-by-row scan only runs
     to name a bad line), values exact."""

@@ -23,6 +23,7 @@ the roles ``t, u, x, v, r`` and validates.  Every problem is one
 from __future__ import annotations
 
 import csv
+import io
 import re
 from pathlib import Path
 
@@ -211,9 +212,52 @@ def _read_mat(path: Path) -> Table:
         return _read_hdf5(path, sep=".", fmt="mat v7.3")
     from scipy.io import loadmat
 
+    raw = path.read_bytes()
+    if raw[124:126] == b"\x00\x01" or raw[124:126] == b"\x01\x00":  # v5-v7: its tags first
+        _check_mat5_tags(raw)
     out: dict = {}
-    _flatten_mat(loadmat(str(path), simplify_cells=True), "", out)
+    _flatten_mat(loadmat(io.BytesIO(raw), simplify_cells=True), "", out)
     return Table(out, format="mat")
+
+
+_MAT5_TYPES = frozenset(range(1, 19)) - {8, 10, 11}  # miINT8 .. miUTF32 (8, 10, 11 unused)
+_MI_MATRIX, _MI_COMPRESSED = 14, 15
+
+
+def _check_mat5_tags(raw: bytes) -> None:
+    """Walk a MAT v5 file's data elements and refuse one whose type tag or length is not
+    the format's: scipy's compiled reader indexes a table by the tag and crashes the
+    process on an unknown one (a corrupt byte), where it should raise.  Matrices are
+    walked into (cells and structs are matrices of matrices); compressed elements are
+    inflated and walked."""
+    import zlib
+
+    order = "<" if raw[126:128] == b"IM" else ">"
+
+    def walk(buf: bytes, start: int, end: int, top: bool) -> None:
+        i = start
+        while i + 8 <= end:
+            word, size = np.frombuffer(buf, f"{order}u4", 2, i)
+            word, size = int(word), int(size)
+            if word >> 16:  # small data element: the size in the upper half, data in 4 bytes
+                mtype, size, body, step = word & 0xFFFF, word >> 16, i + 4, 8
+                if size > 4:
+                    raise ValueError(f"a small data element of {size} bytes at byte {i}")
+            else:
+                mtype, body = word, i + 8
+                step = 8 + (size if mtype == _MI_COMPRESSED else (size + 7) // 8 * 8)
+            if mtype not in _MAT5_TYPES or (mtype == _MI_COMPRESSED and not top):
+                raise ValueError(f"unknown data type {mtype} at byte {i}")
+            if body + size > end:
+                raise ValueError(f"an element at byte {i} runs past the end of the file")
+            if mtype == _MI_COMPRESSED:
+                inner = zlib.decompressobj().decompress(buf[body:body + size])
+                walk(inner, 0, len(inner), top=False)
+            elif mtype == _MI_MATRIX:
+                walk(buf, body, body + size, top=False)
+            i += step
+
+    walk(raw, 128, len(raw), top=True)
 
 
 def _flatten_mat(obj: dict, prefix: str, out: dict) -> None:
