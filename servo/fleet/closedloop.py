@@ -1,10 +1,9 @@
 """One drive's ``servo run`` scenario on the all-compiled fast path, in memory, and its figures.
 
-The same closed loop as ``servo run --fast`` (:func:`servo.runtime.loop.run_closed_loop`
-with a :class:`~servo.runtime.simdriver.SimDriver` and the PI holding loop of
-:class:`~servo.runtime.controller.Controller`), but the log stays in memory
-(:class:`servo.experiments.sim.MemoryLog`): no journal, no NPZ or CSV per drive.  The
-figures are those of ``servo run``'s summary, from :mod:`servo.run.metrics`: tracking
+The same closed loop as ``servo run --fast``
+(:func:`servo.experiments.sim.run_in_memory`: the simulated drive and the config's
+controller, all compiled), but the log stays in memory: no journal, no NPZ or CSV per
+drive.  The figures are those of ``servo run``'s summary, from :mod:`servo.run.metrics`: tracking
 error RMS over the run and per scenario segment, overshoot and settling of every
 reference step (:class:`servo.run.reduce.RunFigures`).
 """
@@ -13,25 +12,16 @@ from __future__ import annotations
 import numpy as np
 
 from servo.config import Config
-from servo.experiments.sim import MemoryLog
+from servo.experiments.sim import run_in_memory
 from servo.run.reduce import RunFigures
-from servo.runtime.controller import Controller
-from servo.runtime.loop import log_rows, run_closed_loop
 from servo.runtime.scenario import scenario_inputs
-from servo.runtime.simdriver import SimDriver
+
 
 def run_scenario(cfg: Config, compensated: bool) -> np.ndarray:
     """The log rows (rows, len(LOG_COLUMNS)) of the scenario of ``cfg`` on its simulated
-    drive, with or without the compensator.  A simulation whose state stops being finite
-    raises :class:`~servo.errors.DriverError`."""
-    inputs = scenario_inputs(cfg)
-    controller = Controller(cfg, compensation=compensated)
-    log = MemoryLog(log_rows(cfg), controller.log_columns)
-    driver = SimDriver(cfg, inputs)
-    try:
-        run_closed_loop(cfg, driver, controller, inputs, log, fast=True, timing=False)
-    finally:
-        driver.close()
+    drive, with or without the compensator (:func:`servo.experiments.sim.run_in_memory`).
+    A simulation whose state stops being finite raises :class:`~servo.errors.DriverError`."""
+    log = run_in_memory(cfg, scenario_inputs(cfg), compensation=compensated)
     return log.data[: log.rows]
 
 
