@@ -5,7 +5,7 @@ import math
 import numpy as np
 import pytest
 
-from servo.compensate.job import compensate, section_text
+from servo.compensate.job import compensate, format_summary, section_text
 from servo.compensate.model import CompensateError, read_model
 from servo.compensate.propose import apply, kf_bound
 from servo.config import CompensatorConfig, Config, load_config, to_toml
@@ -184,6 +184,9 @@ def test_a_model_in_newton_needs_the_force_constant(tmp_path, asym_report):
         compensate(n, Config())
     a, b = compensate(path, Config()), compensate(n, Config(), force_constant=2.0)
     assert b.section["B"] == pytest.approx(a.section["B"] / 2) and b.section["b_asymmetry"] == a.section["b_asymmetry"]
+    # the loop whose |P*S| is printed is the base config's: said so for a model from another axis
+    assert "of the designed loop" in format_summary(a)
+    assert "not the recorded axis" in format_summary(b) and "of the designed loop" not in format_summary(b)
 
 
 @pytest.mark.parametrize("text,needle", [

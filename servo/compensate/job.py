@@ -94,8 +94,10 @@ def format_summary(p: Proposal) -> str:
            "half the current limit (the source does not say how fast the arm moved)")  # fmt: skip
     lines.append(f"  authority: |u_c| <= {a['authority_a']:.4g} A ({how}; current limit {a['current_limit_a']:.4g} A)")
     if a["worst_um_per_ma"] is not None:
+        whose = ("the designed loop" if a.get("loop_is_source", True) else
+                 "the base config's drive and controller, not the recorded axis: its forces were in another unit")  # fmt: skip
         lines.append(f"    a wrong force of 1 mA moves the head by at most {a['worst_um_per_ma']:.3g} um at any one frequency "
-                     "(max |P*S| of the designed loop)")  # fmt: skip
+                     f"(max |P*S| of {whose})")  # fmt: skip
     if a["kf_authority"] is not None:
         gm = [f"{g:+.1f} dB" for g in (a["gain_up_db"], a["gain_down_db"]) if g is not None]
         lines.append(f"  kf(x) held within 1 +- {a['kf_authority']:.3g} (the model asks for {a['kf_model']:.3g}; "

@@ -220,6 +220,7 @@ def propose(model: SourceModel, base: Config, paper: bool = False, force_constan
     up, down, worst = loop_margins(base.replace(compensator={k: v for k, v in section.items()}))
     info.update(gain_up_db=up, gain_down_db=down)
     info["worst_um_per_ma"] = worst * 1e6 * 1e-3 if worst is not None else None
+    info["loop_is_source"] = model.force_unit == "A"  # else: the base's loop, not the recorded axis's
     if "kf_linear" in section:
         a_model = kf_change(section)
         a = float(max(min(MARGIN * a_model, kf_bound(up, down)), 1e-3))
