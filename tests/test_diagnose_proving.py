@@ -134,3 +134,21 @@ def test_an_unrelated_position_is_out_of_scope():
     assert D.verdict["verdict"] == "out_of_scope", D.verdict["text"]
     assert "inertia" in D.verdict["text"]
     assert D.findings == []  # nothing is named on a recording the force balance does not describe
+
+
+def test_the_study_command_scores_what_it_ran(tmp_path):
+    """``python -m servo.diagnose.proving.study`` in this process: the runs in the jobs'
+    order, the seeds offset as asked, the tables written; an unknown family is refused."""
+    import json
+
+    from servo.diagnose.proving import study
+
+    out = tmp_path / "st"
+    assert study.main(["--nulls", "2", "--seeds", "1", "--families", "out_of_scope", "--workers", "0",
+                       "--seed-offset", "7", "--out", str(out)]) == 0  # fmt: skip
+    runs = json.loads((out / "study.json").read_text())
+    assert [(r["family"], r["seed"]) for r in runs] == [("null", 50_007), ("null", 50_008), ("out_of_scope", 60_007)]
+    assert runs[2]["verdict"] == "out_of_scope"
+    assert "| null recordings |" in (out / "study.md").read_text()
+    with pytest.raises(SystemExit):
+        study.main(["--families", "no_such_family", "--out", str(tmp_path / "x")])

@@ -1,6 +1,7 @@
 """The proving-ground study: null recordings and effect families, diagnosed blind.
 
-    python -m servo.diagnose.proving.study --nulls 240 --seeds 8 --jobs 2 --out proving-study
+    python -m servo.diagnose.proving.study --nulls 240 --seeds 8 --workers 2 --out proving-study
+    python -m servo.diagnose.proving.study ... --scheduler tcp://HOST:PORT   # on an existing Dask cluster
 
 Null recordings cycle through every controller, excitation and rate of
 :mod:`servo.diagnose.proving.cases`; each family and size gets ``--seeds`` recordings,
@@ -9,6 +10,10 @@ baseline's held-out residual over the noise floor (``base_ratio``).  A family's
 *effect on the held-out error* is ``1 - 1/base_ratio``: the share of the baseline's
 held-out RMS error that a model reaching the noise floor removes; detection is reported
 over the recordings where it is at least 20 %.  Writes ``study.json`` and ``study.md``.
+The diagnoses run on Dask through the fleet's path
+(:func:`servo.fleet.runner.map_batches`), in batches of :data:`BATCH` recordings, each
+made by the worker from its ``(family, size, seed)``; the runs come back in the jobs'
+order.
 
 The scored seeds are nulls 50000+ and families 60000+.  A change to the diagnosis is
 developed on other seeds (``--seed-offset 40000``) and scored on these once, its levels
@@ -18,15 +23,16 @@ from __future__ import annotations
 
 import argparse
 import itertools
-import json
 import time
-from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
 
 from servo.diagnose.proving.cases import CONTROLLERS, EXCITATIONS, FAMILIES, RATES, Case, recording
+from servo.io.atomic import atomic_write, write_json
 
 COMBOS = list(itertools.product(CONTROLLERS, EXCITATIONS, RATES))
 EFFECT_MIN = 0.2
+#: recordings per Dask task
+BATCH = 4
 
 
 def combo(family: str, size: float, seed: int) -> tuple:
@@ -60,6 +66,16 @@ def run_one(job: tuple) -> dict:
             "frf_ran": bool(D.frf is not None and D.frf.ran),
             "frf_findings": [f.physics for f in D.findings if getattr(f, "frf", None) is not None],
             "frf_failed": bool(v["final_checks"].get("frf", {}).get("failed"))}  # fmt: skip
+
+
+def run_batch(jobs: list) -> list[dict]:
+    """:func:`run_one` of each job, in order (what one Dask task runs)."""
+    return [run_one(j) for j in jobs]
+
+
+def failed_batch(jobs: list, why: str) -> list[dict]:
+    """The runs of a batch whose workers kept dying."""
+    return [{"family": f, "size": size, "seed": seed, "error": why} for f, size, seed in jobs]
 
 
 def wilson(k: int, n: int, z: float = 1.959964) -> tuple[float, float]:
@@ -130,28 +146,38 @@ def tables(runs: list) -> str:
 
 
 def main(argv=None) -> int:
+    from servo.fleet.runner import Progress, Where, describe, map_batches
+    from servo.io.progress import Reporter, reporting
+
     ap = argparse.ArgumentParser(prog="python -m servo.diagnose.proving.study", description=__doc__.splitlines()[0])
     ap.add_argument("--nulls", type=int, default=240, help="null recordings (default 240)")
     ap.add_argument("--seeds", type=int, default=8, help="recordings per family and size (default 8)")
     ap.add_argument("--families", help="comma list (default all)")
     ap.add_argument("--seed-offset", type=int, default=0,
                     help="added to every seed: develop on an offset (e.g. 40000), score on 0")
-    ap.add_argument("--jobs", type=int, default=2)
+    ap.add_argument("--workers", "--jobs", type=int, dest="workers",
+                    help="local Dask worker processes (default: one per CPU; 0: this process)")
+    ap.add_argument("--scheduler", metavar="tcp://HOST:PORT", help="run on this existing Dask cluster")
     ap.add_argument("--out", default="proving-study")
     a = ap.parse_args(argv)
     fams = a.families.split(",") if a.families else [f for f in FAMILIES if f != "null"]
+    unknown = [f for f in fams if f not in FAMILIES]
+    if unknown:
+        ap.error(f"--families: unknown {', '.join(unknown)} (known: {', '.join(FAMILIES)})")
     jobs = [("null", 0.0, 50_000 + a.seed_offset + s) for s in range(a.nulls)]
     jobs += [(f, size, 60_000 + a.seed_offset + s) for f in fams for size in FAMILIES[f].sizes for s in range(a.seeds)]
+    where = Where(a.scheduler, a.workers)
+    t0 = time.time()
+    with reporting(Reporter("servo.diagnose.proving.study")) as reporter:
+        runs = map_batches(run_batch, jobs, where, BATCH, Progress(reporter, len(jobs), "diagnoses"), failed_batch)
     out = Path(a.out)
     out.mkdir(parents=True, exist_ok=True)
-    t0 = time.time()
-    with ProcessPoolExecutor(a.jobs) as ex:
-        runs = list(ex.map(run_one, jobs, chunksize=4))
-    (out / "study.json").write_text(json.dumps(runs, indent=1))
     text = tables(runs)
-    (out / "study.md").write_text(text)
+    write_json(out / "study.json", runs)
+    atomic_write(out / "study.md", lambda tmp: Path(tmp).write_text(text))
     print(text)
-    print(f"{len(runs)} recordings in {time.time() - t0:.0f} s; wrote {out}/study.json, {out}/study.md")
+    print(f"{len(runs)} recordings on {describe(where, len(jobs))} in {time.time() - t0:.0f} s; wrote {out}/study.json, "
+          f"{out}/study.md")  # fmt: skip
     return 0
 
 
