@@ -115,7 +115,10 @@ class SensorLag(Physics):
     HI_ROWS = 2.0
 
     absent = {"sensor_cutoff_hz": 0.0}
-    effect = Effect("sensor_lag", "Hz", "sensor cutoff (first-order low-pass)", (20e3, 10e3, 5e3, 2.5e3, 1.25e3), 2.5e3)
+    #: sizes: the time constant, from 1.2 samples at 50 kHz (the shortest lag tried at
+    #: decimation by 10, :attr:`DELAY_LIKE`) to 4.8
+    effect = Effect("sensor_lag", "s", "sensor time constant (first-order low-pass, cutoff 1/(2*pi*tau))",
+                    (24e-6, 32e-6, 48e-6, 64e-6, 96e-6), 64e-6)  # fmt: skip
 
     def to_drive(self, P, fit):
         return {"sensor_cutoff_hz": P[self.name]["cutoff_hz"]}
@@ -125,7 +128,7 @@ class SensorLag(Physics):
         return [({"time_constant_s": 1.0 / (2 * math.pi * fc)}, ())] if fc > 0 else []
 
     def conceal(self, size):
-        return {"sensor_cutoff_hz": size}
+        return {"sensor_cutoff_hz": 1.0 / (2 * math.pi * size)}
 
     @staticmethod
     def transform(u, theta, dt):
