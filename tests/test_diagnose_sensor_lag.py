@@ -130,7 +130,7 @@ def test_compensate_says_what_to_do_about_a_sensor_lag(tmp_path):
     assert "bandwidth" in advice["sensor_lag"] and "observer" in advice["sensor_lag"]
 
 
-def test_a_long_sensor_lag_is_named_with_its_cutoff_where_a_delay_is_not():
+def test_a_long_sensor_lag_is_named_with_its_cutoff_where_a_delay_is_not(tmp_path):
     """Proving ground (its own integrator): a lead-lag loop with seek strokes at 1 kHz and
     a sensor cutoff of fs/20 (tau 3.2 samples).  ``sensor_lag`` is named first, with
     its cutoff, and the model reaches its noise floor; a delay in its place leaves the
@@ -147,3 +147,12 @@ def test_a_long_sensor_lag_is_named_with_its_cutoff_where_a_delay_is_not():
     ts = D.rounds[0]["scores"]
     lag, delay = (next(s for s in ts if s.physics == n) for n in ("sensor_lag", "time_delay"))
     assert lag.S1.sum() < 0.5 * delay.S1.sum()  # the held-out error a delay leaves is twice the lag's at least
+    # the final model written as a drive config holds the lag, and held against the same
+    # recording it leaves nothing to find
+    from servo.diagnose.job import Options
+    from servo.diagnose.report import build_report, write_drive_toml
+
+    assert write_drive_toml(build_report(D), tmp_path)
+    held = diagnose(rec, Options(model=str(tmp_path / "final_model.toml")))
+    assert [t.physics for t in held.baseline.terms if t.physics == "sensor_lag"] == ["sensor_lag"]
+    assert held.findings == [] and held.verdict["verdict"] == "consistent"
