@@ -75,7 +75,7 @@ class LaggedForce:
     commutes with the filters, so the rows equal the exact chain's
     (:meth:`servo.diagnose.signals.Signals.force_rows` of the lagged input) except within
     the filters' reach of the recording's two ends, where the zero-phase filters' padding
-    and the lag's start differ (a few rows; tested).  Used to screen the term (the
+    and the lag's start differ (within about 100 rows; tested).  Used to screen the term (the
     refinement and every fit of a model holding the term use the exact chain): each
     variant costs a one-pole pass instead of two zero-phase filters, 0.015 s instead of
     0.1 s on 1 000 000 samples."""
