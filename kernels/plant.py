@@ -67,6 +67,7 @@ PLANT_PARAMS = np.dtype(
         ("noise_v", "f8"),  # velocity sensor noise, m/s (std)
         ("quantum", "f8"),  # position quantisation step, m (0: none)
         ("has_velocity", "f8"),  # 1: the drive measures velocity (LDV), 0: not
+        ("sensor_a", "f8"),  # first-order position sensor low-pass, a = 1 - exp(-2*pi*fc*dt) (0: none)
     ]
 )
 PLANT_STATE = np.dtype(
@@ -74,6 +75,7 @@ PLANT_STATE = np.dtype(
         ("x", "f8"),  # rigid-body position, m
         ("v", "f8"),  # rigid-body velocity, m/s
         ("H", "f8"),  # Dahl hysteresis force, A
+        ("y_lp", "f8"),  # the position sensor low-pass's output (noiseless), m
     ]
 )
 plant_params_t = from_dtype(PLANT_PARAMS)[::1]
@@ -231,6 +233,11 @@ def plant_measure(ps, pp, q, gain, nx, nv):
     Position = rigid + ``sum(g_i*q_i)`` + ``noise_x*nx``, quantised to ``quantum``;
     velocity likewise with ``noise_v*nv``, or NaN when the drive measures no velocity.
     ``nx``, ``nv`` are standard-normal draws supplied by the caller (seeded upstream).
+
+    With a sensor low-pass (``sensor_a`` > 0) the position before noise and quantisation
+    is ``y_lp``, advanced here, once per call: ``y_lp += sensor_a*(rigid + modes - y_lp)``
+    (call once per sample; the velocity is not filtered).  Without one nothing of the
+    state is touched.
     """
     st = ps[0]
     p = pp[0]
@@ -239,6 +246,9 @@ def plant_measure(ps, pp, q, gain, nx, nv):
     for i in range(q.shape[0]):
         y += gain[i] * q[i, 0]
         yd += gain[i] * q[i, 1]
+    if p.sensor_a > 0.0:
+        st.y_lp += p.sensor_a * (y - st.y_lp)
+        y = st.y_lp
     y += p.noise_x * nx
     if p.quantum > 0.0:
         y = math.floor(y / p.quantum + 0.5) * p.quantum

@@ -81,6 +81,7 @@ class DriveConfig:
     position_noise: float = P(1.0e-9, "m", "position sensor noise (std)", 0.0)
     velocity_noise: float = P(1.0e-6, "m/s", "velocity sensor noise (std)", 0.0)
     position_quantum: float = P(1.0e-9, "m", "position quantisation step (0: none)", 0.0)
+    sensor_cutoff_hz: float = P(0.0, "Hz", "first-order low-pass on the measured position, before noise (0: none)", 0.0)
     measures_velocity: bool = P(True, "-", "the drive measures velocity (the paper's LDV)")
     substeps: int = P(2, "-", "RK4 sub-steps per constant-input interval", 1, 1000)
     initial_position: float = P(0.0, "m", "where the arm is held when the run starts")

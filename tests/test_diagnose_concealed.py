@@ -18,6 +18,7 @@ EXPECT = {
     "hysteresis": ("dahl_length", lambda d: d["Ha"] / d["sigma"], 0.05),
     "resonance": ("frequency_hz", lambda d: d["mode_hz"][0], 0.01),
     "time_delay": ("delay_s", lambda d: d["input_delay_s"], 0.05),
+    "sensor_lag": ("cutoff_hz", lambda d: d["sensor_cutoff_hz"], 0.05),
     "input_saturation": ("level", lambda d: d["current_limit"], 0.05),
     "position_dependent_gain": ("kf_linear", lambda d: d["kf_linear"] / d["stroke"], 0.05),
     "cogging": ("period", lambda d: d["cogging_period"], 0.01),

@@ -33,6 +33,9 @@ NOT_CANCELLABLE = {
                  "([controller.track] notch_hz) or keep the crossover below it",
     "input_saturation": "a saturation is a limit, not a force: set [controller] current_limit at or below it so "
                         "the loop knows the room it has",
+    "sensor_lag": "a low-pass on the position sensor is a lag in the loop, not a force: raise the sensor's "
+                  "bandwidth (its filter's cutoff well above the crossover), or estimate the position ahead of the "
+                  "filter with an observer that inverts it",
     "quantization": "the sensor's resolution is not a force: nothing to cancel (a finer encoder, or a velocity "
                     "cutoff that averages over several steps)",
 }  # fmt: skip
@@ -113,6 +116,7 @@ def _from_config(p: Path) -> SourceModel:
         ("coulomb_friction", d.Fc > 0), ("stribeck_friction", d.Fs > d.Fc), ("asymmetric_friction", d.b_asymmetry != 0),
         ("cogging", d.cogging > 0), ("position_dependent_gain", d.kf_linear != 0 or d.kf_quadratic != 0),
         ("resonance", len(d.mode_hz) > 0), ("time_delay", d.input_delay_s > 0), ("quantization", d.position_quantum > 0),
+        ("sensor_lag", d.sensor_cutoff_hz > 0),
     ) if on]  # fmt: skip
     return SourceModel(str(p), "config", drive, physics, "A", None, d.stroke)
 

@@ -32,7 +32,7 @@ from servo.io.recording import Recording
 RATE_HZ = 50_000.0
 NULL_DRIVE = dict(
     J=1.0e-3, B=2.0e-3, Fc=1.0e-3, Fs=1.0e-3, K=0.1, h0=2.0e-3, Ha=1e-12, sigma=1e-12,
-    mode_hz=[], mode_zeta=[], mode_gain=[], input_delay_s=0.0, position_quantum=0.0,
+    mode_hz=[], mode_zeta=[], mode_gain=[], input_delay_s=0.0, position_quantum=0.0, sensor_cutoff_hz=0.0,
     position_noise=1e-9, velocity_noise=1e-6, current_limit=1.0,
 )  # fmt: skip
 DEFAULT_BASELINE = "J,B,Fc,K,h0"
@@ -43,6 +43,7 @@ DEFAULT_BASELINE = "J,B,Fc,K,h0"
 EFFECTS = {name: VOCABULARY[name].effect for name in (
     "coulomb_friction", "viscous_friction", "stiffness", "offset", "asymmetric_friction", "stribeck_friction",
     "hysteresis", "resonance", "time_delay", "input_saturation", "position_dependent_gain", "cogging", "quantization",
+    "sensor_lag",
 )}  # fmt: skip
 
 

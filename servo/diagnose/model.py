@@ -138,7 +138,9 @@ class Design:
 
     def u_eff(self, model: Model, extra: Term | None = None) -> np.ndarray:
         """The force that reaches the arm (n,): the recording's input through the model's
-        input terms (and ``extra``): saturation first, then the delay, as in the drive."""
+        input terms (and ``extra``): saturation first, then the delay, as in the drive,
+        then a sensor's lag (:mod:`servo.diagnose.sensor_lag`: it commutes with the
+        linear dynamics, so it acts on the force as on the position)."""
         terms = model.input_terms() + ([extra] if extra is not None else [])
         key = tuple(sorted((t.physics, t.theta) for t in terms))
         if not key:
@@ -147,7 +149,7 @@ class Design:
             self._u[key] = self._u.pop(key)  # most recent last
             return self._u[key]
         u = self.sig.u
-        for name in ("input_saturation", "time_delay"):
+        for name in ("input_saturation", "time_delay", "sensor_lag"):
             for t in terms:
                 if t.physics == name:
                     u = VOCABULARY[name].transform(u, t.params, self.sig.dt)
@@ -175,6 +177,10 @@ class Design:
             df = self._delayed_force(model)
             if abs(shift) <= df.max_shift:
                 return self.cached_rows(key, lambda: df.rows(shift))
+        if extra is not None and not model.has(extra.physics):
+            fast = VOCABULARY[extra.physics].screen_target(self, model, extra.params)
+            if fast is not None:
+                return self.cached_rows(key, lambda: fast)
         u = self.u_eff(model, extra)
         return self.cached_rows(key, lambda: self.sig.force_rows(u))
 

@@ -40,7 +40,7 @@ from servo.config import MAGNITUDE_MAX
 #: every physics name a finding can carry, in the order the docs list them
 NAMES = (
     "inertia", "viscous_friction", "coulomb_friction", "stiffness", "offset", "asymmetric_friction",
-    "stribeck_friction", "hysteresis", "resonance", "time_delay", "input_saturation",
+    "stribeck_friction", "hysteresis", "resonance", "time_delay", "sensor_lag", "input_saturation",
     "position_dependent_gain", "cogging", "quantization",
 )  # fmt: skip
 
@@ -102,6 +102,11 @@ class Physics:
 
     def grid(self, d, model) -> list:
         return [{}]
+
+    def screen_target(self, d, model, theta: dict) -> np.ndarray | None:
+        """An input term's target rows (m,) tried on top of ``model`` (which lacks the
+        term), computed faster than the exact chain; None: use the exact chain."""
+        return None
 
     def bounds(self, d, model) -> dict:
         """Refinement bounds per theta: name -> (lo, hi, log_scale)."""
@@ -714,7 +719,18 @@ VOCABULARY = {
     for c in (Inertia, Viscous, Coulomb, Stiffness, Offset, Asymmetric, Stribeck, Hysteresis, Resonance, TimeDelay,
               Saturation, PositionGain, Cogging, Quantization)  # fmt: skip
 }
+
+
+def register(cls) -> None:
+    """Add a term defined in a module of its own to :data:`VOCABULARY` (that module's
+    one registration line; it is imported at the end of this one)."""
+    VOCABULARY[cls.name] = cls()
+
+
 #: the baseline terms of eq. (3) and the vocabulary term each is
 BASELINE_TERMS = {"J": "inertia", "B": "viscous_friction", "Fc": "coulomb_friction", "K": "stiffness", "h0": "offset"}
 
-__all__ = ["BASELINE_TERMS", "NAMES", "VOCABULARY", "Effect", "Physics"]
+__all__ = ["BASELINE_TERMS", "NAMES", "VOCABULARY", "Effect", "Physics", "register"]
+
+# terms in modules of their own, registered on import (they import this module's base)
+import servo.diagnose.sensor_lag  # noqa: E402,F401

@@ -76,6 +76,7 @@ def plant_params(d: DriveConfig, dt: float) -> np.ndarray:
         dt=dt, delay_frac=frac, delay_whole=whole, n_sub=d.substeps,
         noise_x=d.position_noise, noise_v=d.velocity_noise, quantum=d.position_quantum,
         has_velocity=1.0 if d.measures_velocity else 0.0,
+        sensor_a=1.0 - math.exp(-2.0 * math.pi * d.sensor_cutoff_hz * dt) if d.sensor_cutoff_hz > 0 else 0.0,
     )  # fmt: skip
     for k, v in values.items():
         p[k] = v
@@ -117,6 +118,8 @@ def build_plant(d: DriveConfig, dt: float) -> SimPlant:
             ubuf=np.full(whole + 2, u_hold),
             u_hold=u_hold,
         )
+        # the sensor's low-pass starts settled on the measured position at rest
+        state["y_lp"] = d.initial_position + float(np.dot(plant.gain, q[:, 0]))
     bad = [name for name, a in (("parameters", plant.params.view(np.float64)), ("modes", plant.mab), ("state", q))
            if not np.all(np.isfinite(a))]  # fmt: skip
     if bad or not np.isfinite(u_hold):

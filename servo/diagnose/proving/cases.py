@@ -18,7 +18,8 @@ sensor white noise of 1e-6 of the stroke.
 **Families** (:data:`FAMILIES`; ``size`` is relative, see each entry's ``what``) and the
 vocabulary term each should be named as (Bouc-Wen, LuGre pre-sliding and Maxwell-slip
 are ``hysteresis``; Stribeck curves of any shape and Karnopp breakaway are
-``stribeck_friction``; a sensor low-pass is a lag, ``time_delay``).  Partial-in-time
+``stribeck_friction``; a sensor low-pass is ``sensor_lag``, or ``time_delay`` where the
+rows cannot tell the two apart: :func:`accepted`).  Partial-in-time
 cases: ``saturation_late`` (the amplifier clips only in the last 30 %, which the
 training part never sees: the verdict must be ``unexplained`` with a train/test gap) and
 ``hysteresis_late`` (a LuGre element appearing half-way).  ``out_of_scope``: the
@@ -51,6 +52,8 @@ class Family:
     what: str
     sizes: tuple
     verdict: tuple = ("explained",)
+    #: other names accepted, in words (the rule is :func:`accepted`)
+    also: str = ""
 
 
 FAMILIES = {
@@ -69,13 +72,47 @@ FAMILIES = {
     "mode_above_band": Family("resonance", "modal gain of a mode at 2 x the rows' band edge", (1e-3, 3e-3, 1e-2, 3e-2),
                               ("explained", "unexplained")),
     "delay": Family("time_delay", "input delay, samples", (0.1, 0.25, 0.5, 1.0)),
-    "sensor_lowpass": Family("time_delay", "fs / sensor cutoff", (2.0, 5.0, 10.0, 20.0)),
+    "sensor_lowpass": Family("sensor_lag", "fs / sensor cutoff", (2.0, 5.0, 10.0, 20.0),
+                             also="or time_delay where w_e*tau <= 0.3"),
     "quantization": Family("quantization", "quantum / noise std", (5.0, 10.0, 30.0, 100.0)),
     "saturation_late": Family(None, "fraction of the last 30 % clipped", (0.05, 0.1, 0.2), ("unexplained",)),
     "hysteresis_late": Family("hysteresis", "LuGre level / Fc, present in the second half only", (0.2, 0.5),
                               ("explained", "unexplained")),
     "out_of_scope": Family(None, "-", (0.0,), ("out_of_scope",)),
 }
+
+
+#: a sensor lag of ``tau`` samples is scored as a delay too where ``w_e*tau`` is at most
+#: this, ``w_e = 2*pi*0.4/q`` the rows' band edge (rad/sample): a delay of ``tau`` then
+#: leaves at most ``(w_e*tau)^2/2`` = 4.5 % of the force at the band edge unexplained
+LAG_AS_DELAY = 0.3
+
+
+def lag_samples(size: float) -> float:
+    """The time constant (samples) of the ``sensor_lowpass`` family at ``size`` (fs/cutoff)."""
+    return size / (2 * np.pi)
+
+
+def accepted(family: str, size: float, decimate: int | None) -> tuple:
+    """The vocabulary names that count as a detection of ``family`` at ``size`` on a
+    recording whose rows are decimated by ``decimate`` (None: unknown, the default 10).
+
+    The rule, fixed before any scoring: a family's ``expect``; for ``sensor_lowpass``
+    also ``time_delay`` where the lag and a delay are the same physics to the rows,
+    ``w_e*tau <= LAG_AS_DELAY`` (``tau`` the lag in samples, ``w_e = 2*pi*0.4/q`` the
+    rows' band edge in rad/sample): a first-order lag and a delay of ``tau`` agree to
+    first order in ``w*tau`` and differ by about ``(w*tau)^2/2`` of the force.  At
+    ``q = 10`` that accepts a delay for ``fs/2`` and ``fs/5`` (``w_e*tau`` 0.08, 0.2),
+    not for ``fs/10`` and ``fs/20`` (0.4, 0.8)."""
+    fam = FAMILIES[family]
+    if fam.expect is None:
+        return ()
+    names = (fam.expect,)
+    if family == "sensor_lowpass":
+        w_e = 2 * np.pi * 0.4 / (decimate or 10)
+        if w_e * lag_samples(size) <= LAG_AS_DELAY:
+            names += ("time_delay",)
+    return names
 
 
 @dataclass(frozen=True)
@@ -273,4 +310,4 @@ def recording(case: Case, seed: int = 0) -> tuple[Recording, dict]:
     return rec, truth
 
 
-__all__ = ["CONTROLLERS", "Case", "EXCITATIONS", "FAMILIES", "RATES", "recording"]
+__all__ = ["CONTROLLERS", "Case", "EXCITATIONS", "FAMILIES", "RATES", "accepted", "recording"]

@@ -26,7 +26,7 @@ import itertools
 import time
 from pathlib import Path
 
-from servo.diagnose.proving.cases import CONTROLLERS, EXCITATIONS, FAMILIES, RATES, Case, recording
+from servo.diagnose.proving.cases import CONTROLLERS, EXCITATIONS, FAMILIES, RATES, Case, accepted, recording
 from servo.io.atomic import atomic_write, write_json
 
 COMBOS = list(itertools.product(CONTROLLERS, EXCITATIONS, RATES))
@@ -62,6 +62,7 @@ def run_one(job: tuple) -> dict:
     v = D.verdict
     return {**out, "seconds": time.perf_counter() - t0, "findings": [f.physics for f in D.findings],
             "verdict": v["verdict"], "expect": truth["expect"], "verdicts": truth["verdicts"],
+            "decimate": int(D.sig.settings.decimate),
             "base_ratio": v["baseline_checks"]["level"]["ratio"], "final_ratio": v["final_checks"]["level"]["ratio"],
             "frf_ran": bool(D.frf is not None and D.frf.ran),
             "frf_findings": [f.physics for f in D.findings if getattr(f, "frf", None) is not None],
@@ -76,6 +77,12 @@ def run_batch(jobs: list) -> list[dict]:
 def failed_batch(jobs: list, why: str) -> list[dict]:
     """The runs of a batch whose workers kept dying."""
     return [{"family": f, "size": size, "seed": seed, "error": why} for f, size, seed in jobs]
+
+
+def named_right(r: dict) -> bool:
+    """Whether a study record's findings hold a name its family accepts
+    (:func:`servo.diagnose.proving.cases.accepted`)."""
+    return any(n in r["findings"] for n in accepted(r["family"], r["size"], r.get("decimate")))
 
 
 def wilson(k: int, n: int, z: float = 1.959964) -> tuple[float, float]:
@@ -129,16 +136,16 @@ def tables(runs: list) -> str:
         if not rs:
             continue
         big = [r for r in rs if 1 - 1 / max(r["base_ratio"], 1e-300) >= EFFECT_MIN]
-        hit = (lambda r: fam.expect in r["findings"]) if fam.expect else (lambda r: not r["findings"])
+        hit = (lambda r: named_right(r)) if fam.expect else (lambda r: not r["findings"])
         right = sum(r["verdict"] in r["verdicts"] for r in rs)
-        lines.append(f"| `{name}` ({fam.what}) | {fam.expect or '(none)'} | {', '.join(f'{s:g}' for s in fam.sizes)} | "
+        lines.append(f"| `{name}` ({fam.what}) | {fam.expect or '(none)'}{' ' + fam.also if fam.also else ''} | {', '.join(f'{s:g}' for s in fam.sizes)} | "
                      f"{len(big)}/{len(rs)} | {_rate(sum(map(hit, big)), len(big))} | {sum(map(hit, rs))}/{len(rs)} | "
                      f"{right}/{len(rs)} |")  # fmt: skip
     lines += ["", f"| excitation | effect recordings with effect >= {100 * EFFECT_MIN:.0f} % | detected |", "|---|---|---|"]
     for exc in EXCITATIONS:
         sel = [r for r in ok if r["family"] != "null" and FAMILIES[r["family"]].expect and r["excitation"] == exc
                and 1 - 1 / max(r["base_ratio"], 1e-300) >= EFFECT_MIN]  # fmt: skip
-        lines.append(f"| {exc} | {len(sel)} | {_rate(sum(FAMILIES[r['family']].expect in r['findings'] for r in sel), len(sel))} |")
+        lines.append(f"| {exc} | {len(sel)} | {_rate(sum(map(named_right, sel)), len(sel))} |")
     errs = [r for r in runs if "error" in r]
     if errs:
         lines += ["", f"{len(errs)} recordings failed to diagnose: " + "; ".join(sorted({r['error'] for r in errs}))[:600]]
