@@ -109,3 +109,17 @@ def test_no_gate_is_tried_where_the_training_part_is_at_its_noise():
     assert not [r for r in D.rounds if r.get("gated")]
     sel = Selector(D.design, make_blocks(D.design.train_valid))
     assert partial.located(sel, D.final_fit.model, 0.05) == []
+
+
+def test_a_report_holding_a_gated_term_is_a_model_file_with_that_onset(late, tmp_path):
+    """``--model report.json``: the gated term comes back fixed with its onset, and the
+    file's model explains the recording as the diagnosis' final model did."""
+    from servo.diagnose.job import Options
+    from servo.io.atomic import write_json
+
+    rec, truth, D = late
+    write_json(tmp_path / "report.json", build_report(D))
+    D2 = diagnose(rec, Options(model=str(tmp_path / "report.json")))
+    hy = D2.baseline.get("hysteresis")
+    assert hy is not None and not hy.free and hy.params[GATE] == pytest.approx(D.findings[0].params[GATE])
+    assert D2.findings == [] and D2.verdict["verdict"] == "consistent", D2.verdict["text"]

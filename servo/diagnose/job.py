@@ -7,6 +7,8 @@
 3. **Name** (:mod:`servo.diagnose.select`): every eligible vocabulary term scored by
    blocked cross-validation on the training part; the best that pays is added, until
    none does.  Quantisation is tested apart (:mod:`servo.diagnose.quantization`).
+   Then, if the training part's residual is still located in time, the terms gated in
+   time (present from an onset on, :mod:`servo.diagnose.partial`).
 4. **Model and prove**: each finding in turn is added to the model fitted on the
    training part and judged on the *test* part, which no choice has seen: force
    residual relative error and short-horizon simulated-output NRMSE
