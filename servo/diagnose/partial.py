@@ -48,9 +48,12 @@ from __future__ import annotations
 import numpy as np
 from scipy import optimize
 
+from servo.diagnose import verdict as verdict_mod
+from servo.diagnose.fit import fit_model
 from servo.diagnose.model import GATE, Model, Term
-from servo.diagnose.select import Grams, Score, Selector, fit_rows, signflip_test, solve
+from servo.diagnose.select import Grams, Score, Selector, fit_rows, integrated_time, signflip_test, solve
 from servo.diagnose.terms import VOCABULARY
+from servo.io import progress
 
 #: terms never gated (a mass does not appear half-way)
 NOT_GATED = ("inertia",)
@@ -63,26 +66,22 @@ def onset(params: dict) -> float | None:
     return params.get(GATE)
 
 
-def gateable(sel: Selector, model: Model) -> tuple[list, dict]:
-    """Vocabulary terms that may be tried gated on ``model`` (module doc), and why the
-    others may not."""
-    ok, why = [], {}
+def gateable(sel: Selector, model: Model) -> list:
+    """Vocabulary terms that may be tried gated on ``model`` (module doc): eligible
+    column terms, not screened, not the inertia, not a correction of a model file's."""
+    ok = []
     for name in sel.eligible(model)[0]:
         phys = VOCABULARY[name]
         if phys.kind != "column" or phys.screening or name in NOT_GATED or model.corrects(name):
             continue
         ok.append(name)
-    return ok, why
+    return ok
 
 
 def located(sel: Selector, model: Model, alpha: float) -> list:
     """Time windows of the training part (``[t0, t1]`` pairs) where ``model``'s
     cross-validated residual stands above its noise floor (the verdict's window check,
     restricted to the training part); empty: no gate is tried."""
-    from servo.diagnose import verdict as verdict_mod
-    from servo.diagnose.fit import fit_model
-    from servo.diagnose.select import integrated_time
-
     d = sel.d
     y, Phi, _ = d.matrix(model)
     grams = Grams.of(Phi, y, sel.blocks)
@@ -260,12 +259,9 @@ def rounds(sel: Selector, model: Model, alpha: float, counted: int, room: int, l
     candidates of the round that ended the vocabulary stage.  Appends each round to
     ``log`` (``{"level", "scores", "gated": True}``) and to ``not_testable`` and
     ``implausible``; returns the added ``(term, score, level, theta_std)``."""
-    from servo.diagnose.fit import fit_model
-    from servo.io import progress
-
     added: list = []
     while len(added) < room:
-        cands, _ = gateable(sel, model)
+        cands = gateable(sel, model)
         if not cands or not located(sel, model, alpha):
             break
         sel.set_noise(model.refitted())
