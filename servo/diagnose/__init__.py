@@ -3,7 +3,8 @@
 Modules, bottom up: :mod:`~servo.diagnose.signals` (the inverse-dynamics path at full
 rate and its rows), :mod:`~servo.diagnose.terms` (the vocabulary of physics),
 :mod:`~servo.diagnose.model` (a model's terms and its rows), :mod:`~servo.diagnose.select`
-(blocked cross-validation, the tests, greedy selection), :mod:`~servo.diagnose.concealed`
+(blocked cross-validation, the tests, greedy selection), :mod:`~servo.diagnose.partial`
+(terms present from some time on), :mod:`~servo.diagnose.concealed`
 (recordings with a concealed effect on the simulated drive).  ``docs/diagnosis.md``
 explains the method.
 """

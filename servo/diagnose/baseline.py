@@ -23,7 +23,7 @@ from pathlib import Path
 import numpy as np
 
 from servo.config import DriveConfig, load_config
-from servo.diagnose.model import Design, Model, Term
+from servo.diagnose.model import GATE, Design, Model, Term
 from servo.diagnose.terms import BASELINE_TERMS, VOCABULARY
 from servo.errors import ConfigError, ServoError, first_line
 from servo.identify.least_squares import check_identifiable
@@ -62,6 +62,8 @@ def check_baseline(design: Design, model: Model) -> None:
 
 def _fixed(physics: str, params: dict) -> Term:
     theta, coef = VOCABULARY[physics].from_physical(params)
+    if GATE in params:  # a term present from an onset on (servo.diagnose.partial) keeps it
+        theta = {**theta, GATE: float(params[GATE])}
     return Term.make(physics, theta, coef)
 
 

@@ -7,6 +7,8 @@
 3. **Name** (:mod:`servo.diagnose.select`): every eligible vocabulary term scored by
    blocked cross-validation on the training part; the best that pays is added, until
    none does.  Quantisation is tested apart (:mod:`servo.diagnose.quantization`).
+   Then, if the training part's residual is still located in time, the terms gated in
+   time (present from an onset on, :mod:`servo.diagnose.partial`).
 4. **Model and prove**: each finding in turn is added to the model fitted on the
    training part and judged on the *test* part, which no choice has seen: force
    residual relative error and short-horizon simulated-output NRMSE
@@ -30,6 +32,7 @@ from servo.diagnose import frf_modes
 from servo.diagnose.band import CANDIDATES
 from servo.diagnose.band import choose as choose_band
 from servo.diagnose import locate
+from servo.diagnose import partial
 from servo.diagnose import verdict as verdict_mod
 from servo.diagnose.fit import Fit, fit_model, force_error_pct
 from servo.diagnose.model import Design, Model, Term
@@ -199,6 +202,12 @@ def _select(sel: Selector, model: Model, opt: Options):
     findings, rounds, not_testable, implausible = [], [], {}, {}
     for corrections in (True, False):
         model = _rounds(sel, model, opt, corrections, findings, rounds, not_testable, implausible)
+    # then terms present from some time on (:mod:`servo.diagnose.partial`), counted
+    # among the candidates of the round that ended the vocabulary's stage
+    counted = len(rounds[-1]["scores"]) if rounds else 0
+    for term, score, level, tstd in partial.rounds(sel, model, opt.alpha, counted, opt.max_findings - len(findings),
+                                                   rounds, not_testable, implausible):  # fmt: skip
+        findings.append(Finding(term, score, level, tstd))
     return findings, rounds, not_testable, implausible
 
 
@@ -487,6 +496,9 @@ def diagnose(rec: Recording, opt: Options | None = None) -> Diagnosis:
     for i, f in enumerate(findings):
         if f.frf is None:
             f.where = locate.where(fits[i].residual - fits[i + 1].residual, sig.valid, sig.t_rows, variables, fs)
+            if partial.onset(f.term.params) is not None:  # a term gated in time says so first
+                f.where["from_s"] = partial.onset(f.term.params)
+                f.where["text"] = f"present from t = {f.where['from_s']:.4g} s on (absent before); " + f.where["text"]
     if qfind is not None:
         findings.insert(0, qfind)
 

@@ -110,6 +110,10 @@ class Model:
         return [t for t in self.terms if VOCABULARY[t.physics].kind == "column"]
 
 
+#: the parameter of a term gated in time: its onset (s), the term's columns are zero
+#: before it (:meth:`Design.term_rows`; searched by :mod:`servo.diagnose.partial`)
+GATE = "from_s"
+
 #: full-rate effective inputs a :class:`Design` keeps (each is ``8*n`` bytes)
 U_CACHE = 2
 
@@ -196,9 +200,22 @@ class Design:
         return self._delayed[1]
 
     def term_rows(self, term: Term, model: Model) -> np.ndarray:
-        """Rows of the columns of ``term`` (m, k) under ``model``'s input."""
+        """Rows of the columns of ``term`` (m, k) under ``model``'s input.  A term gated in
+        time (an onset ``from_s``, :mod:`servo.diagnose.partial`) has its full-rate
+        columns set to zero before the onset, then the rows' filter, as the force it
+        models (its search gates the rows instead, an approximation within the
+        decimation filter's reach of the onset)."""
         phys = VOCABULARY[term.physics]
         key = (term.physics, term.theta) + (self.input_key(model) if phys.uses_input else ())
+        if GATE in term.params:
+            p = term.params
+            t0 = p.pop(GATE)
+
+            def make():
+                F = np.atleast_2d(phys.full(self, p, self.u_eff(model)).T).T * (self.sig.t >= t0)[:, None]
+                return np.column_stack([self.sig.rows(np.ascontiguousarray(F[:, j])) for j in range(F.shape[1])])
+
+            return self.cached_rows(key, make)
         return self.cached_rows(key, lambda: phys.rows(self, term.params, self.u_eff(model)))
 
     def variant_rows(self, physics: str, theta: dict, model: Model) -> np.ndarray:
@@ -222,4 +239,4 @@ class Design:
         return y, Phi, names
 
 
-__all__ = ["Design", "Model", "Term"]
+__all__ = ["GATE", "Design", "Model", "Term"]

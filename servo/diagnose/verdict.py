@@ -123,6 +123,28 @@ def ranges_beyond_training(design, train: np.ndarray, test: np.ndarray) -> list:
     return out
 
 
+def window_checks(design, residual: np.ndarray, floor: float, tau: float, alpha: float) -> list:
+    """The ``windows`` check's windows (:data:`N_WINDOWS` over all rows): each
+    ``{t0, t1, ratio, bound, test_part, flagged}``, ``ratio`` the RMS of its usable rows
+    of ``residual`` over ``floor``, flagged beyond ``bound`` (module doc)."""
+    sig = design.sig
+    usable = sig.valid
+    fl = max(floor, 1e-300)
+    tau = max(float(tau), 1.0)
+    edges = np.linspace(0, residual.size, N_WINDOWS + 1).astype(int)
+    wins = []
+    for a, b in zip(edges[:-1], edges[1:]):
+        m = usable[a:b]
+        n = int(m.sum())
+        if n < 5:
+            continue
+        r = float(np.sqrt(np.mean(residual[a:b][m] ** 2))) / fl
+        bw = max(WINDOW_MARGIN, _chi2_bound(n / tau, alpha / N_WINDOWS))
+        wins.append({"t0": float(sig.t_rows[a]), "t1": float(sig.t_rows[b - 1]), "ratio": r, "bound": bw,
+                     "test_part": bool(not design.train_rows[a]), "flagged": bool(r > bw)})  # fmt: skip
+    return wins
+
+
 def assess(design, residual: np.ndarray, J: float, tau: float, variables: dict, alpha: float,
            output_nrmse: float | None) -> dict:  # fmt: skip
     """The checks of the module doc on one model's held-out ``residual`` (m,) rows."""
@@ -143,18 +165,7 @@ def assess(design, residual: np.ndarray, J: float, tau: float, variables: dict, 
     checks["level"] = {"rms": rms(usable), "floor": floor, "ratio": ratio, "test_ratio": rms(test) / fl,
                        "train_ratio": rms(train) / fl, "bound": bound, "failed": bool(ratio > bound)}  # fmt: skip
 
-    edges = np.linspace(0, residual.size, N_WINDOWS + 1).astype(int)
-    wins = []
-    for a, b in zip(edges[:-1], edges[1:]):
-        m = np.zeros(residual.size, bool)
-        m[a:b] = usable[a:b]
-        n = int(m.sum())
-        if n < 5:
-            continue
-        r = rms(m) / fl
-        bw = max(WINDOW_MARGIN, _chi2_bound(n / tau, alpha / N_WINDOWS))
-        wins.append({"t0": float(sig.t_rows[a]), "t1": float(sig.t_rows[b - 1]), "ratio": r, "bound": bw,
-                     "test_part": bool(not design.train_rows[a]), "flagged": bool(r > bw)})  # fmt: skip
+    wins = window_checks(design, residual, floor, tau, alpha)
     flagged = [w for w in wins if w["flagged"]]
     checks["windows"] = {"windows": wins, "flagged": [[w["t0"], w["t1"]] for w in flagged], "failed": bool(flagged)}
 
@@ -294,4 +305,4 @@ def decide(base: dict, final: dict, n_findings: int, scope: str, force_unit: str
 
 
 __all__ = ["MARGIN", "VERDICTS", "acceleration_noise_gain", "add_frf", "assess", "decide", "force_floor", "out_of_scope",
-           "ranges_beyond_training", "where_text"]
+           "ranges_beyond_training", "where_text", "window_checks"]

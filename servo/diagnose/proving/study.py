@@ -65,6 +65,7 @@ def run_one(job: tuple) -> dict:
             "decimate": int(D.sig.settings.decimate),
             "base_ratio": v["baseline_checks"]["level"]["ratio"], "final_ratio": v["final_checks"]["level"]["ratio"],
             "frf_ran": bool(D.frf is not None and D.frf.ran),
+            "gated": {f.physics: f.term.params["from_s"] for f in D.findings if "from_s" in f.term.params},
             "frf_findings": [f.physics for f in D.findings if getattr(f, "frf", None) is not None],
             "frf_failed": bool(v["final_checks"].get("frf", {}).get("failed"))}  # fmt: skip
 
