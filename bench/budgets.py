@@ -73,6 +73,11 @@ NUMBA_OVER_C_MAX = 2.5
 #: Measured 1.13-1.16 (paired medians at load 1 to 8 on the 2 cores; the paper's tick
 #: measured 1.10-1.23 in the same runs): the bound is the worst seen x 1.5.
 NUMBA_OVER_C_EVERY_TERM_MAX = 1.75
+#: Numba/C of the track-following tick (biquads at two rates, calls Numba does not
+#: inline): measured 1.6-1.83 at load 1-3, and once above 2.5 in a run at load 5 on the
+#: 2 cores; the bound is twice the usual, still far below what a kernel falling out of
+#: compiled code costs (10x and more).
+NUMBA_OVER_C_TRACK_MAX = 3.5
 #: The tick with every compensator term on over the paper's tick (eq. 6-9 only), timed in
 #: adjacent pairs: the 1/200 budget in a form the host's load cancels from.  The paper's
 #: tick measures ~21-24 ns with the host calm, so 4.0 is ~100 ns; measured 2.2-3.0.

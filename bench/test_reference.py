@@ -11,7 +11,7 @@ import pytest
 
 from bench import loops, pyref
 from bench import workload as w
-from bench.budgets import NUMBA_OVER_C_EVERY_TERM_MAX, NUMBA_OVER_C_MAX, PYTHON_OVER_NUMBA_MIN
+from bench.budgets import NUMBA_OVER_C_EVERY_TERM_MAX, NUMBA_OVER_C_MAX, NUMBA_OVER_C_TRACK_MAX, PYTHON_OVER_NUMBA_MIN
 from bench.timing import paired, per_sample_ns
 from servo.config import Config
 
@@ -253,9 +253,11 @@ def _numba_c(cfg, cref_lib, what):
                                   "closed_loop"])  # fmt: skip
 def test_numba_over_c_ratio(cfg, cref_lib, record, what):
     """Numba/C per-sample time ratio on the same arithmetic: near 1 (at most 2.5; the tick
-    with every compensator term, issue 14's goal 1.1: at most 1.75, the worst seen x 1.5)."""
+    with every compensator term, issue 14's goal 1.1: at most 1.75, the worst seen x 1.5;
+    the track-following tick, usually 1.6-1.8: at most 3.5, ``bench/budgets.py``)."""
     numba_fn, c_fn, n = _numba_c(cfg, cref_lib, what)
-    bound = NUMBA_OVER_C_EVERY_TERM_MAX if what == "controller_tick_every_term" else NUMBA_OVER_C_MAX
+    bound = {"controller_tick_every_term": NUMBA_OVER_C_EVERY_TERM_MAX,
+             "track_tick": NUMBA_OVER_C_TRACK_MAX}.get(what, NUMBA_OVER_C_MAX)
     r = paired(numba_fn, c_fn, pairs=201)
     record.ratio(f"numba_over_c_{what}", r.ratio, f"<= {bound:g}", numba_ns=r.a_ns / n, c_ns=r.b_ns / n)
     assert r.ratio <= bound, (f"{what}: Numba takes {r.ratio:.2f}x the time of C "
