@@ -19,27 +19,30 @@ samples where the filtered velocity is within its noise or changes sign, widened
 motion: ``f`` is the friction force through the same filter, ``J*x''`` included, so
 while the arm is stuck it is the held net force ``u - K*x - h0`` and while it slides
 the sliding friction).  Under the model without breakaway (Coulomb friction with
-sticking at ``Fs = Fc``) the friction never exceeds ``Fc`` in magnitude, so ``|f| <=
-L1*Fc`` everywhere, ``L1`` the 1-norm of the filter's impulse response (its overshoot).
-With breakaway the arm holds forces up to ``Fs`` before it moves.  Per event the
-statistic is its peak ``|f|``; an event **exceeds** when the peak is beyond
+sticking at ``Fs = Fc``) the friction never exceeds ``Fc`` in magnitude: ``|f|`` stays
+within ``Fc`` through the filter (``L1*Fc`` at worst, :func:`filter_l1`, the 1-norm of
+its impulse response; in practice the overshoot of the sliding level's switch at the
+reversal).  With breakaway the arm holds forces up to ``Fs`` before it moves.  Per event
+the statistic is its peak ``|f|``; an event **exceeds** when the peak is beyond
 
-    L1*(Fc + Z_FC*std(Fc)) + MARGIN*Fc + Z_NOISE*sigma
+    g*(Fc + Z_FC*std(Fc)) + MARGIN*Fc + Z_NOISE*sigma
 
-(``sigma`` the robust std of ``f - Fc*sgn(x')`` where the arm slides, outside every
-event).  Under the null an event exceeds with probability at most :data:`P_EXCEED`
-(noise beyond ``Z_NOISE`` sigma anywhere in the window), and the test is the binomial
-tail ``P(X >= k; N, P_EXCEED)`` of the ``k`` exceeding events among the training part's
+with ``g`` the largest ``|B(sgn(x'))|`` in the window (the switch of the sliding level
+through the filter, its overshoot included) and ``sigma`` the robust std of ``f -
+Fc*sgn(x')`` where the arm slides, outside every event.  Under the null an event
+exceeds with probability at most :data:`P_EXCEED` (noise beyond ``Z_NOISE`` sigma at
+one of the few independent samples of a window), and the test is the binomial tail
+``P(X >= k; N, P_EXCEED)`` of the ``k`` exceeding events among the training part's
 ``N``.  It is one candidate of the vocabulary round in which ``stribeck_friction`` may
 be tried (the round's family-wise level is shared with it: :func:`applicable`), and it
 is tried only after the rows' rounds, on the model they ended with, so that a
 hysteresis or a delay the rows name first is in the model the held forces are
 computed with.
 
-**Fit**: ``Fs`` is the median peak of the training part's exceeding events divided
-by ``L1``... no: by 1 (a peak is the held force through a low-pass; a breakaway held
-for longer than the filter's time scale shows at its level), with the standard
-deviation of that median (``1.2533*std/sqrt(k)``).  The Stribeck velocity is the
+**Fit**: ``Fs`` is the median peak of the training part's exceeding events (a peak
+is the held force through the low-pass: a breakaway held for longer than the filter's
+time scale shows at its level, a shorter one below it), with the standard deviation of
+that median (``1.2533*std/sqrt(k)``).  The Stribeck velocity is the
 smallest speed the data resolve, the direction threshold (``3`` noise std of the
 filtered velocity): a breakaway faster than that is a step at rest.
 
@@ -47,7 +50,8 @@ filtered velocity): a breakaway faster than that is a step at rest.
 tail at ``alpha``, no search), and the held-out exceeding events' median peak must lie
 above the sliding level's bound: "the test part's stuck intervals hold forces in
 ``(Fc, Fs]``".  The finding's before/after errors are the held-out events' RMS
-excess over the model's static level (``Fc`` without, ``Fs`` with the finding).
+excess over the model's static level through the filter (``g*Fc`` without, ``g*Fs``
+with the finding).
 """
 from __future__ import annotations
 
@@ -242,9 +246,9 @@ def test(design, fit) -> Result:
     if res.k_test:
         res.Fs_test = float(np.median(peak[over & test_]))
     if res.n_test:
-        pt = peak[test_]
-        res.excess_before = float(np.sqrt(np.mean(np.maximum(pt - l1 * Fc, 0.0) ** 2)))
-        res.excess_after = float(np.sqrt(np.mean(np.maximum(pt - l1 * max(res.Fs, Fc), 0.0) ** 2)))
+        pt, gt = peak[test_], ref[test_]
+        res.excess_before = float(np.sqrt(np.mean(np.maximum(pt - gt * Fc, 0.0) ** 2)))
+        res.excess_after = float(np.sqrt(np.mean(np.maximum(pt - gt * max(res.Fs, Fc), 0.0) ** 2)))
     if not res.testable:
         res.note = f"{res.n} events at rest or reversing in the training part (need {MIN_EVENTS})"
     return res
