@@ -60,6 +60,7 @@ from functools import lru_cache
 
 import numpy as np
 from scipy import signal, stats
+from scipy.ndimage import maximum_filter1d
 
 from servo.diagnose.signals import butter_ba
 
@@ -71,6 +72,8 @@ Z_NOISE = 3.0
 Z_FC = 2.0
 #: practical margin: an excess below this fraction of ``Fc`` is not counted
 MARGIN = 0.05
+#: the noise margin is this upper quantile of the noise's maximum over a window (:func:`noise_max`)
+P_NOISE = 0.01
 #: probability that one event of a null recording exceeds the bound (noise beyond
 #: ``Z_NOISE`` sigma at one of the few independent samples of a window)
 P_EXCEED = 0.02
@@ -89,16 +92,38 @@ def filter_l1(order: int, wn: float) -> float:
     return float(np.abs(signal.filtfilt(b, a, z, padlen=3 * order)).sum())
 
 
+def noise_max(abs_e: np.ndarray, outside: np.ndarray, widths: np.ndarray, sigma: float) -> np.ndarray:
+    """The noise margin of each event (F, (N,)): the ``1 - P_NOISE`` quantile of the
+    largest ``|f - Fc*sgn(x')|`` over windows of the event's width (rounded up to a power
+    of two) where the arm slides, outside every event: the recording's own noise and
+    misfit, its tails and correlation included (a quantised sensor's pulses are not
+    Gaussian; a window of thousands of samples reaches further into them than one of
+    forty).  ``Z_NOISE*sigma`` at least, and where the sliding part has too few such
+    windows."""
+    z = np.where(outside, abs_e, np.inf)
+    out = np.full(widths.size, Z_NOISE * sigma)
+    for L in np.unique(2 ** np.ceil(np.log2(np.maximum(widths, 1))).astype(int)):
+        m = maximum_filter1d(z, size=int(L), mode="constant", cval=np.inf)
+        m = m[np.isfinite(m)]
+        if m.size >= 20 * L:
+            sel = 2 ** np.ceil(np.log2(np.maximum(widths, 1))).astype(int) == L
+            out[sel] = max(float(np.quantile(m, 1.0 - P_NOISE)), Z_NOISE * sigma)
+    return out
+
+
 @dataclass
 class Events:
     """Windows around the samples at rest or reversing: ``start``, ``stop`` (full-rate
     sample range, (N,)), ``peak`` the largest ``|f|`` in each (F), ``train`` whether the
-    window lies in the training part."""
+    window lies in the training part, ``bound`` each one's (F), ``toward`` whether its
+    peak force points in the direction the arm then moves."""
 
     start: np.ndarray
     stop: np.ndarray
     peak: np.ndarray
     train: np.ndarray
+    bound: np.ndarray
+    toward: np.ndarray
 
 
 @dataclass
@@ -171,10 +196,8 @@ def events(sig) -> tuple[np.ndarray, np.ndarray]:
     """Full-rate windows ``(start, stop)`` around every run of samples where the filtered
     velocity is within its noise or changes sign, widened by :data:`WIDEN` Butterworth
     time scales and merged where they overlap; windows reaching the trimmed ends are dropped."""
-    v = sig.vf
-    n = v.size
-    mark = np.abs(v) <= sig.v_threshold
-    mark[1:] |= np.sign(v[1:]) * np.sign(v[:-1]) < 0
+    n = sig.vf.size
+    mark = marks(sig)
     d = np.diff(np.r_[0, mark.astype(np.int8), 0])
     a, b = np.flatnonzero(d == 1), np.flatnonzero(d == -1)
     if a.size == 0:
@@ -195,9 +218,57 @@ def events(sig) -> tuple[np.ndarray, np.ndarray]:
     return a[ok], b[ok]
 
 
-def test(design, fit) -> Result:
+def marks(sig) -> np.ndarray:
+    """(n,) samples at rest or reversing: the filtered velocity within its noise or
+    changing sign."""
+    v = sig.vf
+    m = np.abs(v) <= sig.v_threshold
+    m[1:] |= np.sign(v[1:]) * np.sign(v[:-1]) < 0
+    return m
+
+
+def _toward(f: np.ndarray, v: np.ndarray, rest: np.ndarray, s: int, i: int) -> bool:
+    """Whether the peak held force ``f[i]`` of the event starting at ``s`` is a breakaway:
+    it comes at or after a sample at rest, and points where the arm moves when it leaves
+    the last rest before it.  A force that peaks while the arm still approaches a
+    reversal (a lag or a hysteresis the model has wrong) is not one."""
+    prev = np.flatnonzero(rest[s : i + 1])
+    if prev.size == 0:
+        return False
+    r = s + int(prev[-1])
+    nxt = np.flatnonzero(~rest[r:])
+    if nxt.size == 0:
+        return False
+    return bool(np.sign(f[i]) == np.sign(v[r + int(nxt[0])]))
+
+
+@lru_cache(maxsize=16)
+def _step_accel(order: int, wn: float) -> float:
+    """Largest ``|x''|`` (per unit step, per sample^2) the path makes of one position
+    step: the Butterworth's step response, second-differenced."""
+    from servo.diagnose.signals import second_difference
+
+    b, a = butter_ba(order, wn)
+    n = int(40 / wn) + 101
+    z = (np.arange(2 * n + 1) >= n).astype(float)
+    return float(np.abs(second_difference(signal.filtfilt(b, a, z, padlen=3 * order), 1.0)).max())
+
+
+def step_pulse(sig, fit, step: float) -> float:
+    """The force pulse ``|J|*step*max|x''|`` one quantum of a quantised sensor makes in
+    the held force (F): near rest the position crosses the lattice one step at a time,
+    each a pulse that no sliding window shows (0 without a lattice)."""
+    if not step > 0:
+        return 0.0
+    J = abs(float(fit.combined().get("inertia", {}).get("J", 0.0)))
+    fs = 1.0 / sig.dt
+    return J * step * _step_accel(int(sig.settings.butter_order), float(sig.settings.cutoff(fs) / (fs / 2))) / sig.dt**2
+
+
+def test(design, fit, step: float = 0.0) -> Result:
     """The breakaway test of ``fit`` (its model must hold ``coulomb_friction``), its fit and
-    its held-out proof (module doc)."""
+    its held-out proof (module doc); ``step`` the position quantum of a quantised sensor
+    (0: none), whose pulses near rest are added to the bound (:func:`step_pulse`)."""
     sig = design.sig
     res = Result()
     ci = next((i for i, t in enumerate(fit.model.terms) if t.physics == "coulomb_friction"), None)
@@ -222,20 +293,27 @@ def test(design, fit) -> Result:
     if np.count_nonzero(outside) < 100:
         res.note = "the arm is hardly ever sliding away from a reversal"
         return res
-    e0 = (f - Fc * sig.sign_v)[outside]
-    sigma = float(1.4826 * np.median(np.abs(e0 - np.median(e0))))
+    e = f - Fc * sig.sign_v
+    sigma = float(1.4826 * np.median(np.abs(e[outside] - np.median(e[outside]))))
     g = np.abs(sig.butter(sig.sign_v))  # the sliding level's switch through the filter, per unit Fc
-    ref = np.array([g[s:e].max() for s, e in zip(a, b)]) if a.size else np.zeros(0)
-    bounds = ref * (Fc + Z_FC * Fc_std) + MARGIN * Fc + Z_NOISE * sigma
+    ref = np.array([g[s:e_].max() for s, e_ in zip(a, b)]) if a.size else np.zeros(0)
+    noise = noise_max(np.abs(e), outside, b - a, sigma)
+    bounds = ref * (Fc + Z_FC * Fc_std) + MARGIN * Fc + noise
     bound = float(np.median(bounds)) if bounds.size else 0.0
-    peak = np.array([np.abs(f[s:e]).max() for s, e in zip(a, b)]) if a.size else np.zeros(0)
+    bounds = bounds + step_pulse(sig, fit, step)
+    peak, toward = np.zeros(a.size), np.zeros(a.size, bool)
+    rest = marks(sig)
+    for j, (s, e_) in enumerate(zip(a, b)):
+        i = s + int(np.argmax(np.abs(f[s:e_])))
+        peak[j] = abs(f[i])
+        toward[j] = _toward(f, sig.vf, rest, s, i)
     last = int(np.flatnonzero(design.train_samples)[-1])
     train = b <= last
     test_ = a > last
-    res.events = Events(a, b, peak, train)
+    res.events = Events(a, b, peak, train, bounds, toward)
     res.bound, res.sigma, res.l1, res.Fc, res.Fc_std = bound, sigma, l1, Fc, Fc_std
     res.n, res.n_test = int(train.sum()), int(test_.sum())
-    over = peak > bounds
+    over = (peak > bounds) & toward
     res.k, res.k_test = int((over & train).sum()), int((over & test_).sum())
     res.p = float(stats.binom.sf(res.k - 1, res.n, P_EXCEED)) if res.n else 1.0
     res.p_test = float(stats.binom.sf(res.k_test - 1, res.n_test, P_EXCEED)) if res.n_test else 1.0

@@ -370,17 +370,18 @@ def _prove(design: Design, base: Model, findings: list, test_rows: np.ndarray, s
                             {"force_rel_pct": errs[bad], "output_nrmse": nr[bad]}))  # fmt: skip
 
 
-def _breakaway(design: Design, fit: Fit, rounds: list, errs: list, nr: list, opt: Options):
+def _breakaway(design: Design, fit: Fit, rounds: list, errs: list, nr: list, opt: Options, step: float = 0.0):
     """The breakaway test (:mod:`servo.diagnose.breakaway`) on the final model of the rows,
     at the level of the last round that shared its family-wise level with it (the round on
-    that model).  Returns ``(finding, unconfirmed entry)``, either None."""
+    that model); ``step`` a quantised sensor's lattice step (0: none).  Returns
+    ``(finding, unconfirmed entry)``, either None."""
     shared = [r["level"] for r in rounds if r.get("breakaway_share")]
     if not shared or not fit.model.has("coulomb_friction") or fit.model.has("stribeck_friction"):
         return None, None
     if _scope_of(design, fit):
         return None, None
     level = shared[-1]
-    res = breakaway_mod.test(design, fit)
+    res = breakaway_mod.test(design, fit, step)
     if not res.passes(level):
         return None, None
     vs = float(design.sig.v_threshold)
@@ -498,7 +499,8 @@ def diagnose(rec: Recording, opt: Options | None = None) -> Diagnosis:
         f.after = {"force_rel_pct": errs[i + 1], "output_nrmse": nr[i + 1]}
         k = len(fits[i + 1].model.terms) - 1
         f.params, f.std = fits[i + 1].term_params(k), fits[i + 1].term_std(k)
-    bfind, bdrop = _breakaway(design, fits[-1], rounds, errs, nr, opt)
+    step = lattice.step if lattice.found(opt.alpha) else 0.0  # a quantised sensor's pulses near rest
+    bfind, bdrop = _breakaway(design, fits[-1], rounds, errs, nr, opt, step)
     if bdrop is not None:
         unconfirmed.append(bdrop)
     progress.stage("the frequency response above the rows' band")
