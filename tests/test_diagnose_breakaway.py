@@ -68,3 +68,33 @@ def test_null_holds_no_force_beyond_sliding(null):
     assert res.k <= 1 and res.p > 0.05
     # the held forces at rest stay within the sliding level (Karnopp with Fs = Fc)
     assert np.max(res.events.peak) < 1.35 * truth["Fc"]
+
+
+def test_a_breakaway_comes_from_rest_toward_the_motion():
+    """The peak held force counts only at or after a sample at rest, pointing where the
+    arm moves when it leaves that rest."""
+    v = np.r_[np.full(10, 1.0), np.zeros(5), np.full(10, -1.0)]
+    rest = v == 0
+    f = np.zeros(v.size)
+    f[12] = -2.0  # held at rest, pushing toward the coming motion: a breakaway
+    assert breakaway._toward(f, v, rest, 0, 12)
+    f[12] = 2.0  # held against the coming motion: not one
+    assert not breakaway._toward(f, v, rest, 0, 12)
+    f[:] = 0.0
+    f[5] = 2.0  # peaks while the arm still approaches the reversal (a lag's misfit)
+    assert not breakaway._toward(f, v, rest, 0, 5)
+    f[:] = 0.0
+    f[17] = -2.0  # just after the departure, in its direction (the filtered transient)
+    assert breakaway._toward(f, v, rest, 0, 17)
+
+
+@pytest.mark.parametrize("family,size,ctl,exc,rate", [
+    ("quantization", 100.0, "open", "seeks", 500.0),  # a quantum's pulses near rest
+    ("sensor_lowpass", 20.0, "pdi", "prbs", 50000.0),  # a lag's misfit at reversals
+])  # fmt: skip
+def test_no_breakaway_named_where_there_is_none(family, size, ctl, exc, rate):
+    """Development recordings where an earlier version of the test named a breakaway."""
+    rec, _ = recording(Case(family, size, ctl, exc, rate), 100004 if family == "quantization" else 100002)
+    D = diagnose(rec)
+    assert not any(f.breakaway is not None for f in D.findings)
+    assert "stribeck_friction" not in [f.physics for f in D.findings]
