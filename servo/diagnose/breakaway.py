@@ -25,14 +25,16 @@ its impulse response; in practice the overshoot of the sliding level's switch at
 reversal).  With breakaway the arm holds forces up to ``Fs`` before it moves.  Per event
 the statistic is its peak ``|f|``; an event **exceeds** when the peak is beyond
 
-    g*(Fc + Z_FC*std(Fc)) + MARGIN*Fc + Z_NOISE*sigma
+    g*(Fc + Z_FC*std(Fc)) + MARGIN*Fc + noise
 
 with ``g`` the largest ``|B(sgn(x'))|`` in the window (the switch of the sliding level
-through the filter, its overshoot included) and ``sigma`` the robust std of ``f -
-Fc*sgn(x')`` where the arm slides, outside every event.  Under the null an event
-exceeds with probability at most :data:`P_EXCEED` (noise beyond ``Z_NOISE`` sigma at
-one of the few independent samples of a window), and the test is the binomial tail
-``P(X >= k; N, P_EXCEED)`` of the ``k`` exceeding events among the training part's
+through the filter, its overshoot included), ``noise`` the ``1 - P_NOISE`` quantile of
+the largest ``|f - Fc*sgn(x')|`` over windows of the event's width where the arm slides
+(:func:`noise_max`; a quantised sensor's step pulse added, :func:`step_pulse`), **and**
+the peak is a breakaway: it comes from rest and points where the arm then moves
+(:func:`_toward`).  Under the null an event exceeds with probability at most
+:data:`P_EXCEED`, and the test is the binomial tail ``P(X >= k; N, P_EXCEED)`` of the
+``k`` exceeding events among the training part's
 ``N``.  It is one candidate of the vocabulary round in which ``stribeck_friction`` may
 be tried (the round's family-wise level is shared with it: :func:`applicable`), and it
 is tried only after the rows' rounds, on the model they ended with, so that a
@@ -74,8 +76,8 @@ Z_FC = 2.0
 MARGIN = 0.05
 #: the noise margin is this upper quantile of the noise's maximum over a window (:func:`noise_max`)
 P_NOISE = 0.01
-#: probability that one event of a null recording exceeds the bound (noise beyond
-#: ``Z_NOISE`` sigma at one of the few independent samples of a window)
+#: probability that one event of a null recording exceeds the bound (its noise margin is
+#: the :data:`P_NOISE` quantile of the window maximum, with a factor 2 to spare)
 P_EXCEED = 0.02
 #: fewer training events than this: not testable
 MIN_EVENTS = 5
@@ -332,4 +334,5 @@ def test(design, fit, step: float = 0.0) -> Result:
     return res
 
 
-__all__ = ["Events", "MIN_EVENTS", "Result", "applicable", "events", "filter_l1", "held_force", "test"]
+__all__ = ["Events", "MIN_EVENTS", "Result", "applicable", "events", "filter_l1", "held_force", "marks", "noise_max", "step_pulse",
+           "test"]

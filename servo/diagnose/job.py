@@ -15,6 +15,9 @@
    confirmed: it is dropped from the findings and the model and reported as such.
    A quantised sensor is tested first, since its finding changes the rows everything
    else is computed on.
+   A breakaway above the sliding friction (:mod:`servo.diagnose.breakaway`) is tested
+   on the intervals at rest, which the rows cannot use, on the final model of the rows
+   (one share of the Stribeck round's level), and proven on the test part's own.
 5. **Above the rows' band** (:mod:`servo.diagnose.frf_modes`): the input-to-position
    frequency response at the full sample rate against the model's, modes fitted where
    it departs, each proven on the test part's own response and on the output NRMSE.
