@@ -17,6 +17,9 @@
    confirmed: it is dropped from the findings and the model and reported as such.
    A quantised sensor is tested first, since its finding changes the rows everything
    else is computed on.
+   A breakaway above the sliding friction (:mod:`servo.diagnose.breakaway`) is tested
+   on the intervals at rest, which the rows cannot use, on the final model of the rows
+   (one share of the Stribeck round's level), and proven on the test part's own.
 5. **Above the rows' band** (:mod:`servo.diagnose.frf_modes`): the input-to-position
    frequency response at the full sample rate against the model's, modes fitted where
    it departs, each proven on the test part's own response and on the output NRMSE.
@@ -28,6 +31,7 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from servo.diagnose import baseline as baseline_mod
+from servo.diagnose import breakaway as breakaway_mod
 from servo.diagnose import frf_modes
 from servo.diagnose.band import CANDIDATES
 from servo.diagnose.band import choose as choose_band
@@ -100,6 +104,7 @@ class Finding:
     std: dict = field(default_factory=dict)
     prediction: Prediction | None = None  # quantisation: the baseline's output on the default path
     frf: dict | None = None  # a mode of the frequency-domain path: its evidence (:mod:`servo.diagnose.frf_modes`)
+    breakaway: dict | None = None  # a breakaway from the intervals at rest: its evidence (:mod:`servo.diagnose.breakaway`)
 
     @property
     def physics(self) -> str:
@@ -227,8 +232,11 @@ def _rounds(sel: Selector, model: Model, opt: Options, corrections: bool, findin
         for s in scores:
             if s.S0 is None:
                 not_testable[s.physics] = s.note
-        level = opt.alpha / max(len(testable), 1)
-        rounds.append({"level": level, "scores": testable})
+        # the breakaway test (intervals at rest) is one more candidate of a round that may
+        # try stribeck_friction: it shares the round's family-wise level (run after the rounds)
+        share = not corrections and breakaway_mod.applicable(model, cands)
+        level = opt.alpha / max(len(testable) + share, 1)
+        rounds.append({"level": level, "scores": testable, "breakaway_share": share})
         ok = sorted((s for s in testable if s.passes(level)), key=lambda s: s.delta_ic)
         added = False
         for best in ok:
@@ -374,6 +382,39 @@ def _prove(design: Design, base: Model, findings: list, test_rows: np.ndarray, s
                             {"force_rel_pct": errs[bad], "output_nrmse": nr[bad]}))  # fmt: skip
 
 
+def _breakaway(design: Design, fit: Fit, rounds: list, errs: list, nr: list, opt: Options, step: float = 0.0):
+    """The breakaway test (:mod:`servo.diagnose.breakaway`) on the final model of the rows,
+    at the level of the last round that shared its family-wise level with it (the round on
+    that model); ``step`` a quantised sensor's lattice step (0: none).  Returns
+    ``(finding, unconfirmed entry)``, either None."""
+    shared = [r["level"] for r in rounds if r.get("breakaway_share")]
+    if not shared or not fit.model.has("coulomb_friction") or fit.model.has("stribeck_friction"):
+        return None, None
+    if _scope_of(design, fit):
+        return None, None
+    level = shared[-1]
+    res = breakaway_mod.test(design, fit, step)
+    if not res.passes(level):
+        return None, None
+    vs = float(design.sig.v_threshold)
+    term = Term.make("stribeck_friction", {"stribeck_velocity": vs}, (res.Fs - res.Fc,))
+    ev = {**res.evidence(), "level": level}
+    f = Finding(term, None, level, {}, breakaway=ev)
+    f.params = {"dFs": res.Fs - res.Fc, "stribeck_velocity": vs, "Fs": res.Fs}
+    f.std = {"dFs": float(np.hypot(res.Fs_std, res.Fc_std)), "Fs": res.Fs_std}
+    before = {"force_rel_pct": errs[-1], "output_nrmse": nr[-1], "held_excess_rms": res.excess_before}
+    after = {"force_rel_pct": errs[-1], "output_nrmse": nr[-1], "held_excess_rms": res.excess_after}
+    f.before, f.after = before, after
+    f.where = {"text": f"at rest: {res.k} of {res.n} training and {res.k_test} of {res.n_test} held-out intervals at rest "
+                       f"or reversing hold forces beyond the sliding level's bound {res.bound:.3g} (Fc {res.Fc:.3g}); "
+                       f"breakaway Fs {res.Fs:.3g} (held-out {res.Fs_test:.3g})"}  # fmt: skip
+    if res.confirmed(opt.alpha):
+        return f, None
+    ev["reason"] = (f"the held-out part's intervals at rest do not hold forces beyond the sliding level "
+                    f"({res.k_test} of {res.n_test}, p {res.p_test:.3g} against {opt.alpha:g})")  # fmt: skip
+    return None, (f, before, after)
+
+
 def _frf_modes(design: Design, fits: list, errs: list, nr: list, preds: list, starts: np.ndarray, H: int,
                alpha: float):  # fmt: skip
     """The frequency-domain path (:mod:`servo.diagnose.frf_modes`) on the final model of
@@ -470,6 +511,10 @@ def diagnose(rec: Recording, opt: Options | None = None) -> Diagnosis:
         f.after = {"force_rel_pct": errs[i + 1], "output_nrmse": nr[i + 1]}
         k = len(fits[i + 1].model.terms) - 1
         f.params, f.std = fits[i + 1].term_params(k), fits[i + 1].term_std(k)
+    step = lattice.step if lattice.found(opt.alpha) else 0.0  # a quantised sensor's pulses near rest
+    bfind, bdrop = _breakaway(design, fits[-1], rounds, errs, nr, opt, step)
+    if bdrop is not None:
+        unconfirmed.append(bdrop)
     progress.stage("the frequency response above the rows' band")
     frf, frf_found, frf_terms, frf_dropped = _frf_modes(design, fits, errs, nr, preds, starts_test, H, opt.alpha)
     findings += frf_found
@@ -494,13 +539,15 @@ def diagnose(rec: Recording, opt: Options | None = None) -> Diagnosis:
         "tau": tau,
     }
     for i, f in enumerate(findings):
-        if f.frf is None:
+        if f.frf is None and f.breakaway is None:
             f.where = locate.where(fits[i].residual - fits[i + 1].residual, sig.valid, sig.t_rows, variables, fs)
             if partial.onset(f.term.params) is not None:  # a term gated in time says so first
                 f.where["from_s"] = partial.onset(f.term.params)
                 f.where["text"] = f"present from t = {f.where['from_s']:.4g} s on (absent before); " + f.where["text"]
     if qfind is not None:
         findings.insert(0, qfind)
+    if bfind is not None:  # not a column of the rows: after the findings it does not change
+        findings.append(bfind)
 
     def checks(fit, r, nrmse):
         w = design.train_valid

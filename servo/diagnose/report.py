@@ -55,6 +55,8 @@ def fit_terms(fit: Fit, fu: str, frf_terms=()) -> list:
 def _evidence(f: Finding) -> dict:
     if f.frf is not None:
         return {k: v for k, v in f.frf.items() if k != "reason"}
+    if f.breakaway is not None:
+        return {k: v for k, v in f.breakaway.items() if k != "reason"}
     if f.physics == "quantization":
         return {"test": "lattice + output improvement", "fraction_on_lattice": f.lattice.fraction,
                 "lattice_p": f.lattice.p, "output_t": f.quant_test[0], "output_p": f.quant_test[1], "level": f.level}  # fmt: skip
@@ -74,10 +76,11 @@ def finding_dict(f: Finding, fu: str) -> dict:
     }  # fmt: skip
 
 
-def drive_section(fit: Fit, lattice_step: float | None) -> tuple[dict | None, str]:
+def drive_section(fit: Fit, lattice_step: float | None, extra: dict | None = None) -> tuple[dict | None, str]:
     """The final model as a ``[drive]`` section of a servo config (A, m), validated by
-    :func:`servo.config.from_dict`; ``(None, why)`` when it is not a valid drive."""
-    d = {**fit.drive(), "position_quantum": lattice_step or 0.0}
+    :func:`servo.config.from_dict`; ``(None, why)`` when it is not a valid drive.  ``extra``:
+    fields of findings that are not terms of the rows' fit (a breakaway level)."""
+    d = {**fit.drive(), "position_quantum": lattice_step or 0.0, **(extra or {})}
     d = {k: (float(v) if not isinstance(v, list) else [float(x) for x in v]) for k, v in d.items()}
     try:
         from_dict({"drive": d})
@@ -101,7 +104,10 @@ def build_report(D: Diagnosis, files: list | None = None) -> dict:
     fu = D.opt.force_unit
     sig = D.sig
     rec = D.rec
-    drive, why = drive_section(D.final_fit, next((f.params["step"] for f in D.findings if f.physics == "quantization"), None))
+    brk = [f for f in D.findings if f.breakaway is not None]  # a breakaway found at rest (not a column)
+    extra = {"Fs": brk[0].params["Fs"], "stribeck_velocity": brk[0].params["stribeck_velocity"]} if brk else None
+    drive, why = drive_section(D.final_fit, next((f.params["step"] for f in D.findings if f.physics == "quantization"), None),
+                               extra)  # fmt: skip
     rounds = []
     for r in D.rounds:
         rounds.append([{"physics": s.physics, "t": s.t, "p": s.p, "level": r["level"], "delta_ic": s.delta_ic,
@@ -133,12 +139,15 @@ def build_report(D: Diagnosis, files: list | None = None) -> dict:
         "findings": [finding_dict(f, fu) for f in D.findings],
         "final_model": {"terms": fit_terms(D.final_fit, fu, D.frf_terms) + [
                             {"physics": "quantization", "params": f.params, "std": {}, "units": {"step": "m", "offset": "m"},
-                             "fixed": False} for f in D.findings if f.physics == "quantization"],
+                             "fixed": False} for f in D.findings if f.physics == "quantization"] + [
+                            {"physics": f.physics, "params": f.params, "std": f.std,
+                             "units": _units(f.physics, f.params, fu), "fixed": False, "fitted_on": "intervals at rest"}
+                            for f in brk],
                         "drive": drive, "drive_note": why, "partial": partial_note(D.final_fit),
                         "error": {"train_force_rel_pct": D.errors["train_force_rel_pct"]["after"],
                                   "test_force_rel_pct": D.errors["test_force_rel_pct"]["after"],
                                   "test_output_nrmse": D.errors["test_output_nrmse"]["after"]}},
-        "unconfirmed": [{**finding_dict(f, fu), "reason": (f.frf or {}).get("reason") or
+        "unconfirmed": [{**finding_dict(f, fu), "reason": (f.frf or f.breakaway or {}).get("reason") or
                          "did not lower the held-out error of the test part",
                          "test_error_before": a, "test_error_after": b} for f, a, b in D.unconfirmed],
         "frf": D.frf.summary() if D.frf is not None else None,

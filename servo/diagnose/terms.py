@@ -318,7 +318,7 @@ class Asymmetric(Physics):
 
 class Stribeck(Physics):
     name, coefs, thetas = "stribeck_friction", ("dFs",), ("stribeck_velocity",)
-    units = {"dFs": "F", "stribeck_velocity": "m/s"}
+    units = {"dFs": "F", "stribeck_velocity": "m/s", "Fs": "F"}  # Fs: a breakaway found at rest (breakaway.py)
     doc = "Stribeck friction (Fs - Fc)*exp(-(x'/vs)^2)*sgn(x'): higher friction at low speed"
     requires = ("coulomb_friction",)
 

@@ -1,0 +1,338 @@
+"""Breakaway friction above the sliding level, from the intervals at rest.
+
+A friction that is higher only at rest (Karnopp: the arm stays put while the net force
+is within the breakaway level ``Fs``, and slides against ``Fc < Fs`` once it moves)
+shows where the force-balance rows cannot look: the rows within the decimation
+filter's reach of a sample whose direction is uncertain are unusable by construction
+(docs/diagnosis.md, section 1), so the rows see only the filtered tails of each
+breakaway transient, and no column of the vocabulary describes those tails (a
+``stribeck_friction`` with a Stribeck velocity below every usable row's speed
+explained 40 % of one such recording's cross-validated error, in a few blocks).
+
+The evidence here is the force the friction must hold at each **event** (a run of
+samples where the filtered velocity is within its noise or changes sign, widened by
+:data:`WIDEN` Butterworth time scales):
+
+    f(t) = B(u_eff)(t) - sum over the model's non-friction column terms of coef*column(t)
+
+(``B`` the position's zero-phase Butterworth, the columns built from the filtered
+motion: ``f`` is the friction force through the same filter, ``J*x''`` included, so
+while the arm is stuck it is the held net force ``u - K*x - h0`` and while it slides
+the sliding friction).  Under the model without breakaway (Coulomb friction with
+sticking at ``Fs = Fc``) the friction never exceeds ``Fc`` in magnitude: ``|f|`` stays
+within ``Fc`` through the filter (``L1*Fc`` at worst, :func:`filter_l1`, the 1-norm of
+its impulse response; in practice the overshoot of the sliding level's switch at the
+reversal).  With breakaway the arm holds forces up to ``Fs`` before it moves.  Per event
+the statistic is its peak ``|f|``; an event **exceeds** when the peak is beyond
+
+    g*(Fc + Z_FC*std(Fc)) + MARGIN*Fc + noise
+
+with ``g`` the largest ``|B(sgn(x'))|`` in the window (the switch of the sliding level
+through the filter, its overshoot included), ``noise`` the ``1 - P_NOISE`` quantile of
+the largest ``|f - Fc*sgn(x')|`` over windows of the event's width where the arm slides
+(:func:`noise_max`; a quantised sensor's step pulse added, :func:`step_pulse`), **and**
+the peak is a breakaway: it comes from rest and points where the arm then moves
+(:func:`_toward`).  Under the null an event exceeds with probability at most
+:data:`P_EXCEED`, and the test is the binomial tail ``P(X >= k; N, P_EXCEED)`` of the
+``k`` exceeding events among the training part's
+``N``.  It is one candidate of the vocabulary round in which ``stribeck_friction`` may
+be tried (the round's family-wise level is shared with it: :func:`applicable`), and it
+is tried only after the rows' rounds, on the model they ended with, so that a
+hysteresis or a delay the rows name first is in the model the held forces are
+computed with.
+
+**Fit**: ``Fs`` is the median peak of the training part's exceeding events (a peak
+is the held force through the low-pass: a breakaway held for longer than the filter's
+time scale shows at its level, a shorter one below it), with the standard deviation of
+that median (``1.2533*std/sqrt(k)``).  The Stribeck velocity is the
+smallest speed the data resolve, the direction threshold (``3`` noise std of the
+filtered velocity): a breakaway faster than that is a step at rest.
+
+**Proof** on the held-out part: its own events must exceed the same bound (binomial
+tail at ``alpha``, no search), and the held-out exceeding events' median peak must lie
+above the sliding level's bound: "the test part's stuck intervals hold forces in
+``(Fc, Fs]``".  The finding's before/after errors are the held-out events' RMS
+excess over the model's static level through the filter (``g*Fc`` without, ``g*Fs``
+with the finding).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from functools import lru_cache
+
+import numpy as np
+from scipy import signal, stats
+from scipy.ndimage import maximum_filter1d
+
+from servo.diagnose.signals import butter_ba
+
+#: an event's window reaches this many Butterworth time scales (``fs/cutoff`` samples) past its run
+WIDEN = 2.0
+#: noise margin of the bound, in robust standard deviations of the held force
+Z_NOISE = 3.0
+#: margin on the Coulomb level's uncertainty, in its standard deviations
+Z_FC = 2.0
+#: practical margin: an excess below this fraction of ``Fc`` is not counted
+MARGIN = 0.05
+#: the noise margin is this upper quantile of the noise's maximum over a window (:func:`noise_max`)
+P_NOISE = 0.01
+#: probability that one event of a null recording exceeds the bound (its noise margin is
+#: the :data:`P_NOISE` quantile of the window maximum, with a factor 2 to spare)
+P_EXCEED = 0.02
+#: fewer training events than this: not testable
+MIN_EVENTS = 5
+
+
+@lru_cache(maxsize=16)
+def filter_l1(order: int, wn: float) -> float:
+    """1-norm of the zero-phase Butterworth's impulse response (its worst-case gain for a
+    bounded input: a force within ``+-F`` stays within ``+-L1*F`` through it)."""
+    b, a = butter_ba(order, wn)
+    n = int(40 / wn) + 101
+    z = np.zeros(2 * n + 1)
+    z[n] = 1.0
+    return float(np.abs(signal.filtfilt(b, a, z, padlen=3 * order)).sum())
+
+
+def noise_max(abs_e: np.ndarray, outside: np.ndarray, widths: np.ndarray, sigma: float) -> np.ndarray:
+    """The noise margin of each event (F, (N,)): the ``1 - P_NOISE`` quantile of the
+    largest ``|f - Fc*sgn(x')|`` over windows of the event's width (rounded up to a power
+    of two) where the arm slides, outside every event: the recording's own noise and
+    misfit, its tails and correlation included (a quantised sensor's pulses are not
+    Gaussian; a window of thousands of samples reaches further into them than one of
+    forty).  ``Z_NOISE*sigma`` at least, and where the sliding part has too few such
+    windows."""
+    z = np.where(outside, abs_e, np.inf)
+    out = np.full(widths.size, Z_NOISE * sigma)
+    for L in np.unique(2 ** np.ceil(np.log2(np.maximum(widths, 1))).astype(int)):
+        m = maximum_filter1d(z, size=int(L), mode="constant", cval=np.inf)
+        m = m[np.isfinite(m)]
+        if m.size >= 20 * L:
+            sel = 2 ** np.ceil(np.log2(np.maximum(widths, 1))).astype(int) == L
+            out[sel] = max(float(np.quantile(m, 1.0 - P_NOISE)), Z_NOISE * sigma)
+    return out
+
+
+@dataclass
+class Events:
+    """Windows around the samples at rest or reversing: ``start``, ``stop`` (full-rate
+    sample range, (N,)), ``peak`` the largest ``|f|`` in each (F), ``train`` whether the
+    window lies in the training part, ``bound`` each one's (F), ``toward`` whether its
+    peak force points in the direction the arm then moves."""
+
+    start: np.ndarray
+    stop: np.ndarray
+    peak: np.ndarray
+    train: np.ndarray
+    bound: np.ndarray
+    toward: np.ndarray
+
+
+@dataclass
+class Result:
+    """The breakaway test on one model: the bound (F), the events, the training
+    part's exceeding count ``k`` of ``n``, its ``p``; the fit (``Fs``, ``Fs_std``,
+    ``Fc``) and the held-out part's ``k_test`` of ``n_test`` and ``p_test``."""
+
+    bound: float = 0.0
+    sigma: float = 0.0
+    l1: float = 1.0
+    Fc: float = 0.0
+    Fc_std: float = 0.0
+    n: int = 0
+    k: int = 0
+    p: float = 1.0
+    n_test: int = 0
+    k_test: int = 0
+    p_test: float = 1.0
+    Fs: float = 0.0
+    Fs_std: float = 0.0
+    Fs_test: float = 0.0
+    excess_before: float = 0.0
+    excess_after: float = 0.0
+    note: str = ""
+    events: Events | None = field(default=None, repr=False)
+
+    @property
+    def testable(self) -> bool:
+        return self.n >= MIN_EVENTS
+
+    def passes(self, level: float) -> bool:
+        return self.testable and self.p < level
+
+    def confirmed(self, alpha: float) -> bool:
+        return self.k_test > 0 and self.p_test < alpha and self.Fs_test > self.bound
+
+    def evidence(self) -> dict:
+        return {"test": "held forces at rest beyond the sliding level (binomial tail over events)",
+                "bound": self.bound, "sigma": self.sigma, "filter_l1": self.l1, "Fc": self.Fc,
+                "events_train": self.n, "exceeding_train": self.k, "p": self.p,
+                "events_test": self.n_test, "exceeding_test": self.k_test, "p_test": self.p_test,
+                "Fs_test": self.Fs_test}  # fmt: skip
+
+
+def applicable(model, candidates) -> bool:
+    """Whether the breakaway test shares the round of ``candidates`` (``stribeck_friction``
+    among them: the model has a Coulomb friction and no Stribeck term yet)."""
+    return "stribeck_friction" in candidates
+
+
+def held_force(design, fit) -> np.ndarray:
+    """``f`` (n,): the friction force through the position's Butterworth, what the
+    recorded force leaves after every non-friction column term of ``fit`` (module doc)."""
+    from servo.diagnose.terms import VOCABULARY
+
+    sig = design.sig
+    u = design.u_eff(fit.model)
+    f = sig.force(u).copy()
+    for i, t in enumerate(fit.model.terms):
+        phys = VOCABULARY[t.physics]
+        if phys.kind != "column" or t.physics in ("coulomb_friction", "stribeck_friction"):
+            continue
+        C = np.atleast_2d(np.asarray(phys.full(design, t.params, u), dtype=float).T).T
+        f -= C @ np.asarray(fit.coefs[i], dtype=float)
+    return f
+
+
+def events(sig) -> tuple[np.ndarray, np.ndarray]:
+    """Full-rate windows ``(start, stop)`` around every run of samples where the filtered
+    velocity is within its noise or changes sign, widened by :data:`WIDEN` Butterworth
+    time scales and merged where they overlap; windows reaching the trimmed ends are dropped."""
+    n = sig.vf.size
+    mark = marks(sig)
+    d = np.diff(np.r_[0, mark.astype(np.int8), 0])
+    a, b = np.flatnonzero(d == 1), np.flatnonzero(d == -1)
+    if a.size == 0:
+        return a, b
+    fs = 1.0 / sig.dt
+    w = int(np.ceil(WIDEN * fs / sig.settings.cutoff(fs)))
+    a, b = np.maximum(a - w, 0), np.minimum(b + w, n)
+    keep_a, keep_b = [a[0]], [b[0]]
+    for s, e in zip(a[1:], b[1:]):
+        if s <= keep_b[-1]:
+            keep_b[-1] = max(keep_b[-1], e)
+        else:
+            keep_a.append(s)
+            keep_b.append(e)
+    a, b = np.array(keep_a), np.array(keep_b)
+    st = sig.settings
+    ok = (a >= st.trim_start) & (b <= n - st.trim_end)
+    return a[ok], b[ok]
+
+
+def marks(sig) -> np.ndarray:
+    """(n,) samples at rest or reversing: the filtered velocity within its noise or
+    changing sign."""
+    v = sig.vf
+    m = np.abs(v) <= sig.v_threshold
+    m[1:] |= np.sign(v[1:]) * np.sign(v[:-1]) < 0
+    return m
+
+
+def _toward(f: np.ndarray, v: np.ndarray, rest: np.ndarray, s: int, i: int) -> bool:
+    """Whether the peak held force ``f[i]`` of the event starting at ``s`` is a breakaway:
+    it comes at or after a sample at rest, and points where the arm moves when it leaves
+    the last rest before it.  A force that peaks while the arm still approaches a
+    reversal (a lag or a hysteresis the model has wrong) is not one."""
+    prev = np.flatnonzero(rest[s : i + 1])
+    if prev.size == 0:
+        return False
+    r = s + int(prev[-1])
+    nxt = np.flatnonzero(~rest[r:])
+    if nxt.size == 0:
+        return False
+    return bool(np.sign(f[i]) == np.sign(v[r + int(nxt[0])]))
+
+
+@lru_cache(maxsize=16)
+def _step_accel(order: int, wn: float) -> float:
+    """Largest ``|x''|`` (per unit step, per sample^2) the path makes of one position
+    step: the Butterworth's step response, second-differenced."""
+    from servo.diagnose.signals import second_difference
+
+    b, a = butter_ba(order, wn)
+    n = int(40 / wn) + 101
+    z = (np.arange(2 * n + 1) >= n).astype(float)
+    return float(np.abs(second_difference(signal.filtfilt(b, a, z, padlen=3 * order), 1.0)).max())
+
+
+def step_pulse(sig, fit, step: float) -> float:
+    """The force pulse ``|J|*step*max|x''|`` one quantum of a quantised sensor makes in
+    the held force (F): near rest the position crosses the lattice one step at a time,
+    each a pulse that no sliding window shows (0 without a lattice)."""
+    if not step > 0:
+        return 0.0
+    J = abs(float(fit.combined().get("inertia", {}).get("J", 0.0)))
+    fs = 1.0 / sig.dt
+    return J * step * _step_accel(int(sig.settings.butter_order), float(sig.settings.cutoff(fs) / (fs / 2))) / sig.dt**2
+
+
+def test(design, fit, step: float = 0.0) -> Result:
+    """The breakaway test of ``fit`` (its model must hold ``coulomb_friction``), its fit and
+    its held-out proof (module doc); ``step`` the position quantum of a quantised sensor
+    (0: none), whose pulses near rest are added to the bound (:func:`step_pulse`)."""
+    sig = design.sig
+    res = Result()
+    ci = next((i for i, t in enumerate(fit.model.terms) if t.physics == "coulomb_friction"), None)
+    if ci is None:
+        res.note = "needs coulomb_friction in the model"
+        return res
+    Fc = float(fit.combined()["coulomb_friction"]["Fc"])
+    Fc_std = float(fit.term_std(ci).get("Fc", 0.0)) if fit.model.terms[ci].free else 0.0
+    if not Fc > 0:
+        res.note = "the Coulomb level is not positive"
+        return res
+    f = held_force(design, fit)
+    a, b = events(sig)
+    fs = 1.0 / sig.dt
+    l1 = filter_l1(int(sig.settings.butter_order), float(sig.settings.cutoff(fs) / (fs / 2)))
+    # the noise of f where the arm slides, outside every event
+    outside = np.ones(sig.n, bool)
+    st = sig.settings
+    outside[: st.trim_start] = outside[sig.n - st.trim_end :] = False
+    for s, e in zip(a, b):
+        outside[s:e] = False
+    if np.count_nonzero(outside) < 100:
+        res.note = "the arm is hardly ever sliding away from a reversal"
+        return res
+    e = f - Fc * sig.sign_v
+    sigma = float(1.4826 * np.median(np.abs(e[outside] - np.median(e[outside]))))
+    g = np.abs(sig.butter(sig.sign_v))  # the sliding level's switch through the filter, per unit Fc
+    ref = np.array([g[s:e_].max() for s, e_ in zip(a, b)]) if a.size else np.zeros(0)
+    noise = noise_max(np.abs(e), outside, b - a, sigma)
+    bounds = ref * (Fc + Z_FC * Fc_std) + MARGIN * Fc + noise
+    bound = float(np.median(bounds)) if bounds.size else 0.0
+    bounds = bounds + step_pulse(sig, fit, step)
+    peak, toward = np.zeros(a.size), np.zeros(a.size, bool)
+    rest = marks(sig)
+    for j, (s, e_) in enumerate(zip(a, b)):
+        i = s + int(np.argmax(np.abs(f[s:e_])))
+        peak[j] = abs(f[i])
+        toward[j] = _toward(f, sig.vf, rest, s, i)
+    last = int(np.flatnonzero(design.train_samples)[-1])
+    train = b <= last
+    test_ = a > last
+    res.events = Events(a, b, peak, train, bounds, toward)
+    res.bound, res.sigma, res.l1, res.Fc, res.Fc_std = bound, sigma, l1, Fc, Fc_std
+    res.n, res.n_test = int(train.sum()), int(test_.sum())
+    over = (peak > bounds) & toward
+    res.k, res.k_test = int((over & train).sum()), int((over & test_).sum())
+    res.p = float(stats.binom.sf(res.k - 1, res.n, P_EXCEED)) if res.n else 1.0
+    res.p_test = float(stats.binom.sf(res.k_test - 1, res.n_test, P_EXCEED)) if res.n_test else 1.0
+    if res.k:
+        pk = peak[over & train]
+        res.Fs = float(np.median(pk))
+        res.Fs_std = float(1.2533 * pk.std(ddof=1) / np.sqrt(pk.size)) if pk.size > 1 else float(sigma)
+    if res.k_test:
+        res.Fs_test = float(np.median(peak[over & test_]))
+    if res.n_test:
+        pt, gt = peak[test_], ref[test_]
+        res.excess_before = float(np.sqrt(np.mean(np.maximum(pt - gt * Fc, 0.0) ** 2)))
+        res.excess_after = float(np.sqrt(np.mean(np.maximum(pt - gt * max(res.Fs, Fc), 0.0) ** 2)))
+    if not res.testable:
+        res.note = f"{res.n} events at rest or reversing in the training part (need {MIN_EVENTS})"
+    return res
+
+
+__all__ = ["Events", "MIN_EVENTS", "Result", "applicable", "events", "filter_l1", "held_force", "marks", "noise_max", "step_pulse",
+           "test"]

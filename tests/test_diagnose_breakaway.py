@@ -1,0 +1,100 @@
+"""Breakaway friction from the intervals at rest (servo/diagnose/breakaway.py).
+
+Recordings of the independent proving ground (its own integrator, Karnopp sticking):
+a breakaway three times the sliding level is named ``stribeck_friction`` with its
+level, the same controller and excitation without it holds no force beyond the
+sliding level, and the bound the test rests on holds for the filter it uses.
+"""
+import numpy as np
+import pytest
+from scipy import signal
+
+from servo.diagnose import breakaway
+from servo.diagnose.job import diagnose
+from servo.diagnose.proving.cases import Case, recording
+from servo.diagnose.report import build_report
+from servo.diagnose.signals import butter_ba
+
+SEED = 100005  # a development seed, not one of the proving-ground study's scored seeds
+
+
+@pytest.fixture(scope="module")
+def karnopp():
+    rec, truth = recording(Case("karnopp", 2.0, "leadlag", "pulses", 5000.0), SEED)
+    return diagnose(rec), truth
+
+
+@pytest.fixture(scope="module")
+def null():
+    rec, truth = recording(Case("null", 0.0, "leadlag", "pulses", 5000.0), SEED)
+    return diagnose(rec), truth
+
+
+def test_filter_l1_bounds_a_bounded_force():
+    """Any force within +-1 stays within +-L1 through the zero-phase Butterworth, and a
+    worst-case input (the sign of the impulse response) reaches it."""
+    wn = 0.2
+    L1 = breakaway.filter_l1(4, wn)
+    assert 1.0 < L1 < 2.0
+    b, a = butter_ba(4, wn)
+    rng = np.random.default_rng(1)
+    for _ in range(5):
+        z = np.clip(np.cumsum(rng.standard_normal(4000)) / 5, -1, 1)
+        assert np.abs(signal.filtfilt(b, a, z, padlen=12)).max() <= L1 + 1e-9
+
+
+def test_breakaway_named_with_its_level(karnopp):
+    D, truth = karnopp
+    f = next(f for f in D.findings if f.physics == "stribeck_friction")
+    assert f.breakaway is not None  # found at rest: the rows cannot see it
+    Fs, Fc = truth["Fs"], truth["Fc"]
+    assert abs(f.params["Fs"] - Fs) < 0.15 * Fs
+    assert f.params["dFs"] > 0.5 * (Fs - Fc)
+    assert 0 < f.std["Fs"] < 0.1 * Fs
+    ev = f.breakaway
+    assert ev["p"] < ev["level"] and ev["p_test"] < 0.05 and ev["exceeding_test"] >= 1
+    # held out: the model with the breakaway leaves less excess at rest than without
+    assert f.after["held_excess_rms"] < 0.5 * f.before["held_excess_rms"]
+    R = build_report(D, [])
+    assert R["final_model"]["drive"]["Fs"] == pytest.approx(f.params["Fs"])
+    assert R["final_model"]["drive"]["Fs"] > R["final_model"]["drive"]["Fc"]
+
+
+def test_null_holds_no_force_beyond_sliding(null):
+    D, truth = null
+    assert not any(f.physics == "stribeck_friction" for f in D.findings)
+    res = breakaway.test(D.design, D.final_fit)
+    assert res.testable
+    assert res.k <= 1 and res.p > 0.05
+    # the held forces at rest stay within the sliding level (Karnopp with Fs = Fc)
+    assert np.max(res.events.peak) < 1.35 * truth["Fc"]
+
+
+def test_a_breakaway_comes_from_rest_toward_the_motion():
+    """The peak held force counts only at or after a sample at rest, pointing where the
+    arm moves when it leaves that rest."""
+    v = np.r_[np.full(10, 1.0), np.zeros(5), np.full(10, -1.0)]
+    rest = v == 0
+    f = np.zeros(v.size)
+    f[12] = -2.0  # held at rest, pushing toward the coming motion: a breakaway
+    assert breakaway._toward(f, v, rest, 0, 12)
+    f[12] = 2.0  # held against the coming motion: not one
+    assert not breakaway._toward(f, v, rest, 0, 12)
+    f[:] = 0.0
+    f[5] = 2.0  # peaks while the arm still approaches the reversal (a lag's misfit)
+    assert not breakaway._toward(f, v, rest, 0, 5)
+    f[:] = 0.0
+    f[17] = -2.0  # just after the departure, in its direction (the filtered transient)
+    assert breakaway._toward(f, v, rest, 0, 17)
+
+
+@pytest.mark.parametrize("family,size,ctl,exc,rate", [
+    ("quantization", 100.0, "open", "seeks", 500.0),  # a quantum's pulses near rest
+    ("sensor_lowpass", 20.0, "pdi", "prbs", 50000.0),  # a lag's misfit at reversals
+])  # fmt: skip
+def test_no_breakaway_named_where_there_is_none(family, size, ctl, exc, rate):
+    """Development recordings where an earlier version of the test named a breakaway."""
+    rec, _ = recording(Case(family, size, ctl, exc, rate), 100004 if family == "quantization" else 100002)
+    D = diagnose(rec)
+    assert not any(f.breakaway is not None for f in D.findings)
+    assert "stribeck_friction" not in [f.physics for f in D.findings]
