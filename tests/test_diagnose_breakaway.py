@@ -58,6 +58,25 @@ def test_breakaway_named_with_its_level(karnopp):
     R = build_report(D, [])
     assert R["final_model"]["drive"]["Fs"] == pytest.approx(f.params["Fs"])
     assert R["final_model"]["drive"]["Fs"] > R["final_model"]["drive"]["Fc"]
+    # the verdict is about the rows, which the breakaway cannot change: it does not say
+    # that no term accounts for what is left without naming the breakaway
+    if D.verdict["verdict"] == "unexplained":
+        assert "breakaway (stribeck_friction) named from evidence the rows do not hold" in D.verdict["text"]
+    else:
+        assert "no term of the vocabulary" not in D.verdict["text"]
+
+
+def test_an_unexplained_verdict_names_a_finding_outside_the_rows():
+    from servo.diagnose.verdict import decide
+
+    failed = {"failed": True, "level": {"ratio": 3.0, "failed": True, "floor": 1e-6},
+              "windows": {"failed": False, "flagged": [], "windows": []}, "gap": {"failed": False},
+              "state": {"failed": False}, "output": {"failed": False}}  # fmt: skip
+    plain = decide(failed, failed, 1, "", "A")
+    named = decide(failed, failed, 1, "", "A", ("breakaway (stribeck_friction)",))
+    assert plain["verdict"] == named["verdict"] == "unexplained"
+    assert plain["text"].endswith("no term of the vocabulary accounts for it")
+    assert "breakaway (stribeck_friction) named from evidence the rows do not hold" in named["text"]
 
 
 def test_null_holds_no_force_beyond_sliding(null):

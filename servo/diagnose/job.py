@@ -563,7 +563,8 @@ def diagnose(rec: Recording, opt: Options | None = None) -> Diagnosis:
     J_std = final.term_std(ji).get("J") if ji is not None and final.model.terms[ji].free else 0.0
     scope = verdict_mod.out_of_scope(final.combined().get("inertia", {}).get("J"), J_std,
                                      force_error_pct(design, final, design.train_valid))
-    verdict = verdict_mod.decide(base_checks, final_checks, len(findings), scope, opt.force_unit)
+    verdict = verdict_mod.decide(base_checks, final_checks, len(findings), scope, opt.force_unit,
+                                 tuple(f"breakaway ({f.physics})" for f in findings if f.breakaway is not None))
     verdict.update(baseline_checks=base_checks, final_checks=final_checks)
 
     base_err = {"force_rel_pct": errs[0], "output_nrmse": nr[0]}

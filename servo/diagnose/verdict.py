@@ -284,8 +284,11 @@ def out_of_scope(J: float | None, J_std: float | None, train_force_pct: float | 
     return ""
 
 
-def decide(base: dict, final: dict, n_findings: int, scope: str, force_unit: str = "F") -> dict:
-    """The verdict from the checks on the baseline and on the final model (module doc)."""
+def decide(base: dict, final: dict, n_findings: int, scope: str, force_unit: str = "F",
+           outside_rows: tuple = ()) -> dict:  # fmt: skip
+    """The verdict from the checks on the baseline and on the final model (module doc).
+    ``outside_rows``: findings proven on evidence the rows do not hold (a breakaway from
+    the intervals at rest): named in an ``unexplained`` text, which is about the rows."""
     if scope:
         return {"verdict": "out_of_scope", "text": scope}
     lv = final["level"]
@@ -300,8 +303,10 @@ def decide(base: dict, final: dict, n_findings: int, scope: str, force_unit: str
         return {"verdict": "explained",
                 "text": f"the findings bring the held-out residual from {b['ratio']:.3g} to {lv['ratio']:.3g} x the noise "
                         f"floor{above}, with no structure left and no train/test gap"}  # fmt: skip
-    return {"verdict": "unexplained",
-            "text": f"the model still fails: {where_text(final, force_unit)}; no term of the vocabulary accounts for it"}
+    besides = (f"; the {', '.join(outside_rows)} named from evidence the rows do not hold (the intervals at rest) "
+               "cannot lower it, and no other term of the vocabulary accounts for it" if outside_rows
+               else "; no term of the vocabulary accounts for it")  # fmt: skip
+    return {"verdict": "unexplained", "text": f"the model still fails: {where_text(final, force_unit)}{besides}"}
 
 
 __all__ = ["MARGIN", "VERDICTS", "acceleration_noise_gain", "add_frf", "assess", "decide", "force_floor", "out_of_scope",
