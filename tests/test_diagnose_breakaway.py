@@ -77,6 +77,10 @@ def test_an_unexplained_verdict_names_a_finding_outside_the_rows():
     assert plain["verdict"] == named["verdict"] == "unexplained"
     assert plain["text"].endswith("no term of the vocabulary accounts for it")
     assert "breakaway (stribeck_friction) named from evidence the rows do not hold" in named["text"]
+    calm = {"failed": False, "level": {"ratio": 1.03, "failed": False, "floor": 1e-6}}
+    ok = decide(calm, calm, 1, "", "A", ("breakaway (stribeck_friction)",))
+    assert ok["verdict"] == "explained" and "the rows were at their noise with the baseline" in ok["text"]
+    assert "from 1.03 to 1.03" not in ok["text"]
 
 
 def test_null_holds_no_force_beyond_sliding(null):

@@ -298,6 +298,11 @@ def decide(base: dict, final: dict, n_findings: int, scope: str, force_unit: str
                     "text": f"the model explains the recording to its noise: held-out residual {lv['ratio']:.3g} x the "
                             "noise floor the position noise implies, no structure, no train/test gap"}  # fmt: skip
         b = base["level"]
+        if outside_rows and not base["failed"]:  # the rows had nothing to explain
+            return {"verdict": "explained",
+                    "text": f"the rows were at their noise with the baseline ({b['ratio']:.3g} x the floor); what it "
+                            f"left out shows at rest: the {', '.join(outside_rows)} named from the intervals at rest "
+                            "and confirmed on the held-out part's"}  # fmt: skip
         above = (" and the held-out frequency response above the rows' band within its interval"
                  if base.get("frf", {}).get("failed") else "")  # fmt: skip
         return {"verdict": "explained",
