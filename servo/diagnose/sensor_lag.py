@@ -50,6 +50,7 @@ import math
 import numpy as np
 from scipy import signal
 
+from servo.diagnose.band import band_hz
 from servo.diagnose.terms import Effect, Physics, register
 
 
@@ -145,7 +146,7 @@ class SensorLag(Physics):
 
     def _range(self, d):
         s = d.sig
-        w_e = 2 * math.pi * 0.4 / s.settings.decimate  # rad/sample
+        w_e = 2 * math.pi * band_hz(s.settings, 1.0 / s.dt) * s.dt  # the rows' band edge, rad/sample
         return self.DELAY_LIKE / w_e * s.dt, self.HI_ROWS * s.row_dt
 
     def grid(self, d, model):
