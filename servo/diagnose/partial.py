@@ -228,14 +228,8 @@ def refine(sel: Selector, model: Model, physics: str, thetas: list) -> tuple[Ter
         name = phys.thetas[0]
         bounds = phys.bounds(d, model)
         lo_b, hi_b, lg = bounds[name]
-        v = best[name]
-        if lg:
-            span = (np.log(max(lo_b, v / 1.6)), np.log(min(hi_b, v * 1.6)))
-            to = np.exp
-        else:
-            width = 0.15 * abs(v)
-            span = (max(lo_b, v - width), min(hi_b, v + width))
-            to = float
+        span = sel._bracket(phys, best, name, lo_b, hi_b, lg)  # the ungated refinement's interval
+        to = np.exp if lg else float
 
         def f(z):
             return sse({**best, name: float(to(z))})
@@ -247,8 +241,6 @@ def refine(sel: Selector, model: Model, physics: str, thetas: list) -> tuple[Ter
         z = float(np.log(best[name]) if lg else best[name])
         std = sel._theta_std(lambda zz: f(float(np.atleast_1d(zz)[0])), np.array([z]), [name], [lg], {name: best[name]})
     return Term.make(physics, best), std
-
-
 
 
 def rounds(sel: Selector, model: Model, alpha: float, counted: int, room: int, log: list, not_testable: dict,
