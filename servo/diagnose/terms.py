@@ -197,35 +197,36 @@ def _valid_speed(d) -> np.ndarray:
 
 
 # ------------------------------------------------------------------ rigid-body terms
-class Inertia(Physics):
-    name, coefs, units = "inertia", ("J",), {"J": "F*s^2/m"}
-    absent = {"J": 0.0}
+class _OneField(Physics):
+    """A term that is one coefficient and one ``[drive]`` field of the same name
+    (``coefs[0]``): its drive mapping and its concealed effect are that field."""
+
+    def __init_subclass__(cls, **kw):
+        super().__init_subclass__(**kw)
+        cls.absent = {cls.coefs[0]: 0.0}
 
     def to_drive(self, P, fit):
-        return {"J": P[self.name]["J"]}
+        return {self.coefs[0]: P[self.name][self.coefs[0]]}
 
     def from_drive(self, d):
-        return [({}, (d.J,))]
+        return [({}, (getattr(d, self.coefs[0]),))]
+
+    def conceal(self, size):
+        return {self.coefs[0]: size}
+
+
+class Inertia(_OneField):
+    name, coefs, units = "inertia", ("J",), {"J": "F*s^2/m"}
     doc = "inertia J*x''"
 
     def full(self, d, theta, u_eff):
         return d.sig.af
 
 
-class Viscous(Physics):
+class Viscous(_OneField):
     name, coefs, units = "viscous_friction", ("B",), {"B": "F*s/m"}
-    absent = {"B": 0.0}
     effect = Effect("viscous_friction", "A*s/m", "B", (1e-5, 2e-5, 5e-5, 1e-4, 2e-4), 5e-3, baseline="J,Fc,K,h0",
                     fixed={"B": 0.0})  # fmt: skip
-
-    def to_drive(self, P, fit):
-        return {"B": P[self.name]["B"]}
-
-    def from_drive(self, d):
-        return [({}, (d.B,))]
-
-    def conceal(self, size):
-        return {"B": size}
     doc = "viscous friction B*x'"
     POSITIVE = {"B": "the force grows against the motion: negative damping, not friction"}
 
@@ -255,38 +256,18 @@ class Coulomb(Physics):
         return d.sig.sign_v  # the sign the rows see: its switch placed between samples
 
 
-class Stiffness(Physics):
+class Stiffness(_OneField):
     name, coefs, units = "stiffness", ("K",), {"K": "F/m"}
-    absent = {"K": 0.0}
     effect = Effect("stiffness", "A/m", "K", (2e-3, 5e-3, 1e-2, 2e-2, 5e-2), 0.2, baseline="J,B,Fc,h0", fixed={"K": 0.0})
-
-    def to_drive(self, P, fit):
-        return {"K": P[self.name]["K"]}
-
-    def from_drive(self, d):
-        return [({}, (d.K,))]
-
-    def conceal(self, size):
-        return {"K": size}
     doc = "stiffness K*x (flex-cable bias, pivot's average slope)"
 
     def full(self, d, theta, u_eff):
         return d.sig.xf
 
 
-class Offset(Physics):
+class Offset(_OneField):
     name, coefs, units = "offset", ("h0",), {"h0": "F"}
-    absent = {"h0": 0.0}
     effect = Effect("offset", "A", "h0", (5e-6, 1e-5, 2e-5, 5e-5, 1e-4), 3e-4, baseline="J,B,Fc,K", fixed={"h0": 0.0})
-
-    def to_drive(self, P, fit):
-        return {"h0": P[self.name]["h0"]}
-
-    def from_drive(self, d):
-        return [({}, (d.h0,))]
-
-    def conceal(self, size):
-        return {"h0": size}
     doc = "constant force h0"
 
     def full(self, d, theta, u_eff):
