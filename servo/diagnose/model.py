@@ -133,7 +133,8 @@ class Design:
         #: full-rate effective inputs, the most recent :data:`U_CACHE` only: a search over
         #: a delay or a saturation level makes one per variant, and their rows are cached
         self._u: dict = {}
-        self._delayed = None
+        #: one full-rate helper per name, for the most recent model's input only
+        self._per_input: dict = {}
 
     # ---- the input -----------------------------------------------------------------
     @staticmethod
@@ -188,16 +189,23 @@ class Design:
         u = self.u_eff(model, extra)
         return self.cached_rows(key, lambda: self.sig.force_rows(u))
 
+    def per_input(self, name: str, model: Model, build):
+        """``build()``'s result for ``model``'s effective input, kept under ``name`` for
+        the most recent input only (a full-rate array or an object holding one): what a
+        term's :meth:`~servo.diagnose.terms.Physics.screen_target` derives once from
+        the input and reuses over its grid."""
+        key = self.input_key(model)
+        held = self._per_input.get(name)
+        if held is None or held[0] != key:
+            held = self._per_input[name] = (key, build())
+        return held[1]
+
     def _delayed_force(self, model: Model):
-        """The :class:`~servo.diagnose.delayed.DelayedForce` of ``model``'s effective input
-        (the most recent model's only: one full-rate array)."""
+        """The :class:`~servo.diagnose.delayed.DelayedForce` of ``model``'s effective input."""
         from servo.diagnose.delayed import DelayedForce
 
-        key = self.input_key(model)
-        if self._delayed is None or self._delayed[0] != key:
-            q = self.sig.settings.decimate
-            self._delayed = (key, DelayedForce(self.sig, self.u_eff(model), 2.0 * q + 1.0))
-        return self._delayed[1]
+        q = self.sig.settings.decimate
+        return self.per_input("time_delay", model, lambda: DelayedForce(self.sig, self.u_eff(model), 2.0 * q + 1.0))
 
     def term_rows(self, term: Term, model: Model) -> np.ndarray:
         """Rows of the columns of ``term`` (m, k) under ``model``'s input.  A term gated in

@@ -137,12 +137,8 @@ class SensorLag(Physics):
         return lowpass(u, lag_coefficient(theta["time_constant_s"], dt))
 
     def screen_target(self, d, model, theta):
-        key = d.input_key(model)
-        cache = getattr(d, "_lagged_force", None)
-        if cache is None or cache[0] != key:
-            cache = (key, LaggedForce(d.sig, d.u_eff(model)))
-            d._lagged_force = cache
-        return cache[1].rows(theta["time_constant_s"])
+        lagged = d.per_input(self.name, model, lambda: LaggedForce(d.sig, d.u_eff(model)))
+        return lagged.rows(theta["time_constant_s"])
 
     def _range(self, d):
         s = d.sig
