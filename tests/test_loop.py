@@ -204,6 +204,7 @@ def test_servo_loop_writes_loadable_responses_and_a_summary(tmp_path, capsys):
     (("--f-max", "30000"), r"f_max 30000 Hz must stay below 40 % of the Nyquist"),
     (("--levels", "abc"), r"--levels 'abc': expected comma-separated numbers in mA"),
     (("--levels", "2000"), r"reaches controller.current_limit"),
+    (("--levels", "0.2,nan"), r"--levels must be positive"),
     (("--n-freq", "2"), r"at least 4 frequencies"),
     (("--set", "drive.nope=1"), r"drive.nope"),
 ])  # fmt: skip

@@ -6,7 +6,7 @@ import argparse
 import time
 from pathlib import Path
 
-from servo.cli.common import add_config_options, add_quiet_option, config_from_args, progress_from_args
+from servo.cli.common import add_config_options, add_quiet_option, config_from_args, levels_from_arg, progress_from_args
 from servo.errors import ConfigError
 
 
@@ -35,12 +35,7 @@ def register(sub) -> None:
 def settings_from_args(args) -> "SweepSettings":  # noqa: F821
     from servo.experiments.bode import SweepSettings
 
-    try:
-        levels = tuple(float(v) * 1e-3 for v in args.levels.split(","))
-    except ValueError:
-        raise ConfigError(f"--levels {args.levels!r}: expected comma-separated numbers in mA") from None
-    if not levels or min(levels) <= 0:
-        raise ConfigError("--levels must be positive")
+    levels = levels_from_arg(args.levels)
     if not 0 < args.f_min < args.f_max:
         raise ConfigError("need 0 < --f-min < --f-max")
     if args.n_freq < 2 or args.periods < 2:

@@ -5,6 +5,7 @@ import argparse
 
 from servo.cli import parse_set
 from servo.config import Config, from_dict, load_config, to_dict
+from servo.errors import ConfigError
 
 
 def add_config_options(p: argparse.ArgumentParser) -> None:
@@ -44,6 +45,17 @@ def recording_from_args(args: argparse.Namespace):
     from servo.io.recording import load_recording, parse_mapping
 
     return load_recording(args.recording, parse_mapping(args.columns, "--columns"), parse_mapping(args.scale, "--scale"))
+
+
+def levels_from_arg(text: str, option: str = "--levels") -> tuple:
+    """Comma-separated current levels in mA -> a tuple in A; each must be positive."""
+    try:
+        levels = tuple(float(v) * 1e-3 for v in text.split(","))
+    except ValueError:
+        raise ConfigError(f"{option} {text!r}: expected comma-separated numbers in mA") from None
+    if not all(v > 0 for v in levels):  # NaN fails too
+        raise ConfigError(f"{option} must be positive")
+    return levels
 
 
 def add_quiet_option(p: argparse.ArgumentParser) -> None:

@@ -5,8 +5,7 @@ import argparse
 import time
 from pathlib import Path
 
-from servo.cli.common import add_config_options, add_quiet_option, config_from_args, progress_from_args
-from servo.errors import ConfigError
+from servo.cli.common import add_config_options, add_quiet_option, config_from_args, levels_from_arg, progress_from_args
 
 
 def register(sub) -> None:
@@ -43,10 +42,7 @@ def register(sub) -> None:
 def settings_from_args(args) -> "LoopSettings":  # noqa: F821
     from servo.loop.measure import LoopSettings
 
-    try:
-        levels = tuple(float(v) * 1e-3 for v in args.levels.split(","))
-    except ValueError:
-        raise ConfigError(f"--levels {args.levels!r}: expected comma-separated numbers in mA") from None
+    levels = levels_from_arg(args.levels)
     return LoopSettings(f_min=args.f_min, f_max=args.f_max, n_freq=args.n_freq, periods=args.periods,
                         settle_s=args.settle, levels=levels)  # fmt: skip
 
