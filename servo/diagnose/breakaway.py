@@ -29,8 +29,10 @@ the statistic is its peak ``|f|``; an event **exceeds** when the peak is beyond
 
 with ``g`` the largest ``|B(sgn(x'))|`` in the window (the switch of the sliding level
 through the filter, its overshoot included), ``noise`` the ``1 - P_NOISE`` quantile of
-the largest ``|f - Fc*sgn(x')|`` over windows of the event's width where the arm slides
-(:func:`noise_max`; a quantised sensor's step pulse added, :func:`step_pulse`), **and**
+the largest ``|f - Fc*sgn(x')|`` over windows of the event's width where the arm slides,
+**near the event** (the :data:`LOCAL_WINDOWS` nearest such windows: a misfit elsewhere,
+an open loop's PRBS kicks, does not raise every event's bound; :func:`noise_max`; a
+quantised sensor's step pulse added, :func:`step_pulse`), **and**
 the peak is a breakaway: it comes from rest and points where the arm then moves
 (:func:`_toward`).  Under the null an event exceeds with probability at most
 :data:`P_EXCEED`, and the test is the binomial tail ``P(X >= k; N, P_EXCEED)`` of the
@@ -50,10 +52,23 @@ filtered velocity): a breakaway faster than that is a step at rest.
 
 **Proof** on the held-out part: its own events must exceed the same bound (binomial
 tail at ``alpha``, no search), and the held-out exceeding events' median peak must lie
-above the sliding level's bound: "the test part's stuck intervals hold forces in
-``(Fc, Fs]``".  The finding's before/after errors are the held-out events' RMS
-excess over the model's static level through the filter (``g*Fc`` without, ``g*Fs``
-with the finding).
+above the sliding level's bound with a noise margin of ``Z_NOISE`` robust std
+(``level_bound``): "the test part's stuck intervals hold forces in ``(Fc, Fs]``".  The
+finding's before/after errors are the held-out events' RMS excess over the model's
+static level through the filter (``g*Fc`` without, ``g*Fs`` with the finding).
+
+**A held-out part that never rests** (a chirp rising past the sticking speeds: every
+held-out event passes through zero speed without a hold of :data:`REST_MIN` Butterworth
+time scales, :func:`dwell`) cannot show a breakaway, so its failure to confirm one says
+nothing.  There (and only there, a rule on the velocity, not on the forces) a finding
+the held-out part does not confirm gets a second, stated proof: the training events are
+split alternately, the test (at the same level) and the fit of ``Fs`` run on one half,
+and the other half must confirm it as the held-out part would.  Both halves are training
+events, so this proof is on events its test and fit did not use, not on a later part of
+the recording; the report says which proof was used (``proof``).  The first test on all
+training events must pass too, so the split adds no false alarm beyond that test's
+level.  When neither proves it, the finding is listed as not confirmed with the reason
+that the held-out part could not test it.
 """
 from __future__ import annotations
 
