@@ -121,3 +121,75 @@ def test_no_breakaway_named_where_there_is_none(family, size, ctl, exc, rate):
     D = diagnose(rec)
     assert not any(f.breakaway is not None for f in D.findings)
     assert "stribeck_friction" not in [f.physics for f in D.findings]
+
+
+def test_local_noise_margin_is_not_raised_by_a_misfit_elsewhere():
+    """The noise margin of an event is the window maximum's quantile near it: kicks of
+    misfit in one part of the recording raise the recording-wide margin, not the margin
+    of an event far from them, and near them they still count.  Under the null (fresh
+    noise windows) the local margin is exceeded about as rarely as P_NOISE."""
+    rng = np.random.default_rng(3)
+    n = 40000
+    abs_e = np.abs(rng.standard_normal(n))
+    abs_e[30000:34000] += 8.0 * (rng.random(4000) < 0.05)  # PRBS-like kicks in one stretch
+    outside = np.ones(n, bool)
+    widths, centres = np.array([40, 40]), np.array([5000, 32000])
+    glob = breakaway.noise_max(abs_e, outside, widths, 1.0)
+    loc = breakaway.noise_max(abs_e, outside, widths, 1.0, centres)
+    assert glob[0] > 5.0  # the kicks reach the recording's 99th percentile
+    assert 3.0 <= loc[0] < 4.5  # the quiet part: the 99th percentile of the max of 64 |N(0, 1)|, ~3.8
+    assert loc[1] > 5.0  # beside the kicks they still count
+    fresh = np.abs(rng.standard_normal((4000, 64))).max(axis=1)
+    assert np.mean(fresh > loc[0]) <= breakaway.P_EXCEED
+
+
+def test_dwell_counts_a_hold_not_a_pass_through_zero():
+    """An event's dwell is its longest run of samples with the filtered velocity within
+    its noise: a hold of 40 samples, not a reversal that passes through zero."""
+
+    class Sig:
+        v_threshold = 1.0
+
+    # slows to a hold of 40 samples (plus the approach and departure within the noise),
+    # then, later, reverses fast through zero without a sample within the noise
+    v = np.r_[np.linspace(5, 0.5, 50), np.zeros(40), np.linspace(-0.5, -5, 50), [-5, -3, -1.5, 1.5, 3, 5], np.full(254, 5.0)]
+    Sig.vf = v
+    d = breakaway.dwell(Sig, np.array([0, 140]), np.array([140, 400]))
+    assert 40 <= d[0] <= 56
+    assert d[1] == 0
+
+
+@pytest.mark.parametrize("case,seed,proof", [
+    # a chirp rising past the sticking speeds: the held-out part never holds still
+    (Case("karnopp", 2.0, "pdi", "chirp", 5000.0), 100000, "training events held out from the fit"),
+    # an open loop under PRBS: kicks of misfit elsewhere leave the events' local margins low
+    (Case("karnopp", 2.0, "open", "prbs", 20000.0), 100008, "held-out part"),
+])  # fmt: skip
+def test_breakaway_proven_where_the_old_test_missed(case, seed, proof):
+    """Development recordings (offset 40000 of the proving-ground study) the breakaway
+    test of section 10d missed: found, and proven on events its fit did not use."""
+    rec, truth = recording(case, seed)
+    D = diagnose(rec)
+    f = next(f for f in D.findings if f.physics == "stribeck_friction")
+    ev = f.breakaway
+    assert ev is not None and ev["proof"] == proof
+    assert ev["p"] < ev["level"] and ev["p_test"] < 0.05
+    Fs, Fc = truth["Fs"], truth["Fc"]
+    assert Fc < f.params["Fs"] < 1.15 * Fs
+    if proof != "held-out part":
+        res = breakaway.test(D.design, D.final_fit)
+        assert res.n_rest_test == 0 and res.split is not None
+        # the events the fit used and those it is proven on are disjoint halves of the training part
+        assert res.split.n + res.split.n_test == res.n_train
+        assert "cannot test a breakaway" in f.where["text"]
+
+
+def test_null_chirp_whose_held_out_part_never_rests_names_nothing():
+    """A null recording whose held-out part holds no interval at rest: the alternative
+    proof on training events does not make a breakaway out of nothing."""
+    rec, _ = recording(Case("null", 0.0, "pdi", "chirp", 20000.0), 90034)
+    D = diagnose(rec)
+    assert not any(f.physics == "stribeck_friction" for f in D.findings)
+    res = breakaway.test(D.design, D.final_fit)
+    assert res.n_rest_test == 0 and res.split is not None
+    assert res.split.k == 0 and res.k == 0

@@ -29,8 +29,10 @@ the statistic is its peak ``|f|``; an event **exceeds** when the peak is beyond
 
 with ``g`` the largest ``|B(sgn(x'))|`` in the window (the switch of the sliding level
 through the filter, its overshoot included), ``noise`` the ``1 - P_NOISE`` quantile of
-the largest ``|f - Fc*sgn(x')|`` over windows of the event's width where the arm slides
-(:func:`noise_max`; a quantised sensor's step pulse added, :func:`step_pulse`), **and**
+the largest ``|f - Fc*sgn(x')|`` over windows of the event's width where the arm slides,
+**near the event** (the :data:`LOCAL_WINDOWS` nearest such windows: a misfit elsewhere,
+an open loop's PRBS kicks, does not raise every event's bound; :func:`noise_max`; a
+quantised sensor's step pulse added, :func:`step_pulse`), **and**
 the peak is a breakaway: it comes from rest and points where the arm then moves
 (:func:`_toward`).  Under the null an event exceeds with probability at most
 :data:`P_EXCEED`, and the test is the binomial tail ``P(X >= k; N, P_EXCEED)`` of the
@@ -50,14 +52,27 @@ filtered velocity): a breakaway faster than that is a step at rest.
 
 **Proof** on the held-out part: its own events must exceed the same bound (binomial
 tail at ``alpha``, no search), and the held-out exceeding events' median peak must lie
-above the sliding level's bound: "the test part's stuck intervals hold forces in
-``(Fc, Fs]``".  The finding's before/after errors are the held-out events' RMS
-excess over the model's static level through the filter (``g*Fc`` without, ``g*Fs``
-with the finding).
+above the sliding level's bound with a noise margin of ``Z_NOISE`` robust std
+(``level_bound``): "the test part's stuck intervals hold forces in ``(Fc, Fs]``".  The
+finding's before/after errors are the held-out events' RMS excess over the model's
+static level through the filter (``g*Fc`` without, ``g*Fs`` with the finding).
+
+**A held-out part that never rests** (a chirp rising past the sticking speeds: every
+held-out event passes through zero speed without a hold of :data:`REST_MIN` Butterworth
+time scales, :func:`dwell`) cannot show a breakaway, so its failure to confirm one says
+nothing.  There (and only there, a rule on the velocity, not on the forces) a finding
+the held-out part does not confirm gets a second, stated proof: the training events are
+split alternately, the test (at the same level) and the fit of ``Fs`` run on one half,
+and the other half must confirm it as the held-out part would.  Both halves are training
+events, so this proof is on events its test and fit did not use, not on a later part of
+the recording; the report says which proof was used (``proof``).  The first test on all
+training events must pass too, so the split adds no false alarm beyond that test's
+level.  When neither proves it, the finding is listed as not confirmed with the reason
+that the held-out part could not test it.
 """
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from functools import lru_cache
 
 import numpy as np
@@ -81,6 +96,12 @@ P_NOISE = 0.01
 P_EXCEED = 0.02
 #: fewer training events than this: not testable
 MIN_EVENTS = 5
+#: the local noise margin (:func:`noise_max`) is taken over the sliding windows within
+#: this many window widths around each event (about as many independent windows)
+LOCAL_WINDOWS = 100
+#: an event is **at rest** when its filtered velocity stays within its noise for at
+#: least this many Butterworth time scales (a hold long enough to show a breakaway)
+REST_MIN = 0.3
 
 
 @lru_cache(maxsize=16)
@@ -94,22 +115,46 @@ def filter_l1(order: int, wn: float) -> float:
     return float(np.abs(signal.filtfilt(b, a, z, padlen=3 * order)).sum())
 
 
-def noise_max(abs_e: np.ndarray, outside: np.ndarray, widths: np.ndarray, sigma: float) -> np.ndarray:
+def _pow2(widths: np.ndarray) -> np.ndarray:
+    return (2 ** np.ceil(np.log2(np.maximum(widths, 1)))).astype(int)
+
+
+def noise_max(abs_e: np.ndarray, outside: np.ndarray, widths: np.ndarray, sigma: float,
+              centres: np.ndarray | None = None) -> np.ndarray:
     """The noise margin of each event (F, (N,)): the ``1 - P_NOISE`` quantile of the
     largest ``|f - Fc*sgn(x')|`` over windows of the event's width (rounded up to a power
     of two) where the arm slides, outside every event: the recording's own noise and
     misfit, its tails and correlation included (a quantised sensor's pulses are not
     Gaussian; a window of thousands of samples reaches further into them than one of
     forty).  ``Z_NOISE*sigma`` at least, and where the sliding part has too few such
-    windows."""
+    windows.
+
+    With ``centres`` (full-rate samples, (N,)) the quantile is **local**: over the
+    sliding windows within :data:`LOCAL_WINDOWS` window widths of the event's centre
+    (the nearest ones, the neighbourhood widened until it holds that many), so that a
+    misfit elsewhere in the recording (an open loop's PRBS kicks, a chirp's fast end)
+    does not raise every event's bound; the recording's quantile where the sliding part
+    holds fewer windows than that."""
     z = np.where(outside, abs_e, np.inf)
     out = np.full(widths.size, Z_NOISE * sigma)
-    for L in np.unique(2 ** np.ceil(np.log2(np.maximum(widths, 1))).astype(int)):
+    L_of = _pow2(widths)
+    for L in np.unique(L_of):
         m = maximum_filter1d(z, size=int(L), mode="constant", cval=np.inf)
-        m = m[np.isfinite(m)]
-        if m.size >= 20 * L:
-            sel = 2 ** np.ceil(np.log2(np.maximum(widths, 1))).astype(int) == L
-            out[sel] = max(float(np.quantile(m, 1.0 - P_NOISE)), Z_NOISE * sigma)
+        ok = np.isfinite(m)
+        if np.count_nonzero(ok) < 20 * L:
+            continue
+        sel = np.flatnonzero(L_of == L)
+        if centres is None:
+            out[sel] = max(float(np.quantile(m[ok], 1.0 - P_NOISE)), Z_NOISE * sigma)
+            continue
+        pos = np.flatnonzero(ok)
+        need = int(min(LOCAL_WINDOWS * L, pos.size))
+        for j in sel:
+            # the `need` valid window positions nearest the event's centre
+            i = int(np.searchsorted(pos, centres[j]))
+            lo, hi = max(0, i - need // 2), min(pos.size, i + need // 2)
+            lo, hi = max(0, min(lo, hi - need)), min(pos.size, max(hi, lo + need))
+            out[j] = max(float(np.quantile(m[pos[lo:hi]], 1.0 - P_NOISE)), Z_NOISE * sigma)
     return out
 
 
@@ -126,6 +171,8 @@ class Events:
     train: np.ndarray
     bound: np.ndarray
     toward: np.ndarray
+    #: (N,) whether the arm is held at rest in the window (:func:`dwell`, :data:`REST_MIN`)
+    still: np.ndarray | None = None
 
 
 @dataclass
@@ -135,6 +182,9 @@ class Result:
     ``Fc``) and the held-out part's ``k_test`` of ``n_test`` and ``p_test``."""
 
     bound: float = 0.0
+    #: the sliding level's bound without the window maximum's margin, ``Z_NOISE`` robust
+    #: std instead (F; median over the events): the proof's typical held force must pass it
+    level_bound: float = 0.0
     sigma: float = 0.0
     l1: float = 1.0
     Fc: float = 0.0
@@ -150,25 +200,40 @@ class Result:
     Fs_test: float = 0.0
     excess_before: float = 0.0
     excess_after: float = 0.0
+    #: where the finding is proven: the held-out part's events, or (where that part
+    #: holds no interval at rest) the training events held out from the fit of ``Fs``
+    proof: str = "held-out part"
+    #: the held-out part's events at rest (:data:`REST_MIN`)
+    n_rest_test: int = 0
+    #: ``p`` over every training event (``p`` itself is over the events the test ran on)
+    p_all: float = 1.0
+    #: where the held-out part holds no event at rest: the same test with ``Fs`` fitted on
+    #: every other training event and proven on the others (module doc, "Proof")
+    split: "Result | None" = field(default=None, repr=False)
     note: str = ""
     events: Events | None = field(default=None, repr=False)
 
+    #: the training part's events (``n`` counts those the test ran on: all of them, or
+    #: every other one where the proof is on the others)
+    n_train: int = 0
+
     @property
     def testable(self) -> bool:
-        return self.n >= MIN_EVENTS
+        return self.n_train >= MIN_EVENTS
 
     def passes(self, level: float) -> bool:
         return self.testable and self.p < level
 
     def confirmed(self, alpha: float) -> bool:
-        return self.k_test > 0 and self.p_test < alpha and self.Fs_test > self.bound
+        return self.k_test > 0 and self.p_test < alpha and self.Fs_test > self.level_bound
 
     def evidence(self) -> dict:
         return {"test": "held forces at rest beyond the sliding level (binomial tail over events)",
-                "bound": self.bound, "sigma": self.sigma, "filter_l1": self.l1, "Fc": self.Fc,
+                "bound": self.bound, "level_bound": self.level_bound, "sigma": self.sigma, "filter_l1": self.l1, "Fc": self.Fc,
                 "events_train": self.n, "exceeding_train": self.k, "p": self.p,
                 "events_test": self.n_test, "exceeding_test": self.k_test, "p_test": self.p_test,
-                "Fs_test": self.Fs_test}  # fmt: skip
+                "Fs_test": self.Fs_test, "proof": self.proof, "events_at_rest_heldout": self.n_rest_test,
+                "p_all_training": self.p_all}  # fmt: skip
 
 
 def applicable(model, candidates) -> bool:
@@ -229,6 +294,19 @@ def marks(sig) -> np.ndarray:
     return m
 
 
+def dwell(sig, a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """(N,) the longest run of samples of each event ``[a, b)`` where the filtered
+    velocity is within its noise (samples): how long the arm was held there.  A
+    reversal that passes through zero without a hold has a run of 0-1 samples."""
+    still = np.abs(sig.vf) <= sig.v_threshold
+    out = np.zeros(a.size, int)
+    for j, (s, e) in enumerate(zip(a, b)):
+        d = np.diff(np.r_[0, still[s:e].astype(np.int8), 0])
+        up, dn = np.flatnonzero(d == 1), np.flatnonzero(d == -1)
+        out[j] = int((dn - up).max()) if up.size else 0
+    return out
+
+
 def _toward(f: np.ndarray, v: np.ndarray, rest: np.ndarray, s: int, i: int) -> bool:
     """Whether the peak held force ``f[i]`` of the event starting at ``s`` is a breakaway:
     it comes at or after a sample at rest, and points where the arm moves when it leaves
@@ -267,6 +345,29 @@ def step_pulse(sig, fit, step: float) -> float:
     return J * step * _step_accel(int(sig.settings.butter_order), float(sig.settings.cutoff(fs) / (fs / 2))) / sig.dt**2
 
 
+def _score(res: Result, over: np.ndarray, peak: np.ndarray, ref: np.ndarray, sigma: float, fit_ev: np.ndarray,
+           proof_ev: np.ndarray) -> None:
+    """Fill ``res``'s test (``k`` of ``n``, ``p``) and fit (``Fs``) on the events
+    ``fit_ev`` and its proof (``k_test`` of ``n_test``, ``p_test``, ``Fs_test``, the
+    excess before and after) on the events ``proof_ev`` ((N,) masks)."""
+    Fc = res.Fc
+    res.n, res.n_test = int(fit_ev.sum()), int(proof_ev.sum())
+    res.k, res.k_test = int((over & fit_ev).sum()), int((over & proof_ev).sum())
+    res.p = float(stats.binom.sf(res.k - 1, res.n, P_EXCEED)) if res.n else 1.0
+    res.p_test = float(stats.binom.sf(res.k_test - 1, res.n_test, P_EXCEED)) if res.n_test else 1.0
+    res.Fs = res.Fs_std = res.Fs_test = 0.0
+    if res.k:
+        pk = peak[over & fit_ev]
+        res.Fs = float(np.median(pk))
+        res.Fs_std = float(1.2533 * pk.std(ddof=1) / np.sqrt(pk.size)) if pk.size > 1 else float(sigma)
+    if res.k_test:
+        res.Fs_test = float(np.median(peak[over & proof_ev]))
+    if res.n_test:
+        pt, gt = peak[proof_ev], ref[proof_ev]
+        res.excess_before = float(np.sqrt(np.mean(np.maximum(pt - gt * Fc, 0.0) ** 2)))
+        res.excess_after = float(np.sqrt(np.mean(np.maximum(pt - gt * max(res.Fs, Fc), 0.0) ** 2)))
+
+
 def test(design, fit, step: float = 0.0) -> Result:
     """The breakaway test of ``fit`` (its model must hold ``coulomb_friction``), its fit and
     its held-out proof (module doc); ``step`` the position quantum of a quantised sensor
@@ -299,40 +400,42 @@ def test(design, fit, step: float = 0.0) -> Result:
     sigma = float(1.4826 * np.median(np.abs(e[outside] - np.median(e[outside]))))
     g = np.abs(sig.butter(sig.sign_v))  # the sliding level's switch through the filter, per unit Fc
     ref = np.array([g[s:e_].max() for s, e_ in zip(a, b)]) if a.size else np.zeros(0)
-    noise = noise_max(np.abs(e), outside, b - a, sigma)
+    noise = noise_max(np.abs(e), outside, b - a, sigma, (a + b) // 2)
     bounds = ref * (Fc + Z_FC * Fc_std) + MARGIN * Fc + noise
     bound = float(np.median(bounds)) if bounds.size else 0.0
-    bounds = bounds + step_pulse(sig, fit, step)
+    pulse = step_pulse(sig, fit, step)
+    bounds = bounds + pulse
+    res.level_bound = float(np.median(ref)) * (Fc + Z_FC * Fc_std) + MARGIN * Fc + Z_NOISE * sigma + pulse if a.size else 0.0
     peak, toward = np.zeros(a.size), np.zeros(a.size, bool)
     rest = marks(sig)
     for j, (s, e_) in enumerate(zip(a, b)):
         i = s + int(np.argmax(np.abs(f[s:e_])))
         peak[j] = abs(f[i])
         toward[j] = _toward(f, sig.vf, rest, s, i)
+    still = dwell(sig, a, b) >= REST_MIN * fs / sig.settings.cutoff(fs)
     last = int(np.flatnonzero(design.train_samples)[-1])
     train = b <= last
     test_ = a > last
-    res.events = Events(a, b, peak, train, bounds, toward)
+    res.events = Events(a, b, peak, train, bounds, toward, still)
     res.bound, res.sigma, res.l1, res.Fc, res.Fc_std = bound, sigma, l1, Fc, Fc_std
-    res.n, res.n_test = int(train.sum()), int(test_.sum())
+    res.n_rest_test = int((still & test_).sum())
     over = (peak > bounds) & toward
-    res.k, res.k_test = int((over & train).sum()), int((over & test_).sum())
-    res.p = float(stats.binom.sf(res.k - 1, res.n, P_EXCEED)) if res.n else 1.0
-    res.p_test = float(stats.binom.sf(res.k_test - 1, res.n_test, P_EXCEED)) if res.n_test else 1.0
-    if res.k:
-        pk = peak[over & train]
-        res.Fs = float(np.median(pk))
-        res.Fs_std = float(1.2533 * pk.std(ddof=1) / np.sqrt(pk.size)) if pk.size > 1 else float(sigma)
-    if res.k_test:
-        res.Fs_test = float(np.median(peak[over & test_]))
-    if res.n_test:
-        pt, gt = peak[test_], ref[test_]
-        res.excess_before = float(np.sqrt(np.mean(np.maximum(pt - gt * Fc, 0.0) ** 2)))
-        res.excess_after = float(np.sqrt(np.mean(np.maximum(pt - gt * max(res.Fs, Fc), 0.0) ** 2)))
+    res.n_train = int(train.sum())
+    _score(res, over, peak, ref, sigma, train, test_)
+    res.p_all = res.p
+    if res.n_rest_test == 0 and res.n_train >= MIN_EVENTS:
+        # the held-out part holds no interval at rest (a chirp past the sticking speeds):
+        # it cannot show a breakaway.  The alternative proof: the test and the fit of Fs
+        # on every other training event, the proof on the others (module doc, "Proof")
+        idx = np.flatnonzero(train)
+        fit_ev, proof_ev = np.zeros(a.size, bool), np.zeros(a.size, bool)
+        fit_ev[idx[0::2]], proof_ev[idx[1::2]] = True, True
+        res.split = replace(res, proof="training events held out from the fit", split=None)
+        _score(res.split, over, peak, ref, sigma, fit_ev, proof_ev)
     if not res.testable:
-        res.note = f"{res.n} events at rest or reversing in the training part (need {MIN_EVENTS})"
+        res.note = f"{res.n_train} events at rest or reversing in the training part (need {MIN_EVENTS})"
     return res
 
 
-__all__ = ["Events", "MIN_EVENTS", "Result", "applicable", "events", "filter_l1", "held_force", "marks", "noise_max", "step_pulse",
+__all__ = ["Events", "MIN_EVENTS", "Result", "applicable", "events", "filter_l1", "held_force", "marks", "noise_max", "step_pulse", "dwell",
            "test"]

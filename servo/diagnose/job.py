@@ -396,6 +396,9 @@ def _breakaway(design: Design, fit: Fit, rounds: list, errs: list, nr: list, opt
     res = breakaway_mod.test(design, fit, step)
     if not res.passes(level):
         return None, None
+    alt = res.split  # the held-out part holds no interval at rest: proven on training events held out from the fit
+    if not res.confirmed(opt.alpha) and alt is not None and alt.passes(level) and alt.confirmed(opt.alpha):
+        res = alt
     vs = float(design.sig.v_threshold)
     term = Term.make("stribeck_friction", {"stribeck_velocity": vs}, (res.Fs - res.Fc,))
     ev = {**res.evidence(), "level": level}
@@ -405,13 +408,23 @@ def _breakaway(design: Design, fit: Fit, rounds: list, errs: list, nr: list, opt
     before = {"force_rel_pct": errs[-1], "output_nrmse": nr[-1], "held_excess_rms": res.excess_before}
     after = {"force_rel_pct": errs[-1], "output_nrmse": nr[-1], "held_excess_rms": res.excess_after}
     f.before, f.after = before, after
-    f.where = {"text": f"at rest: {res.k} of {res.n} training and {res.k_test} of {res.n_test} held-out intervals at rest "
-                       f"or reversing hold forces beyond the sliding level's bound {res.bound:.3g} (Fc {res.Fc:.3g}); "
-                       f"breakaway Fs {res.Fs:.3g} (held-out {res.Fs_test:.3g})"}  # fmt: skip
+    if res.proof == "held-out part":
+        counts = f"{res.k} of {res.n} training and {res.k_test} of {res.n_test} held-out intervals"
+    else:  # the held-out part holds no interval at rest: proven on training events the fit did not use
+        counts = (f"the held-out part holds no interval at rest, so it cannot test a breakaway; {res.k} of {res.n} "
+                  f"training intervals (every other one) and {res.k_test} of {res.n_test} training intervals held out "
+                  f"from that test and fit")  # fmt: skip
+    f.where = {"text": f"at rest: {counts} at rest or reversing hold forces beyond the sliding level's bound "
+                       f"{res.bound:.3g} (Fc {res.Fc:.3g}); breakaway Fs {res.Fs:.3g} (proof {res.Fs_test:.3g})"}  # fmt: skip
     if res.confirmed(opt.alpha):
         return f, None
     ev["reason"] = (f"the held-out part's intervals at rest do not hold forces beyond the sliding level "
                     f"({res.k_test} of {res.n_test}, p {res.p_test:.3g} against {opt.alpha:g})")  # fmt: skip
+    if alt is not None:  # say that the held-out part could not test it, and what the split gave
+        ev["reason"] = (f"not proven: the held-out part holds no interval at rest, so it cannot test a breakaway "
+                        f"({res.k_test} of {res.n_test} of its events beyond the bound), and the training events "
+                        f"held out from the fit do not confirm it ({alt.k} of {alt.n} fitted, p {alt.p:.3g} against "
+                        f"{level:.3g}; {alt.k_test} of {alt.n_test} held out, p {alt.p_test:.3g} against {opt.alpha:g})")  # fmt: skip
     return None, (f, before, after)
 
 
