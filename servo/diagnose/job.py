@@ -350,10 +350,10 @@ def _quantization(rec: Recording, opt: Options, base: Model, design: Design, H: 
                        f"the rows now stop at {0.4 / d2.sig.row_dt:.3g} Hz (decimation by {s2.decimate})"}  # fmt: skip
     if p < level and nr2 < nr0:
         return q, d2, lat, ""
-    return _quantum_on_default_rows(design, fit0, lat, level, q, nr0)
+    return _quantum_on_default_rows(design, fit0, lat, level, q)
 
 
-def _quantum_on_default_rows(design: Design, fit0: Fit, lat: Lattice, level: float, q: Finding, nr0: float):
+def _quantum_on_default_rows(design: Design, fit0: Fit, lat: Lattice, level: float, q: Finding):
     """A quantum that no narrower band predicts better, named on the default rows where
     its noise is a share of the held-out error that matters
     (:mod:`servo.diagnose.quantization`): the test part's positions on the training
@@ -599,7 +599,7 @@ def diagnose(rec: Recording, opt: Options | None = None) -> Diagnosis:
     scope = verdict_mod.out_of_scope(final.combined().get("inertia", {}).get("J"), J_std,
                                      force_error_pct(design, final, design.train_valid))
     sensor = ""
-    if qfind is not None and qfind.quant_heldout is not None:  # a quantum named on the default rows
+    if qfind is not None and qfind.quant_heldout is not None and len(findings) == 1:  # the quantum alone, on these rows
         sensor = (f"of which the position sensor's quantum ({qfind.params['step']:.3g} m) makes "
                   f"{100 * qfind.params['share_of_heldout_rms']:.0f} % (named from the lattice the held-out positions "
                   "lie on; a narrower band does not predict better)")  # fmt: skip
@@ -621,7 +621,8 @@ def diagnose(rec: Recording, opt: Options | None = None) -> Diagnosis:
         rec=rec, opt=opt, sig=sig, design=design, baseline=base, baseline_fit=fits[0], final_fit=final,
         findings=findings, unconfirmed=unconfirmed, rounds=rounds, not_testable=not_testable, implausible=implausible,
         residual_before=r_before, residual_after=r_after, test_rows=test_rows, locate=loc, state=variables,
-        pred_before=qfind.prediction if qfind is not None and qfind.prediction is not None else preds[0], pred_after=preds[-1], errors=errors,
+        pred_before=qfind.prediction if qfind is not None and qfind.prediction is not None else preds[0],
+        pred_after=preds[-1], errors=errors,
         lattice=lattice, verdict=verdict, band_note=band_note, frf=frf, frf_terms=frf_terms,
         simulate_note="; ".join(x for x in (note, qnote) if x),
     )  # fmt: skip
