@@ -214,8 +214,7 @@ def _change(f: dict) -> str:
              if b.get("output_nrmse") is not None and a.get("output_nrmse") is not None else "")  # fmt: skip
         return f"held-out frequency-response departure (sum of z^2) {b['frf_sse']:.4g} -> {a['frf_sse']:.4g}{o}"
     if a.get("rows_differ") is False and "share_of_heldout_rms" in f.get("params", {}):  # a quantum on the default rows
-        return (f"its noise makes {100 * f['params']['share_of_heldout_rms']:.0f} % of the held-out residual "
-                f"({_err(b)}; the rows unchanged)")  # fmt: skip
+        return f"{_err(b)}, unchanged (the rows stay; named for its share of the held-out residual)"
     if a.get("rows_differ"):
         return (f"output NRMSE {b['output_nrmse']:.3g} -> {a['output_nrmse']:.3g} (force error {b['force_rel_pct']:.3g} % "
                 f"-> {a['force_rel_pct']:.3g} %, on the narrower rows)")  # fmt: skip
