@@ -32,7 +32,7 @@ with the input, which input-dependent terms then fit.
   the baseline on the default rows is already at its floor: the floor is estimated
   from the data and holds the quantum's ``q^2/12``, so nothing predicts better on a
   narrower band, yet the quantum makes half the held-out error (the same recording
-  without it: 41-44 % lower held-out RMS at a quantum of 5 noise std, 96 % at 100).
+  without it: 38-46 % lower held-out RMS at a quantum of 5 noise std, 94-98 % at 100).
   The rows then stay as they are and the quantum is named on two held-out facts: the
   test part's positions lie on the training part's lattice (binomial tail at the
   level), and the quantum's white noise, ``q/sqrt(12)`` through the acceleration path

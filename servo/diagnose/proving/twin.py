@@ -5,9 +5,9 @@ The study's *effect on the held-out error* of a recording (``1 - 1/base_ratio``,
 noise floor the recording implies.  That floor is estimated from the data (what the
 Butterworth removes from the position), so it holds a quantum's own noise: a quantised
 recording's baseline sits near "its" floor whatever the quantum, and the measure says
-the quantum changes nothing.  It does: on development seeds (offset 40000, 12 per size)
-the same recording without the quantum has a held-out RMS residual 41-44 % lower at a
-quantum of 5 noise std, 61-68 % at 10, 87-93 % at 30 and 95-98 % at 100
+the quantum changes nothing.  It does: on development seeds (offsets 40000 and 45000, 12 per
+size) the same recording without the quantum has a held-out RMS residual 38-46 % lower
+at a quantum of 5 noise std, 61-69 % at 10, 86-90 % at 30 and 94-98 % at 100
 (docs/diagnosis.md, 10g).
 
 :func:`quantum_effect` measures it so: the baseline of eq. (3) fitted on the training
