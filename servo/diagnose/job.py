@@ -40,7 +40,8 @@ from servo.diagnose import partial
 from servo.diagnose import verdict as verdict_mod
 from servo.diagnose.fit import Fit, fit_model, force_error_pct
 from servo.diagnose.model import Design, Model, Term
-from servo.diagnose.quantization import Lattice, candidate_paths, improvement_test, lattice_test
+from servo.diagnose.quantization import (MIN_FRACTION, SHARE_MIN, Lattice, candidate_paths, error_share,
+                                         heldout_on_lattice, improvement_test, lattice_test, quantum_floor)
 from servo.diagnose.select import ALPHA, N_BLOCKS, Grams, Score, Selector, integrated_time, make_blocks
 from servo.diagnose.signals import Signals, distance_since_reversal, make_signals
 from servo.diagnose.simulate import Prediction, Unsimulable, horizon_samples, predict, starts_in
@@ -97,6 +98,8 @@ class Finding:
     theta_std: dict
     lattice: Lattice | None = None
     quant_test: tuple | None = None
+    #: a quantum named on the default rows: its held-out evidence (:func:`_quantum_on_default_rows`)
+    quant_heldout: dict | None = None
     before: dict = field(default_factory=dict)
     after: dict = field(default_factory=dict)
     where: dict = field(default_factory=dict)
@@ -347,7 +350,36 @@ def _quantization(rec: Recording, opt: Options, base: Model, design: Design, H: 
                        f"the rows now stop at {0.4 / d2.sig.row_dt:.3g} Hz (decimation by {s2.decimate})"}  # fmt: skip
     if p < level and nr2 < nr0:
         return q, d2, lat, ""
-    return None, design, lat, f"quantised sensor (step {lat.step:.3g} m) but a narrower band does not predict better"
+    return _quantum_on_default_rows(design, fit0, lat, level, q)
+
+
+def _quantum_on_default_rows(design: Design, fit0: Fit, lat: Lattice, level: float, q: Finding):
+    """A quantum that no narrower band predicts better, named on the default rows where
+    its noise is a share of the held-out error that matters
+    (:mod:`servo.diagnose.quantization`): the test part's positions on the training
+    part's lattice, and the quantum's white noise at least ``SHARE_MIN`` of the
+    baseline's RMS residual on the test rows.  Returns :func:`_quantization`'s tuple."""
+    sig = design.sig
+    nope = f"quantised sensor (step {lat.step:.3g} m) but a narrower band does not predict better"
+    frac_te, p_te = heldout_on_lattice(sig.x[~design.train_samples], lat)
+    test = ~design.train_rows & sig.valid
+    J = fit0.combined().get("inertia", {}).get("J", 0.0)
+    rms = float(np.sqrt(np.mean(fit0.residual[test] ** 2))) if test.any() else 0.0
+    floor_q = quantum_floor(lat.step, J, sig.settings, 1.0 / sig.dt)
+    share = error_share(floor_q, rms)
+    q.quant_heldout = {"heldout_fraction_on_lattice": frac_te, "heldout_lattice_p": p_te, "quantum_floor": floor_q,
+                       "heldout_rms": rms, "share_of_heldout_rms": share}  # fmt: skip
+    if not (p_te < level and frac_te >= MIN_FRACTION and share >= SHARE_MIN):
+        return None, design, lat, f"{nope}, and its noise makes {100 * share:.0f} % of the held-out residual"
+    s = sig.settings
+    q.params.update(decimate=float(s.decimate), cutoff_hz=s.cutoff(1.0 / sig.dt), share_of_heldout_rms=share)
+    q.after = {**q.before, "rows_differ": False}
+    q.prediction = None
+    q.where = {"text": f"every sample: positions on a {lat.step:.3g} m lattice ({100 * lat.fraction:.0f} % of the "
+                       f"training samples, {100 * frac_te:.0f} % of the held-out ones); its noise makes "
+                       f"{100 * share:.0f} % of the baseline's held-out residual; the rows stay (a narrower band "
+                       "does not predict better)"}  # fmt: skip
+    return q, design, lat, ""
 
 
 def _prove(design: Design, base: Model, findings: list, test_rows: np.ndarray, starts: np.ndarray, H: int):
@@ -519,6 +551,9 @@ def diagnose(rec: Recording, opt: Options | None = None) -> Diagnosis:
         implausible.update({f.physics: f"the recording is out of scope: {why}" for f in findings})
         findings = []
         fits, errs, nr, preds, unconfirmed, note = _prove(design, base, findings, test_rows, starts_test, H)
+    if qfind is not None and not qfind.after.get("rows_differ"):  # named on these rows: errors unchanged by it
+        qfind.before = {"force_rel_pct": errs[0], "output_nrmse": nr[0]}
+        qfind.after = {**qfind.before, "rows_differ": False}
     for i, f in enumerate(findings):
         f.before = {"force_rel_pct": errs[i], "output_nrmse": nr[i]}
         f.after = {"force_rel_pct": errs[i + 1], "output_nrmse": nr[i + 1]}
@@ -576,12 +611,17 @@ def diagnose(rec: Recording, opt: Options | None = None) -> Diagnosis:
     J_std = final.term_std(ji).get("J") if ji is not None and final.model.terms[ji].free else 0.0
     scope = verdict_mod.out_of_scope(final.combined().get("inertia", {}).get("J"), J_std,
                                      force_error_pct(design, final, design.train_valid))
+    sensor = ""
+    if qfind is not None and qfind.quant_heldout is not None and len(findings) == 1:  # the quantum alone, on these rows
+        sensor = (f"of which the position sensor's quantum ({qfind.params['step']:.3g} m) makes "
+                  f"{100 * qfind.params['share_of_heldout_rms']:.0f} % (named from the lattice the held-out positions "
+                  "lie on; a narrower band does not predict better)")  # fmt: skip
     verdict = verdict_mod.decide(base_checks, final_checks, len(findings), scope, opt.force_unit,
-                                 tuple(f"breakaway ({f.physics})" for f in findings if f.breakaway is not None))
+                                 tuple(f"breakaway ({f.physics})" for f in findings if f.breakaway is not None), sensor)
     verdict.update(baseline_checks=base_checks, final_checks=final_checks)
 
     base_err = {"force_rel_pct": errs[0], "output_nrmse": nr[0]}
-    if qfind is not None:
+    if qfind is not None and qfind.after.get("rows_differ"):
         base_err = qfind.before
     errors = {
         "train_force_rel_pct": {"before": force_error_pct(design, fits[0], design.train_valid),
@@ -594,7 +634,8 @@ def diagnose(rec: Recording, opt: Options | None = None) -> Diagnosis:
         rec=rec, opt=opt, sig=sig, design=design, baseline=base, baseline_fit=fits[0], final_fit=final,
         findings=findings, unconfirmed=unconfirmed, rounds=rounds, not_testable=not_testable, implausible=implausible,
         residual_before=r_before, residual_after=r_after, test_rows=test_rows, locate=loc, state=variables,
-        pred_before=qfind.prediction if qfind is not None else preds[0], pred_after=preds[-1], errors=errors,
+        pred_before=qfind.prediction if qfind is not None and qfind.prediction is not None else preds[0],
+        pred_after=preds[-1], errors=errors,
         lattice=lattice, verdict=verdict, band_note=band_note, frf=frf, frf_terms=frf_terms,
         simulate_note="; ".join(x for x in (note, qnote) if x),
     )  # fmt: skip

@@ -143,12 +143,11 @@ def plot_fits(D: Diagnosis, path: Path | None = None) -> Figure:
     ax[1].plot(t[z], np.where(vz, D.final_fit.residual[z], np.nan) * k, color="k", lw=0.8, label="final model")
     ax[1].set_ylabel(f"residual ({unit})")
     e = D.errors
-    rows = " (quantisation-aware rows; the force error before is on the default rows)" if any(
-        f.physics == "quantization" for f in D.findings) else ""
+    moved = any(f.physics == "quantization" and f.after.get("rows_differ") for f in D.findings)
+    rows = " (quantisation-aware rows; the force error before is on the default rows)" if moved else ""
     ax[0].set_title(f"{_title(D)}\nheld-out part: force error {e['test_force_rel_pct']['before']:.3g} % -> "
                     f"{e['test_force_rel_pct']['after']:.3g} %{rows}")  # fmt: skip
     if D.pred_before is not None:
-        moved = any(f.physics == "quantization" for f in D.findings)
         before = "baseline (default path)" if moved else "baseline"
         for pred, col, lab in ((D.pred_before, "tab:red", before), (D.pred_after, "k", "final model")):
             eb, _ = pred.sse()

@@ -57,6 +57,10 @@ def _evidence(f: Finding) -> dict:
         return {k: v for k, v in f.frf.items() if k != "reason"}
     if f.breakaway is not None:
         return {k: v for k, v in f.breakaway.items() if k != "reason"}
+    if f.physics == "quantization" and f.quant_heldout is not None:  # named on the default rows
+        return {"test": "lattice, held-out lattice + share of the held-out residual", "fraction_on_lattice":
+                f.lattice.fraction, "lattice_p": f.lattice.p, "output_t": f.quant_test[0], "output_p": f.quant_test[1],
+                **f.quant_heldout, "level": f.level}  # fmt: skip
     if f.physics == "quantization":
         return {"test": "lattice + output improvement", "fraction_on_lattice": f.lattice.fraction,
                 "lattice_p": f.lattice.p, "output_t": f.quant_test[0], "output_p": f.quant_test[1], "level": f.level}  # fmt: skip
@@ -209,6 +213,8 @@ def _change(f: dict) -> str:
         o = (f"; output NRMSE {b['output_nrmse']:.3g} -> {a['output_nrmse']:.3g}"
              if b.get("output_nrmse") is not None and a.get("output_nrmse") is not None else "")  # fmt: skip
         return f"held-out frequency-response departure (sum of z^2) {b['frf_sse']:.4g} -> {a['frf_sse']:.4g}{o}"
+    if a.get("rows_differ") is False and "share_of_heldout_rms" in f.get("params", {}):  # a quantum on the default rows
+        return f"{_err(b)}, unchanged (the rows stay; named for its share of the held-out residual)"
     if a.get("rows_differ"):
         return (f"output NRMSE {b['output_nrmse']:.3g} -> {a['output_nrmse']:.3g} (force error {b['force_rel_pct']:.3g} % "
                 f"-> {a['force_rel_pct']:.3g} %, on the narrower rows)")  # fmt: skip

@@ -285,10 +285,12 @@ def out_of_scope(J: float | None, J_std: float | None, train_force_pct: float | 
 
 
 def decide(base: dict, final: dict, n_findings: int, scope: str, force_unit: str = "F",
-           outside_rows: tuple = ()) -> dict:  # fmt: skip
+           outside_rows: tuple = (), sensor: str = "") -> dict:  # fmt: skip
     """The verdict from the checks on the baseline and on the final model (module doc).
     ``outside_rows``: findings proven on evidence the rows do not hold (a breakaway from
-    the intervals at rest): named in an ``unexplained`` text, which is about the rows."""
+    the intervals at rest): named in an ``unexplained`` text, which is about the rows.
+    ``sensor``: what a sensor finding that left the rows as they were (a quantum named on
+    the default rows) makes of their floor, said when the rows were at it."""
     if scope:
         return {"verdict": "out_of_scope", "text": scope}
     lv = final["level"]
@@ -298,6 +300,9 @@ def decide(base: dict, final: dict, n_findings: int, scope: str, force_unit: str
                     "text": f"the model explains the recording to its noise: held-out residual {lv['ratio']:.3g} x the "
                             "noise floor the position noise implies, no structure, no train/test gap"}  # fmt: skip
         b = base["level"]
+        if sensor and not outside_rows and not base["failed"]:  # the rows' floor is partly the sensor's
+            return {"verdict": "explained",
+                    "text": f"the rows were at their noise with the baseline ({b['ratio']:.3g} x the floor), {sensor}"}
         if outside_rows and not base["failed"]:  # the rows had nothing to explain
             return {"verdict": "explained",
                     "text": f"the rows were at their noise with the baseline ({b['ratio']:.3g} x the floor); what it "

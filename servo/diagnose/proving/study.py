@@ -8,8 +8,10 @@ Null recordings cycle through every controller, excitation and rate of
 each seed on the next combination.  Per recording: the findings, the verdict and the
 baseline's held-out residual over the noise floor (``base_ratio``).  A family's
 *effect on the held-out error* is ``1 - 1/base_ratio``: the share of the baseline's
-held-out RMS error that a model reaching the noise floor removes; detection is reported
-over the recordings where it is at least 20 %.  Writes ``study.json`` and ``study.md``.
+held-out RMS error that a model reaching the noise floor removes (for a sensor quantum,
+whose noise that floor holds, the share the same recording without the quantum does not
+have: :mod:`servo.diagnose.proving.twin`); detection is reported over the recordings
+where it is at least 20 %.  Writes ``study.json`` and ``study.md``.
 The diagnoses run on Dask through the fleet's path
 (:func:`servo.fleet.runner.map_batches`), in batches of :data:`BATCH` recordings, each
 made by the worker from its ``(family, size, seed)``; the runs come back in the jobs'
@@ -60,6 +62,10 @@ def run_one(job: tuple) -> dict:
     except Exception as exc_:  # a study records failures instead of stopping
         return {**out, "error": f"{type(exc_).__name__}: {str(exc_)[:200]}"}
     v = D.verdict
+    if family == "quantization":  # the data's floor holds the quantum's noise: measured against its twin
+        from servo.diagnose.proving.twin import quantum_effect
+
+        out["effect"] = quantum_effect(Case(family, size, ctl, exc, rate), seed)
     return {**out, "seconds": time.perf_counter() - t0, "findings": [f.physics for f in D.findings],
             "verdict": v["verdict"], "expect": truth["expect"], "verdicts": truth["verdicts"],
             "decimate": int(D.sig.settings.decimate),
@@ -106,6 +112,13 @@ def _rate(k, n):
     return f"{k}/{n} ({ci(k, n)})" if n else "-"
 
 
+def effect(r: dict) -> float:
+    """A study record's effect on the held-out error: ``1 - 1/base_ratio`` (module doc), or
+    for a sensor quantum, whose noise the data's floor holds, against the same recording
+    without it (:mod:`servo.diagnose.proving.twin`)."""
+    return r["effect"] if "effect" in r else 1 - 1 / max(r["base_ratio"], 1e-300)
+
+
 def tables(runs: list) -> str:
     ok = [r for r in runs if "error" not in r]
     nulls = [r for r in ok if r["family"] == "null"]
@@ -136,7 +149,7 @@ def tables(runs: list) -> str:
         rs = [r for r in ok if r["family"] == name]
         if not rs:
             continue
-        big = [r for r in rs if 1 - 1 / max(r["base_ratio"], 1e-300) >= EFFECT_MIN]
+        big = [r for r in rs if effect(r) >= EFFECT_MIN]
         hit = (lambda r: named_right(r)) if fam.expect else (lambda r: not r["findings"])
         right = sum(r["verdict"] in r["verdicts"] for r in rs)
         lines.append(f"| `{name}` ({fam.what}) | {fam.expect or '(none)'}{' ' + fam.also if fam.also else ''} | {', '.join(f'{s:g}' for s in fam.sizes)} | "
@@ -145,7 +158,7 @@ def tables(runs: list) -> str:
     lines += ["", f"| excitation | effect recordings with effect >= {100 * EFFECT_MIN:.0f} % | detected |", "|---|---|---|"]
     for exc in EXCITATIONS:
         sel = [r for r in ok if r["family"] != "null" and FAMILIES[r["family"]].expect and r["excitation"] == exc
-               and 1 - 1 / max(r["base_ratio"], 1e-300) >= EFFECT_MIN]  # fmt: skip
+               and effect(r) >= EFFECT_MIN]  # fmt: skip
         lines.append(f"| {exc} | {len(sel)} | {_rate(sum(map(named_right, sel)), len(sel))} |")
     errs = [r for r in runs if "error" in r]
     if errs:
