@@ -78,7 +78,7 @@ def test_every_compensator_term_runs_the_same_bits_through_the_emulator_in_locks
     """The augmented compensator (every term, the authority on) against the simulated
     drive and against the device emulator over a pty: the same log, every column, every
     bit; and the terms did act (u_c moves beyond eq. 9's range, bounded by the authority)."""
-    base = Config().replace(run={"duration_s": 0.1}, link={"watchdog_s": 2.0},
+    base = Config().replace(run={"duration_s": 0.1}, link={"watchdog_s": 2.0, "timeout_s": 2.0},
                             scenario={"step_times": [0.01, 0.03, 0.05, 0.07], "disturbance_start": 0.08})  # fmt: skip
     cfg = base.replace(**ALL_TERMS)
     sim = _log(cfg, SimDriver(cfg, scenario_inputs(cfg)))

@@ -87,7 +87,7 @@ def lockstep_emulator(tmp_path_factory):
 @pytest.mark.parametrize("d,b", [(0, 1), (3, 2), (8, 8)])
 def test_lockstep_through_the_emulator_is_bit_identical_to_the_simulator(lockstep_emulator, d, b, tmp_path):
     url, _ = lockstep_emulator
-    cfg = CFG.replace(link={"command_latency_ticks": d, "batch": b, "watchdog_s": 2.0})
+    cfg = CFG.replace(link={"command_latency_ticks": d, "batch": b, "watchdog_s": 2.0, "timeout_s": 2.0})
     sim = run_log(cfg, SimDriver(cfg, scenario_inputs(cfg)), tmp_path, "sim")
     drv = SerialDriver(cfg, url)
     hil = run_log(cfg, drv, tmp_path, "hil")
@@ -104,7 +104,7 @@ def test_another_controller_kind_runs_through_the_link_unchanged(lockstep_emulat
     """The track-following kind (its own records and log column) over the serial link: the
     same bits as on the simulated drive, with no edit outside its module."""
     url, _ = lockstep_emulator
-    cfg = CFG.replace(controller={"kind": "track"}, link={"watchdog_s": 2.0})
+    cfg = CFG.replace(controller={"kind": "track"}, link={"watchdog_s": 2.0, "timeout_s": 2.0})
     sim = run_log(cfg, SimDriver(cfg, scenario_inputs(cfg)), tmp_path, "sim")
     hil = run_log(cfg, SerialDriver(cfg, url), tmp_path, "hil")
     assert hil.shape == sim.shape == (10_000, len(LOG_COLUMNS) + 1)  # + the kind's "pes" column
@@ -391,10 +391,13 @@ def test_a_corrupt_answer_to_hello_is_reported_as_corrupt_not_as_silence():
 
 
 def test_an_emulator_interrupted_mid_session_says_which_session(lockstep_emulator, tmp_path):
+    # a watchdog far beyond the signal's delivery: the interrupt, not the board's own
+    # 50 ms watchdog, must end the session, also on a loaded machine
+    cfg = CFG.replace(link={"watchdog_s": 5.0})
     cfg_file = tmp_path / "cfg.toml"
-    cfg_file.write_text(to_toml(CFG))
+    cfg_file.write_text(to_toml(cfg))
     with emulator("--pty", "--config", str(cfg_file)) as (emu, url):
-        drv = SerialDriver(CFG, url)
+        drv = SerialDriver(cfg, url)
         drv.configure()
         drv.activate()
         drv.read()
