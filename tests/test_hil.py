@@ -49,9 +49,9 @@ def servo_cmd(*args):
 def emulator(*args, timeout=60.0):
     """``servo emulate ARGS`` in a subprocess; yields (process, url).  Always ends it."""
     proc = subprocess.Popen(servo_cmd("emulate", *args), stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    proc.pending = b""  # stdout read by _read_line only
     try:
-        ready, _, _ = select.select([proc.stdout], [], [], timeout)
-        line = proc.stdout.readline() if ready else ""
+        line = _read_line(proc, time.monotonic() + timeout) or ""
         m = re.search(r"listening on (\S+)", line)
         assert m, f"emulator did not start: {line!r} {proc.stderr.read() if proc.poll() is not None else ''}"
         yield proc, m.group(1)
@@ -324,17 +324,27 @@ def test_emulate_rejects_bad_options_in_one_line(cli):
 # ---------------------------------------------------------------- safe state in every board state (issue 9)
 
 
+def _read_line(proc, deadline: float) -> str | None:
+    """The emulator's next stdout line, or None at EOF or ``deadline`` (monotonic s).
+    Read from the pipe's descriptor with our own buffer: a ``select`` on the pipe beside
+    the text wrapper's ``readline`` would miss lines the wrapper has already buffered
+    (two lines arriving together, as a fault line and the interrupt's)."""
+    fd = proc.stdout.fileno()
+    while b"\n" not in proc.pending:
+        ready, _, _ = select.select([fd], [], [], max(0.0, deadline - time.monotonic()))
+        chunk = os.read(fd, 4096) if ready else b""
+        if not chunk:
+            return None
+        proc.pending += chunk
+    line, _, proc.pending = proc.pending.partition(b"\n")
+    return line.decode() + "\n"
+
+
 def _wait_session_line(proc, needle: str, timeout: float = 10.0) -> str:
     """Read the emulator's stdout until a line containing ``needle`` (or fail)."""
     end = time.monotonic() + timeout
     seen = []
-    while time.monotonic() < end:
-        ready, _, _ = select.select([proc.stdout], [], [], max(0.0, end - time.monotonic()))
-        if not ready:
-            break
-        line = proc.stdout.readline()
-        if not line:
-            break
+    while (line := _read_line(proc, end)) is not None:
         seen.append(line)
         if needle in line:
             return line
