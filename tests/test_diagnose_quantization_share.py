@@ -67,7 +67,7 @@ def test_a_quantum_of_five_noise_std_is_named_on_the_default_rows():
     quantum has a 41 % lower held-out residual: the quantum is named first, the rows
     stay, and its share of the held-out residual matches that twin."""
     from servo.diagnose.proving.cases import Case, recording
-    from servo.diagnose.proving.twin import quantum_effect
+    from servo.diagnose.proving.twin import twin_effect
 
     case, seed = Case("quantization", 5.0, "pdi", "chirp", 1000.0), 100001
     rec, _ = recording(case, seed)
@@ -76,7 +76,7 @@ def test_a_quantum_of_five_noise_std_is_named_on_the_default_rows():
     f = D.findings[0]
     assert f.after["rows_differ"] is False and D.sig.settings.decimate == f.params["decimate"]
     assert f.quant_heldout["heldout_fraction_on_lattice"] == 1.0
-    effect = quantum_effect(case, seed)
+    effect = twin_effect(case, seed)
     assert effect >= SHARE_MIN
     assert f.params["share_of_heldout_rms"] == pytest.approx(effect, abs=0.1)
     assert D.verdict["verdict"] == "explained" and "quantum" in D.verdict["text"]

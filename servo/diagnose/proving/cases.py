@@ -246,7 +246,7 @@ def _params(case: Case, rng) -> tuple[np.ndarray, np.ndarray, np.ndarray, dict]:
     elif fam == "delay":
         p[ig.P_DELAY] = s / fs
     elif fam == "sensor_lowpass":
-        p[ig.P_SENSOR_HZ] = fs / s
+        p[ig.P_SENSOR_HZ] = fs / s if s > 0 else 0.0  # size 0 (a twin): no low-pass
     elif fam == "quantization":
         p[ig.P_QUANTUM] = s * p[ig.P_NOISE]
     p[ig.P_DV] = 1e-3 * p[ig.P_NOISE] * fs

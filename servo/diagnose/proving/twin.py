@@ -1,20 +1,26 @@
-"""A sensor quantum's effect on the held-out error, measured against the same recording without it.
+"""An effect's size on the held-out error, measured against the same recording without it.
 
-The study's *effect on the held-out error* of a recording (``1 - 1/base_ratio``,
-:mod:`servo.diagnose.proving.study`) holds the baseline's held-out residual against the
-noise floor the recording implies.  That floor is estimated from the data (what the
-Butterworth removes from the position), so it holds a quantum's own noise: a quantised
-recording's baseline sits near "its" floor whatever the quantum, and the measure says
-the quantum changes nothing.  It does: on development seeds (offsets 40000 and 45000, 12 per
-size) the same recording without the quantum has a held-out RMS residual 38-46 % lower
-at a quantum of 5 noise std, 61-69 % at 10, 86-90 % at 30 and 94-98 % at 100
-(docs/diagnosis.md, 10g).
+The study's first measure of a recording's *effect on the held-out error* holds the
+baseline's held-out residual against the noise floor the recording implies
+(``1 - 1/base_ratio``, :mod:`servo.diagnose.proving.study`).  Two things bend it:
 
-:func:`quantum_effect` measures it so: the baseline of eq. (3) fitted on the training
-part of the default rows (the decimation the diagnosis chooses for the recording), its
-held-out residual (each training block predicted by the fit on the other blocks, the test
-part by the fit on the training part, usable rows), on the recording and on its twin (the
-same case and seed with no quantum, on the same path): ``1 - rms_twin/rms``.
+* the floor is estimated from the data (what the Butterworth removes from the
+  position), so it holds a sensor quantum's own noise: a quantised recording's baseline
+  sits near "its" floor whatever the quantum, and the measure says the quantum changes
+  nothing.  It does: on development seeds (offsets 40000 and 45000, 12 per size) the same
+  recording without the quantum has a held-out RMS residual 38-46 % lower at a quantum
+  of 5 noise std, 61-69 % at 10, 86-90 % at 30 and 94-98 % at 100 (docs/diagnosis.md, 10g);
+* a null recording's own misfit (a few-sample stick at a reversal, docs section 1)
+  counts as the effect's: a mode far above the rows' band, which the rows cannot see,
+  read ">= 20 %" on five multisine and chirp recordings of the fresh seeds whose
+  baseline misfit was the null's (docs 10a).
+
+:func:`twin_effect` measures what the effect itself does: the baseline of eq. (3)
+fitted on the training part of the default rows (the decimation the diagnosis chooses
+for the recording), its held-out residual (each training block predicted by the fit on
+the other blocks, the test part by the fit on the training part, usable rows), on the
+recording and on its twin (the same case and seed at size 0, the same noise and
+excitation, on the same path): ``1 - rms_twin/rms``.
 """
 from __future__ import annotations
 
@@ -44,10 +50,10 @@ def heldout_rms(rec, settings=None) -> tuple[float, object]:
     return float(np.sqrt(np.mean(r[valid] ** 2))), design.sig.settings
 
 
-def quantum_effect(case: Case, seed: int) -> float:
+def twin_effect(case: Case, seed: int) -> float:
     """``1 - rms_twin/rms``: the share of the baseline's held-out RMS residual on the
-    quantised recording of ``case`` that the same recording without the quantum does
-    not have (module doc)."""
+    recording of ``case`` that the same recording without the effect (size 0) does not
+    have (module doc)."""
     rec, _ = recording(case, seed)
     rms, settings = heldout_rms(rec)
     twin, _ = recording(replace(case, size=0.0), seed)
@@ -55,4 +61,4 @@ def quantum_effect(case: Case, seed: int) -> float:
     return float(1.0 - rms0 / max(rms, 1e-300))
 
 
-__all__ = ["heldout_rms", "quantum_effect"]
+__all__ = ["heldout_rms", "twin_effect"]
