@@ -118,7 +118,7 @@ def test_the_reversals_bound_the_power_rule_never_the_other_way():
     # power up to 450 Hz: 4 covers it (5 reaches 400 Hz)
     wider = Recording(t, np.sin(t), slow.x + 1e-3 * _band_limited(n, fs, 450.0, 5), None, source="wider")
     d, note = choose(wider, Options(), prep(1e-7))
-    assert d.sig.settings.decimate == 4 and "by 4 it reaches 500 Hz" in note
+    assert d.sig.settings.decimate == 4 and "beyond the band of 10 (200 Hz), within that of 4 (500 Hz)" in note
     with pytest.raises(IdentificationError, match="band rule"):
         choose(slow, Options(band="spectrum"), prep(1e-5))
 

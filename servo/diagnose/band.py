@@ -10,12 +10,23 @@ reversal every second, nearly every row's filter reaches a reversal, and the
 diagnosis refused with "too few usable rows ... record more motion", which was not
 the cause.
 
-:func:`choose` tries ``q`` in :data:`CANDIDATES` (largest first: the most averaging and
+**Where the input has power** bounds ``q`` first (rule ``"power"``, the default of
+:data:`RULES`): the band over which the measured motion stands 20 dB over the position
+sensor's noise (:mod:`servo.diagnose.power_band`) must lie inside the rows' band, so
+only the candidates ``q <= 0.4*fs/edge`` are tried (all of them where the power ends
+inside the band of 10; the smallest alone where no candidate covers it).  The reversal
+rule below then chooses among those: never a ``q`` the reversals forbid, and a ``q``
+larger than 10 is never tried (the rows' averaging and the study's levels stay those
+of the default).  Rule ``"reversals"`` is the reversal rule alone (the choice before
+the power rule).
+
+Among them, :func:`choose` tries ``q`` largest first (the most averaging and
 the fewest rows) and keeps the first whose rows are at least :data:`USABLE_MIN` usable;
 failing that, the one with the most usable training rows; failing every one, it
 refuses with the cause it measured (an arm that barely moves, or reversals too close
-together for any decimation, with their count and spacing).  An explicit
-``Options.settings`` (``--decimate``) is used as given.
+together for any decimation, with their count and spacing).  The note says why: the
+power edge against the bands, the reversals' median spacing and the usable share.  An
+explicit ``Options.settings`` (``--decimate Q``) is used as given.
 """
 from __future__ import annotations
 
@@ -99,10 +110,10 @@ def choose(rec: Recording, opt, prepare):
         edge, qp = power_decimation(rec, attempt(CANDIDATES[0])[0], fs, getattr(opt, "cutoff_hz", None))
         cands = tuple(q for q in CANDIDATES if q <= qp)
         top = band_hz(settings_for(CANDIDATES[0], fs), fs)
-        power = (f"the position stands {power_band.MARGIN_DB:.0f} dB over its noise floor up to {edge:.4g} Hz "
-                 + (f"(inside the band of {CANDIDATES[0]}, 0-{top:.4g} Hz)" if qp == CANDIDATES[0] else
-                    f"(the band of {CANDIDATES[0]} ends at {top:.4g} Hz; by {qp} it reaches "
-                    f"{band_hz(settings_for(qp, fs), fs):.4g} Hz)"))  # fmt: skip
+        power = (f"the position stands {power_band.MARGIN_DB:.0f} dB over its noise floor up to {edge:.4g} Hz, "
+                 + (f"inside the band of {CANDIDATES[0]} ({top:.4g} Hz)" if qp == CANDIDATES[0] else
+                    f"beyond the band of {CANDIDATES[0]} ({top:.4g} Hz), within that of {qp} "
+                    f"({band_hz(settings_for(qp, fs), fs):.4g} Hz)"))  # fmt: skip
     d, why = _by_reversals(cands, attempt, rec)
     return d, f"decimation by {d.sig.settings.decimate}: " + "; ".join(w for w in (power, why) if w)
 
