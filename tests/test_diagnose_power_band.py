@@ -78,7 +78,7 @@ def test_a_recording_whose_input_has_power_up_to_a_known_frequency_gets_the_q_th
     t = np.arange(n) / fs
     for f_hi, q in ((300.0, 6), (150.0, 10)):
         rec = _open_loop(fs, 3 * np.sin(2 * np.pi * 3 * t) + 2 * _band_limited(n, fs, f_hi, 2, 1.0))
-        d, note = choose(rec, Options(), prepare)
+        d, note = choose(rec, Options(band="power"), prepare)
         assert d.sig.settings.decimate == q, note
         edge = float(note.split("noise floor up to ")[1].split(" Hz")[0])
         assert 0.85 * f_hi < edge <= band_hz(d.sig.settings, fs), note
@@ -86,6 +86,11 @@ def test_a_recording_whose_input_has_power_up_to_a_known_frequency_gets_the_q_th
         assert "the motion reverses every" in note
         if q < 10:  # the band of the next larger decimation does not reach the edge
             assert band_hz(d.sig.settings, fs) * q / CANDIDATES[CANDIDATES.index(q) - 1] < edge
+            # the default rule keeps the reversals' 10 and says where the power ends
+            d0, note0 = choose(rec, Options(), prepare)
+            assert d0.sig.settings.decimate == 10
+            assert note0.endswith(f"beyond the band of 10 (200 Hz), within that of {q} "
+                                  f"({band_hz(d.sig.settings, fs):.4g} Hz), which --decimate power would take")
 
 
 def _fake_design(q: int, usable: float, noise_x: float, n: int):
@@ -109,15 +114,15 @@ def test_the_reversals_bound_the_power_rule_never_the_other_way():
         return lambda rec, s, opt: _fake_design(s.decimate, shares[s.decimate], noise, n)
 
     # power inside the band of 10 (the motion stands over a noise of 1e-5 m only at 5 Hz)
-    d, note = choose(slow, Options(), prep(1e-5))
+    d, note = choose(slow, Options(band="power"), prep(1e-5))
     assert d.sig.settings.decimate == 6 and "inside the band of 10" in note and "by 10 only 40 %" in note
     assert choose(slow, Options(band="reversals"), prep(1e-5))[0].sig.settings.decimate == 6
     # power up to 300 Hz: 6 covers it and the reversals allow it
     wide = Recording(t, np.sin(t), slow.x + 1e-3 * _band_limited(n, fs, 300.0, 5), None, source="wide")
-    assert choose(wide, Options(), prep(1e-7))[0].sig.settings.decimate == 6
+    assert choose(wide, Options(band="power"), prep(1e-7))[0].sig.settings.decimate == 6
     # power up to 450 Hz: 4 covers it (5 reaches 400 Hz)
     wider = Recording(t, np.sin(t), slow.x + 1e-3 * _band_limited(n, fs, 450.0, 5), None, source="wider")
-    d, note = choose(wider, Options(), prep(1e-7))
+    d, note = choose(wider, Options(band="power"), prep(1e-7))
     assert d.sig.settings.decimate == 4 and "beyond the band of 10 (200 Hz), within that of 4 (500 Hz)" in note
     with pytest.raises(IdentificationError, match="band rule"):
         choose(slow, Options(band="spectrum"), prep(1e-5))
@@ -128,7 +133,7 @@ def test_where_the_band_of_10_covers_the_power_the_findings_are_the_old_ones():
     over its noise inside the band of 10: the power rule keeps 10, and the diagnosis is
     the reversal rule's, finding for finding."""
     rec, _ = concealed_recording("coulomb_friction", 0.5, 3)
-    new = diagnose(rec, Options(baseline="J,B,K,h0"))
+    new = diagnose(rec, Options(baseline="J,B,K,h0", band="power"))
     old = diagnose(rec, Options(baseline="J,B,K,h0", band="reversals"))
     assert new.sig.settings.decimate == old.sig.settings.decimate == 10
     assert "inside the band of 10" in new.band_note

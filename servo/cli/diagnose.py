@@ -27,10 +27,10 @@ def register(sub) -> None:
     p.add_argument("--alpha", type=float, default=0.05, help="family-wise false-alarm level (default 0.05)")
     p.add_argument("--horizon", type=float, metavar="S", help="simulated-output horizon, s (default 10 row spacings)")
     p.add_argument("--cutoff-hz", type=float, help="Butterworth cutoff on position (default fs/decimation)")
-    p.add_argument("--decimate", metavar="power|reversals|Q", default="power",
-                   help="parallel decimation factor Q, or the rule that chooses it from the recording: power (default: "
-                   "the largest of 10, 8, 6, 5, 4, 3 whose band covers where the position stands 20 dB over its noise, "
-                   "and that the reversals allow) or reversals (the largest the reversals allow)")
+    p.add_argument("--decimate", metavar="reversals|power|Q", default="reversals",
+                   help="parallel decimation factor Q, or the rule that chooses it from the recording: reversals "
+                   "(default: the largest of 10, 8, 6, 5, 4, 3 whose rows the reversals leave usable) or power (as "
+                   "reversals, among those whose band covers where the position stands 20 dB over its noise)")
     p.add_argument("--force-unit", default="A", help="unit of the input column for the report (default A; N for EMPS)")
     p.add_argument("--no-plots", action="store_true", help="write report.json and final_model.toml only")
     p.add_argument("--out", metavar="DIR", help="output folder (default servo-out/diagnose-<time>)")

@@ -83,7 +83,7 @@ class Options:
     max_findings: int = 8
     force_unit: str = "A"
     cutoff_hz: float | None = None
-    band: str = "power"
+    band: str = "reversals"
 
 
 @dataclass
