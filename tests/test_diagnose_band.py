@@ -31,7 +31,7 @@ def _recording(f_hz: float, amplitude: float = 3.0, n: int = 20000) -> Recording
 def test_reversals_close_in_samples_get_a_smaller_decimation_and_the_band_is_stated():
     rec = _recording(10.0)  # a reversal every ~37 samples: a third of them inside the default filter's reach
     fixed = diagnose(rec, Options(settings=RobustSettings()))
-    chosen = diagnose(rec, Options())
+    chosen = diagnose(rec, Options(band="reversals"))  # the reversals alone (the power rule: test_diagnose_power_band)
     q = chosen.sig.settings.decimate
     assert q < 10 and chosen.sig.valid.mean() > fixed.sig.valid.mean() >= 0.3
     assert chosen.sig.valid.mean() >= 0.6
@@ -39,8 +39,9 @@ def test_reversals_close_in_samples_get_a_smaller_decimation_and_the_band_is_sta
     assert band_hz(chosen.sig.settings, FS) == pytest.approx(0.4 * FS / q)
     assert chosen.final_fit.combined()["inertia"]["J"] == pytest.approx(2.0, rel=0.01)
     # a slow motion keeps the default
-    slow = diagnose(_recording(2.5), Options())
-    assert slow.sig.settings.decimate == 10 and slow.band_note == "decimation by 10: the default"
+    slow = diagnose(_recording(2.5), Options(band="reversals"))
+    assert slow.sig.settings.decimate == 10
+    assert slow.band_note.startswith("decimation by 10: the motion reverses every 151 samples (median), 89 % of the rows")
 
 
 def test_a_refusal_names_its_cause():

@@ -27,8 +27,10 @@ def register(sub) -> None:
     p.add_argument("--alpha", type=float, default=0.05, help="family-wise false-alarm level (default 0.05)")
     p.add_argument("--horizon", type=float, metavar="S", help="simulated-output horizon, s (default 10 row spacings)")
     p.add_argument("--cutoff-hz", type=float, help="Butterworth cutoff on position (default fs/decimation)")
-    p.add_argument("--decimate", type=int, help="parallel decimation factor (default: chosen from the recording, 10 "
-                   "unless reversals are too close together for it)")
+    p.add_argument("--decimate", metavar="reversals|power|Q", default="reversals",
+                   help="parallel decimation factor Q, or the rule that chooses it from the recording: reversals "
+                   "(default: the largest of 10, 8, 6, 5, 4, 3 whose rows the reversals leave usable) or power (as "
+                   "reversals, among those whose band covers where the position stands 20 dB over its noise)")
     p.add_argument("--force-unit", default="A", help="unit of the input column for the report (default A; N for EMPS)")
     p.add_argument("--no-plots", action="store_true", help="write report.json and final_model.toml only")
     p.add_argument("--out", metavar="DIR", help="output folder (default servo-out/diagnose-<time>)")
@@ -46,6 +48,23 @@ def handle(args: argparse.Namespace) -> int:
     return 0
 
 
+def _decimate(value: str) -> tuple[str, int | None]:
+    """``--decimate``: a rule of :data:`servo.diagnose.band.RULES` (``(rule, None)``) or a
+    factor ``Q >= 1`` (``(default rule, Q)``)."""
+    from servo.diagnose.band import RULES
+
+    v = str(value).strip().lower()
+    if v in RULES:
+        return v, None
+    try:
+        q = int(v)
+    except ValueError:
+        q = 0
+    if q < 1:
+        raise ConfigError(f"--decimate {value!r}: expected {', '.join(RULES)} or a decimation factor >= 1")
+    return RULES[0], q
+
+
 def _diagnose(args: argparse.Namespace, stage) -> tuple[dict, Path]:
     from servo.io.outdir import staged
     from servo.diagnose.job import Options, diagnose
@@ -58,10 +77,11 @@ def _diagnose(args: argparse.Namespace, stage) -> tuple[dict, Path]:
         raise ConfigError(f"--horizon {args.horizon!r}: expected a positive number of seconds")
     stage("loading the recording")
     rec = recording_from_args(args)
-    settings = None if args.decimate is None else RobustSettings(cutoff_hz=args.cutoff_hz, decimate=args.decimate)
+    rule, q = _decimate(args.decimate)
+    settings = None if q is None else RobustSettings(cutoff_hz=args.cutoff_hz, decimate=q)
     opt = Options(baseline=args.baseline, model=args.model, test_fraction=args.test_fraction, blocks=args.blocks,
                   alpha=args.alpha, horizon_s=args.horizon, force_unit=args.force_unit, settings=settings,
-                  cutoff_hz=args.cutoff_hz)  # fmt: skip
+                  cutoff_hz=args.cutoff_hz, band=rule)  # fmt: skip
     D = diagnose(rec, opt)  # everything computed before any file is written
     stage("plots and the report")
     out = Path(args.out) if args.out else Path("servo-out") / time.strftime("diagnose-%Y%m%d-%H%M%S")

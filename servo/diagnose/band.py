@@ -10,12 +10,23 @@ reversal every second, nearly every row's filter reaches a reversal, and the
 diagnosis refused with "too few usable rows ... record more motion", which was not
 the cause.
 
-:func:`choose` tries ``q`` in :data:`CANDIDATES` (largest first: the most averaging and
+**Where the input has power** bounds ``q`` first with the rule ``"power"`` (an option,
+:data:`RULES`; the default rule ``"reversals"`` states the power edge in its note and
+leaves ``q`` to the reversals): the band over which the measured motion stands 20 dB over the position
+sensor's noise (:mod:`servo.diagnose.power_band`) must lie inside the rows' band, so
+only the candidates ``q <= 0.4*fs/edge`` are tried (all of them where the power ends
+inside the band of 10; the smallest alone where no candidate covers it).  The reversal
+rule below then chooses among those: never a ``q`` the reversals forbid, and a ``q``
+larger than 10 is never tried (the rows' averaging and the study's levels stay those
+of the default).
+
+Among them, :func:`choose` tries ``q`` largest first (the most averaging and
 the fewest rows) and keeps the first whose rows are at least :data:`USABLE_MIN` usable;
 failing that, the one with the most usable training rows; failing every one, it
 refuses with the cause it measured (an arm that barely moves, or reversals too close
-together for any decimation, with their count and spacing).  An explicit
-``Options.settings`` (``--decimate``) is used as given.
+together for any decimation, with their count and spacing).  The note says why: the
+power edge against the bands, the reversals' median spacing and the usable share.  An
+explicit ``Options.settings`` (``--decimate Q``) is used as given.
 """
 from __future__ import annotations
 
@@ -23,11 +34,16 @@ from dataclasses import replace
 
 import numpy as np
 
+from servo.diagnose import power_band
 from servo.identify.regressors import IdentificationError, RobustSettings
 from servo.io.recording import Recording
 
 #: decimation factors tried, the default first
 CANDIDATES = (10, 8, 6, 5, 4, 3)
+#: the rules a decimation is chosen by (``Options.band``, ``--decimate``), the default first:
+#: the power rule is an option (docs/diagnosis.md 10f: on the concealed-effect study it
+#: raised three detection thresholds a size step and the locate tests' flags on nulls)
+RULES = ("reversals", "power")
 #: a decimation is kept when at least this share of its rows is usable
 USABLE_MIN = 0.6
 #: failing that, the decimation with the largest share of usable rows, if at least this
@@ -69,40 +85,94 @@ def reversals(sig) -> tuple[int, float]:
 def choose(rec: Recording, opt, prepare):
     """The design of the chosen band (module doc): ``(design, note)`` with ``note`` why
     this decimation.  ``prepare(rec, settings, opt)`` makes a design or raises
-    :class:`IdentificationError` (too short, too few usable rows)."""
+    :class:`IdentificationError` (too short, too few usable rows).  ``opt.band`` is the
+    rule (:data:`RULES`): ``"reversals"`` (the default) uses the reversals alone and
+    states the power edge in the note, ``"power"`` bounds the decimation by the power
+    edge first."""
     fs = 1.0 / rec.dt
     if opt.settings is not None:
         try:
             return prepare(rec, opt.settings, opt), f"decimation by {opt.settings.decimate} as given"
         except IdentificationError as exc:
             raise _refusal(rec, [(opt.settings.decimate, None, exc)], exc, opt.settings) from None
-    tried, last_exc = [], None
-    for q in CANDIDATES:
-        s = settings_for(q, fs, getattr(opt, "cutoff_hz", None))
+    rule = getattr(opt, "band", RULES[0])
+    if rule not in RULES:
+        raise IdentificationError(f"unknown band rule {rule!r} (choose {' or '.join(RULES)}, or a decimation factor)")
+    made: dict = {}
+
+    def attempt(q: int):
+        if q not in made:
+            try:
+                made[q] = (prepare(rec, settings_for(q, fs, getattr(opt, "cutoff_hz", None)), opt), None)
+            except IdentificationError as exc:
+                made[q] = (None, exc)
+        return made[q]
+
+    cands, power = CANDIDATES, ""
+    first = attempt(CANDIDATES[0])[0]
+    if rule == "power" or first is not None:  # the power edge: the rule's bound, or the reversal rule's note
+        edge, qp = power_decimation(rec, first, fs, getattr(opt, "cutoff_hz", None))
+        top = band_hz(settings_for(CANDIDATES[0], fs), fs)
+        power = (f"the position stands {power_band.MARGIN_DB:.0f} dB over its noise floor up to {edge:.4g} Hz, "
+                 + (f"inside the band of {CANDIDATES[0]} ({top:.4g} Hz)" if qp == CANDIDATES[0] else
+                    f"beyond the band of {CANDIDATES[0]} ({top:.4g} Hz), within that of {qp} "
+                    f"({band_hz(settings_for(qp, fs), fs):.4g} Hz)"))  # fmt: skip
+        if rule == "power":
+            cands = tuple(q for q in CANDIDATES if q <= qp)
+    d, why = _by_reversals(cands, attempt, rec)
+    q = d.sig.settings.decimate
+    if rule == "power" or not power:
+        return d, f"decimation by {q}: " + "; ".join(w for w in (power, why) if w)
+    if qp < q:
+        power += ", which --decimate power would take"
+    return d, f"decimation by {q}: {why}; {power}"
+
+
+def power_decimation(rec: Recording, design, fs: float, cutoff_hz: float | None = None) -> tuple[float, int]:
+    """``(edge, q)``: where the input has power (:func:`servo.diagnose.power_band.edge_hz`,
+    with the position noise of ``design``'s rows, or of the default path's signals if
+    ``design`` is None) and the largest candidate decimation whose band covers it."""
+    if design is not None:
+        noise = design.sig.noise_x
+    else:
+        from servo.diagnose.signals import make_signals
+
         try:
-            d = prepare(rec, s, opt)
-        except IdentificationError as exc:
-            last_exc = exc
-            tried.append((q, None, exc))
+            noise = make_signals(rec, settings_for(CANDIDATES[0], fs, cutoff_hz)).noise_x
+        except IdentificationError:
+            return 0.0, CANDIDATES[0]  # the reversal rule's refusal says why
+    edge = power_band.edge_hz(rec.x, fs, noise)
+    return edge, power_band.decimation_for(edge, fs, CANDIDATES)
+
+
+def _by_reversals(cands: tuple, attempt, rec: Recording):
+    """The reversal rule over ``cands`` (largest first, the first one its default):
+    ``(design, why)``, or raises the refusal with its measured cause."""
+    tried = []
+    for q in cands:
+        d, exc = attempt(q)
+        tried.append((q, d, exc))
+        if d is None:
             continue
-        usable = float(d.sig.valid.mean())
-        tried.append((q, d, None))
-        if usable >= USABLE_MIN:
-            why = "the default" if q == CANDIDATES[0] else (
-                f"by 10 only {100 * _usable(tried, 10):.0f} % of the rows were usable (reversals within the "
-                "decimation filter's reach)")  # fmt: skip
-            return d, f"decimation by {q}: {why}"
-    default = next((d for q, d, _ in tried if q == CANDIDATES[0] and d is not None), None)
-    ok = [(q, d) for q, d, _ in tried if d is not None and q != CANDIDATES[0] and d.sig.valid.mean() >= FALLBACK_MIN]
+        if d.sig.valid.mean() >= USABLE_MIN:
+            n_rev, gap = reversals(d.sig)
+            rev = f"the motion reverses every {gap:.0f} samples (median)" if n_rev > 1 else "the motion hardly reverses"
+            if q == cands[0]:
+                return d, f"{rev}, {100 * d.sig.valid.mean():.0f} % of the rows usable"
+            return d, (f"{rev}: by {cands[0]} only {100 * _usable(tried, cands[0]):.0f} % of the rows were usable "
+                       "(reversals within the decimation filter's reach)")  # fmt: skip
+    default = next((d for q, d, _ in tried if q == cands[0] and d is not None), None)
+    ok = [(q, d) for q, d, _ in tried if d is not None and q != cands[0] and d.sig.valid.mean() >= FALLBACK_MIN]
     if ok:
         q, d = max(ok, key=lambda t: float(t[1].sig.valid.mean()))  # shares: the row counts differ with q
         if default is None or d.sig.valid.mean() >= GAIN_MIN * default.sig.valid.mean():
-            return d, (f"decimation by {q}: the most usable rows of the decimations tried ({100 * d.sig.valid.mean():.0f} "
-                       f"%, {100 * _usable(tried, CANDIDATES[0]):.0f} % by {CANDIDATES[0]}; reversals within the "
+            return d, (f"the most usable rows of the decimations tried ({100 * d.sig.valid.mean():.0f} "
+                       f"%, {100 * _usable(tried, cands[0]):.0f} % by {cands[0]}; reversals within the "
                        "decimation filter's reach)")  # fmt: skip
     if default is not None:  # no decimation does much better: the rows are few for another reason (the arm dwells)
-        return default, (f"decimation by {CANDIDATES[0]}: the default ({100 * default.sig.valid.mean():.0f} % usable; "
-                         "no other decimation tried gives many more usable rows)")  # fmt: skip
+        return default, (f"{100 * default.sig.valid.mean():.0f} % of the rows usable; no other decimation tried "
+                         "gives many more usable rows")  # fmt: skip
+    last_exc = next((e for _, _, e in reversed(tried) if e is not None), None)
     raise _refusal(rec, tried, last_exc or IdentificationError("too few usable rows"))
 
 
@@ -143,4 +213,4 @@ def _refusal(rec: Recording, tried: list, last_exc, settings: RobustSettings | N
                                                                          ", or try a smaller --decimate"))  # fmt: skip
 
 
-__all__ = ["CANDIDATES", "USABLE_MIN", "band_hz", "choose", "reversals", "settings_for"]
+__all__ = ["CANDIDATES", "RULES", "USABLE_MIN", "band_hz", "choose", "power_decimation", "reversals", "settings_for"]

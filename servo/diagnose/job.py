@@ -70,8 +70,8 @@ class Options:
     file; ``test_fraction`` of the rows held out at the end; ``blocks`` of the
     cross-validation; ``alpha`` the family-wise false-alarm level; ``horizon_s`` of
     the output simulation (default 10 row spacings); the robust path's ``settings``
-    (None: the decimation is chosen from the recording, :mod:`servo.diagnose.band`,
-    with the Butterworth at ``cutoff_hz`` if given);
+    (None: the decimation is chosen from the recording, :mod:`servo.diagnose.band`, by
+    the rule ``band``, with the Butterworth at ``cutoff_hz`` if given);
     at most ``max_findings``; ``force_unit`` for the report."""
 
     baseline: str | None = None
@@ -84,6 +84,7 @@ class Options:
     max_findings: int = 8
     force_unit: str = "A"
     cutoff_hz: float | None = None
+    band: str = "reversals"
 
 
 @dataclass
