@@ -39,6 +39,9 @@ from servo.runtime.simdriver import SimDriver
 CFG = Config().replace(run={"duration_s": 0.2},
                        scenario={"step_times": [0.02, 0.06, 0.1, 0.14], "disturbance_start": 0.16})  # fmt: skip
 NO_MODES = {"mode_hz": [], "mode_zeta": [], "mode_gain": []}
+#: the lockstep emulator's config: link timers no busy neighbour trips (they are not
+#: what the lockstep tests are about; the fault tests below set their own)
+LOCKSTEP_CFG = CFG.replace(link={"watchdog_s": 2.0, "timeout_s": 2.0})
 
 
 def servo_cmd(*args):
@@ -79,7 +82,7 @@ def run_log(cfg, driver, tmp_path, name, controller=None):
 @pytest.fixture(scope="module")
 def lockstep_emulator(tmp_path_factory):
     cfg_file = tmp_path_factory.mktemp("emu") / "cfg.toml"
-    cfg_file.write_text(to_toml(CFG))
+    cfg_file.write_text(to_toml(LOCKSTEP_CFG))
     with emulator("--pty", "--lockstep", "--config", str(cfg_file)) as (proc, url):
         yield url, cfg_file
 
@@ -380,10 +383,10 @@ def test_a_host_that_quits_between_config_and_start_leaves_the_board_at_zero_cur
 
 def test_a_second_host_is_refused_while_the_first_holds_the_board(lockstep_emulator, tmp_path):
     url, _ = lockstep_emulator
-    first = SerialDriver(CFG, url)
+    first = SerialDriver(LOCKSTEP_CFG, url)
     first.configure()
     try:
-        second = SerialDriver(CFG, url)
+        second = SerialDriver(LOCKSTEP_CFG, url)
         with pytest.raises(DriverError, match=r"in use by another program .* one host per board"):
             second.configure()
         assert second.state is DriverState.CLOSED
@@ -394,7 +397,7 @@ def test_a_second_host_is_refused_while_the_first_holds_the_board(lockstep_emula
     finally:
         first.close()
     assert first.board_stats is not None and first.board_stats["ticks"] >= 50 and first.board_stats["faults"] == 0
-    again = SerialDriver(CFG, url)  # after the first host's STOP and close, the board is free
+    again = SerialDriver(LOCKSTEP_CFG, url)  # after the first host's STOP and close, the board is free
     again.configure()
     again.close()
 
