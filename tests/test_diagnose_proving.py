@@ -152,3 +152,20 @@ def test_the_study_command_scores_what_it_ran(tmp_path):
     assert "| null recordings |" in (out / "study.md").read_text()
     with pytest.raises(SystemExit):
         study.main(["--families", "no_such_family", "--out", str(tmp_path / "x")])
+
+
+def test_every_familys_twin_is_the_null_recording_of_its_seed():
+    """The study measures an effect against its twin (size 0, :mod:`proving.twin`): for
+    every family the twin must be exactly the recording without the effect, the null of
+    the same seed and combination (the same noise, excitation and plant), bit for bit."""
+    from dataclasses import replace
+
+    from servo.diagnose.proving.cases import FAMILIES
+
+    for family in FAMILIES:
+        if family in ("null", "out_of_scope"):
+            continue
+        case = Case(family, 0.0, "leadlag", "prbs", 5000.0)
+        twin, _ = recording(case, 7)
+        null, _ = recording(replace(case, family="null"), 7)
+        assert np.array_equal(twin.x, null.x) and np.array_equal(twin.u, null.u), family

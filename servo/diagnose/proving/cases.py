@@ -220,7 +220,7 @@ def _params(case: Case, rng) -> tuple[np.ndarray, np.ndarray, np.ndarray, dict]:
     fam, s = case.family, case.size
     Fc = p[ig.P_FC]
     L = 3e-3 * STROKE
-    if fam in ("lugre", "hysteresis_late"):
+    if fam in ("lugre", "hysteresis_late") and s > 0:  # size 0 (a twin): no element
         p[ig.P_HYST], p[ig.P_HLEVEL] = ig.HYST_LUGRE, s * Fc
         p[ig.P_SIGMA0] = s * Fc / L
         p[ig.P_SIGMA1] = 0.0
