@@ -53,7 +53,11 @@ filtered velocity): a breakaway faster than that is a step at rest.
 **Proof** on the held-out part: its own events must exceed the same bound (binomial
 tail at ``alpha``, no search), and the held-out exceeding events' median peak must lie
 above the sliding level's bound with a noise margin of ``Z_NOISE`` robust std
-(``level_bound``): "the test part's stuck intervals hold forces in ``(Fc, Fs]``".  The
+(``level_bound``): "the test part's stuck intervals hold forces in ``(Fc, Fs]``".  (Every
+exceeding event's peak is already beyond its own bound, whose noise margin is at least
+``Z_NOISE`` robust std, so this check fails only where the exceeding events sit where
+the filtered switch ``g`` is below its median: in practice the proof is the binomial
+tail.)  The
 finding's before/after errors are the held-out events' RMS excess over the model's
 static level through the filter (``g*Fc`` without, ``g*Fs`` with the finding).
 
@@ -228,6 +232,10 @@ class Result:
         return self.k_test > 0 and self.p_test < alpha and self.Fs_test > self.level_bound
 
     def evidence(self) -> dict:
+        """The report's evidence.  The ``*_test`` keys are the events of the proof
+        (``proof``): the held-out part's, or, where it holds no interval at rest, the
+        training events the fit did not use (``held_excess_rms`` of the finding's
+        errors is over the same events)."""
         return {"test": "held forces at rest beyond the sliding level (binomial tail over events)",
                 "bound": self.bound, "level_bound": self.level_bound, "sigma": self.sigma, "filter_l1": self.l1, "Fc": self.Fc,
                 "events_train": self.n, "exceeding_train": self.k, "p": self.p,

@@ -618,7 +618,8 @@ def diagnose(rec: Recording, opt: Options | None = None) -> Diagnosis:
                   f"{100 * qfind.params['share_of_heldout_rms']:.0f} % (named from the lattice the held-out positions "
                   "lie on; a narrower band does not predict better)")  # fmt: skip
     verdict = verdict_mod.decide(base_checks, final_checks, len(findings), scope, opt.force_unit,
-                                 tuple(f"breakaway ({f.physics})" for f in findings if f.breakaway is not None), sensor)
+                                 tuple(f"breakaway ({f.physics}, proven on the {f.breakaway['proof']})" for f in findings
+                                       if f.breakaway is not None), sensor)  # fmt: skip
     verdict.update(baseline_checks=base_checks, final_checks=final_checks)
 
     base_err = {"force_rel_pct": errs[0], "output_nrmse": nr[0]}

@@ -307,7 +307,7 @@ def decide(base: dict, final: dict, n_findings: int, scope: str, force_unit: str
             return {"verdict": "explained",
                     "text": f"the rows were at their noise with the baseline ({b['ratio']:.3g} x the floor); what it "
                             f"left out shows at rest: the {', '.join(outside_rows)} named from the intervals at rest "
-                            "and confirmed on the held-out part's"}  # fmt: skip
+                            "and confirmed on intervals its fit did not use"}  # fmt: skip
         above = (" and the held-out frequency response above the rows' band within its interval"
                  if base.get("frf", {}).get("failed") else "")  # fmt: skip
         return {"verdict": "explained",

@@ -64,6 +64,7 @@ def run_one(job: tuple) -> dict:
         D = diagnose(rec)
     except Exception as exc_:  # a study records failures instead of stopping
         return {**out, "error": f"{type(exc_).__name__}: {str(exc_)[:200]}"}
+    seconds = time.perf_counter() - t0  # the diagnosis alone, not its twin below
     v = D.verdict
     if size > 0:  # measured against its twin without the effect (module doc)
         from servo.diagnose.proving.twin import twin_effect
@@ -72,7 +73,7 @@ def run_one(job: tuple) -> dict:
             out["effect"] = twin_effect(Case(family, size, ctl, exc, rate), seed)
         except Exception as exc_:  # the twin refused: the table falls back to the floor's measure, and counts it
             out["twin_error"] = f"{type(exc_).__name__}: {str(exc_)[:200]}"
-    return {**out, "seconds": time.perf_counter() - t0, "findings": [f.physics for f in D.findings],
+    return {**out, "seconds": seconds, "findings": [f.physics for f in D.findings],
             "verdict": v["verdict"], "expect": truth["expect"], "verdicts": truth["verdicts"],
             "decimate": int(D.sig.settings.decimate),
             "base_ratio": v["baseline_checks"]["level"]["ratio"], "final_ratio": v["final_checks"]["level"]["ratio"],

@@ -11,9 +11,9 @@ baseline's held-out residual against the noise floor the recording implies
   recording without the quantum has a held-out RMS residual 38-46 % lower at a quantum
   of 5 noise std, 61-69 % at 10, 86-90 % at 30 and 94-98 % at 100 (docs/diagnosis.md, 10g);
 * a null recording's own misfit (a few-sample stick at a reversal, docs section 1)
-  counts as the effect's: a mode far above the rows' band, which the rows cannot see,
-  read ">= 20 %" on five multisine and chirp recordings of the fresh seeds whose
-  baseline misfit was the null's (docs 10a).
+  counts as the effect's: of five recordings of a mode far above the rows' band that
+  read ">= 20 %" by it on the fresh seeds, three (multisine loops) change the held-out
+  error by 0.1-0.2 % against their twins (docs/diagnosis.md, 10a).
 
 :func:`twin_effect` measures what the effect itself does: the baseline of eq. (3)
 fitted on the training part of the default rows (the decimation the diagnosis chooses
