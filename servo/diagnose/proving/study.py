@@ -70,7 +70,7 @@ def run_one(job: tuple) -> dict:
         from servo.diagnose.proving.twin import twin_effect
 
         try:
-            out["effect"] = twin_effect(Case(family, size, ctl, exc, rate), seed)
+            out["effect"] = twin_effect(Case(family, size, ctl, exc, rate), seed, rec)
         except Exception as exc_:  # the twin refused: the table falls back to the floor's measure, and counts it
             out["twin_error"] = f"{type(exc_).__name__}: {str(exc_)[:200]}"
     return {**out, "seconds": seconds, "findings": [f.physics for f in D.findings],

@@ -50,11 +50,12 @@ def heldout_rms(rec, settings=None) -> tuple[float, object]:
     return float(np.sqrt(np.mean(r[valid] ** 2))), design.sig.settings
 
 
-def twin_effect(case: Case, seed: int) -> float:
+def twin_effect(case: Case, seed: int, rec=None) -> float:
     """``1 - rms_twin/rms``: the share of the baseline's held-out RMS residual on the
     recording of ``case`` that the same recording without the effect (size 0) does not
-    have (module doc)."""
-    rec, _ = recording(case, seed)
+    have (module doc).  ``rec``: that recording if the caller made it already."""
+    if rec is None:
+        rec, _ = recording(case, seed)
     rms, settings = heldout_rms(rec)
     twin, _ = recording(replace(case, size=0.0), seed)
     rms0, _ = heldout_rms(twin, settings)
