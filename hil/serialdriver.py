@@ -370,3 +370,33 @@ class SerialDriver(Driver):
             "board_stats": self.board_stats,
             "board_fault": None if self.board_fault is None else self.board_fault.describe(),
         }
+
+
+class Sessions:
+    """One serial session (driver) per run of a job, the first opened up front.
+
+    The first driver is configured (handshake, version and rate checks) when this is
+    made, so a bad URL or an absent board fails before the job writes anything; the job
+    then gets it for its first run and a fresh session for each later one.  Use as a
+    context manager: the first session is closed on leaving, whatever happened.
+
+    ``make_driver(cfg, inputs)`` has the signature the jobs' ``make_driver`` takes."""
+
+    def __init__(self, cfg: Config, url: str):
+        self.url = url
+        self.first = SerialDriver(cfg, url)
+        self.first.configure()
+        self._pending = [self.first]
+
+    def make_driver(self, cfg: Config, inputs=None) -> SerialDriver:
+        return self._pending.pop() if self._pending else SerialDriver(cfg, self.url)
+
+    def where(self, cfg: Config) -> str:
+        """The board as a job's summary names it: its name, latency and batch."""
+        return f"{self.first.info.name} (d = {cfg.link.command_latency_ticks}, batch = {cfg.link.batch})"
+
+    def __enter__(self) -> "Sessions":
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.first.close()

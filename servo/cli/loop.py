@@ -73,22 +73,11 @@ def _on_port(cfg, out: Path, s, args: argparse.Namespace, prov: dict) -> dict:
     """The same job through the serial link: one session (driver) per run.  The first
     driver is configured (handshake, version and rate checks) before anything is written,
     so a bad URL or an absent board leaves no output folder."""
-    from hil.serialdriver import SerialDriver
+    from hil.serialdriver import Sessions
     from servo.io.outdir import staged
     from servo.loop.job import run_loop
     from servo.runtime.pacing import realtime_section
 
-    first = SerialDriver(cfg, args.port)
-    first.configure()
-    pending = [first]
-
-    def make_driver(rcfg, inputs):
-        return pending.pop() if pending else SerialDriver(rcfg, args.port)
-
-    try:
-        with realtime_section(), staged(out) as tmp:  # no GC pauses while the board waits
-            return run_loop(cfg, tmp, s, args.compensator, make_driver=make_driver,
-                            where=f"{first.info.name} (d = {cfg.link.command_latency_ticks}, batch = {cfg.link.batch})",
-                            provenance=prov)  # fmt: skip
-    finally:
-        first.close()
+    with Sessions(cfg, args.port) as ports, realtime_section(), staged(out) as tmp:  # no GC pauses while the board waits
+        return run_loop(cfg, tmp, s, args.compensator, make_driver=ports.make_driver, where=ports.where(cfg),
+                        provenance=prov)

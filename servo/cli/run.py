@@ -107,23 +107,12 @@ def _run_on_port(cfg, out: Path, args: argparse.Namespace, formats: tuple[str, .
     driver is configured (handshake, version and rate checks) before anything is written,
     so a bad URL or an absent board leaves no output folder."""
     from servo.io.outdir import staged
-    from hil.serialdriver import SerialDriver
+    from hil.serialdriver import Sessions
     from servo.run.job import run_job
     from servo.runtime.pacing import realtime_section
 
     if args.fast or (args.fast is None and cfg.run.fast_path):
         raise UsageError("servo run: --port runs tick by tick through the link; drop --fast (run.fast_path)")
-    first = SerialDriver(cfg, args.port)
-    first.configure()
-    pending = [first]
-
-    def make_driver(cfg, inputs):
-        return pending.pop() if pending else SerialDriver(cfg, args.port)
-
-    try:
-        with realtime_section(), staged(out, keep_partial=True) as tmp:  # no GC pauses while the board waits
-            return run_job(cfg, tmp, compensation=args.compensation, fast=False, make_driver=make_driver,
-                           where=f"{first.info.name} (d = {cfg.link.command_latency_ticks}, "
-                           f"batch = {cfg.link.batch})", log_formats=formats, provenance=prov)  # fmt: skip
-    finally:
-        first.close()
+    with Sessions(cfg, args.port) as ports, realtime_section(), staged(out, keep_partial=True) as tmp:
+        return run_job(cfg, tmp, compensation=args.compensation, fast=False, make_driver=ports.make_driver,
+                       where=ports.where(cfg), log_formats=formats, provenance=prov)  # no GC pauses while the board waits
