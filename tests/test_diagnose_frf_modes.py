@@ -80,6 +80,50 @@ def test_a_mode_departs_and_is_fitted_to_its_parameters():
     assert all(v > 0 for v in std.values())
 
 
+def _closed_loop(n, noise, w_cut_hz, seed=0):
+    """The rigid body under a PD loop (crossover 400 Hz) with sensor noise fed back, its
+    excitation ``w`` (white low-passed at ``w_cut_hz``) injected at the plant's input;
+    exact closed-loop transfer functions: ``u = S w - C S n``, ``y = P S w + S n``.
+    Returns ``(w, u, y)``."""
+    dt = 1 / FS
+    bP, aP, _ = signal.cont2discrete(([1.0], [J, B, K]), dt, method="zoh")
+    bP = np.ravel(bP)  # np.convolve below: np.polymul would drop its leading zero (the sample's delay)
+    wc = 2 * math.pi * 400.0
+    bC, aC = signal.bilinear([1.5 * J * wc, J * wc**2 / 3], [1 / (5 * wc), 1.0], FS)
+    bC, aC = bC / aC[0], aC / aC[0]
+    den = np.convolve(aP, aC) + np.convolve(bP, bC)
+    rng = np.random.default_rng(seed)
+    w = signal.lfilter(*signal.butter(2, w_cut_hz / (FS / 2)), rng.standard_normal(n))
+    e = noise * rng.standard_normal(n)
+    S = np.convolve(aP, aC)
+    u = signal.lfilter(S, den, w) - signal.lfilter(np.convolve(aP, bC), den, e)
+    y = signal.lfilter(np.convolve(bP, aC), den, w) + signal.lfilter(S, den, e)
+    return w, u, y
+
+
+def test_an_instrument_removes_the_closed_loop_bias_of_h1():
+    """In a loop the sensor noise fed back through the controller is part of the input,
+    so ``H1`` turns towards ``-1/C``; ``P_wx/P_wu`` with the injected excitation as
+    instrument does not.  On the same usable bins the instrument's estimate is the
+    plant's within its interval (chi-square, no departure) and H1 is several times
+    further off."""
+    noise = 1e-5
+    w, u, y = _closed_loop(200_000, noise, 2000.0, seed=1)
+    npsd = 2 * noise**2 / FS
+    iv = fm.measure(u, y, np.ones(u.size, bool), 1 / FS, 1024, 400.0, w)
+    h1 = fm.measure(u, y, np.ones(u.size, bool), 1 / FS, 1024, 400.0)
+    assert (iv.method, h1.method) == ("instrumental", "H1")
+    Hm = fm.model_response(fm.Plant(J, B, K), iv.f, 1 / FS, iv.f[1] - iv.f[0], fm.kernel(1024))
+    use = fm.usable(iv, Hm, (iv.f > 800) & (iv.f < 0.45 * FS), npsd)
+    assert use.sum() >= 20
+    dep = fm.departure(iv, Hm, use, 0.05, npsd)
+    assert not dep["departs"] and 1.3 < dep["sse"] / use.sum() < 2.8
+    err_iv = np.median(np.abs(iv.H[use] / Hm[use] - 1))
+    err_h1 = np.median(np.abs(h1.H[use] / Hm[use] - 1))
+    assert err_iv < 0.03 and err_h1 > 3 * err_iv, (err_iv, err_h1)
+    assert np.all(fm.margin(iv, Hm, npsd) == fm.REL_MARGIN)  # no bias margin for the instrument
+
+
 def test_segments_where_the_arm_may_stick_are_left_out():
     moving = np.ones(10_000, bool)
     moving[3000:3100] = False  # a stick of 100 samples: the 3 segments over it (hop 512) are not used
@@ -114,6 +158,27 @@ def test_a_mode_above_the_rows_band_is_found_fitted_and_carried_to_the_final_mod
     text = format_summary(rep, "out")
     assert "band above: the frequency response at full rate covers 200-2250 Hz" in text
     assert "(fitted on the frequency response)" in text
+
+
+def test_a_closed_loop_recording_with_its_excitation_uses_it_as_instrument():
+    """The same loop as above, its injected excitation recorded as ``r``: the mode is
+    found on ``P_rx/P_ru`` and the summary says so; a loop whose excitation has no power
+    above the band falls back to H1 and says that."""
+    rec, _ = recording(Case("mode_above_band", 0.03, "leadlag", "prbs", 5000.0), seed=11, excitation=True)
+    assert rec.r is not None
+    D = diagnose(rec)
+    assert D.frf.method == "instrumental"
+    frf = [f for f in D.findings if f.frf is not None]
+    assert [f.physics for f in frf] == ["resonance"]
+    assert frf[0].params["frequency_hz"] == pytest.approx(0.07 * 5000.0, rel=0.02)
+    assert frf[0].params["gain"] == pytest.approx(0.03, rel=0.2)
+    assert D.verdict["verdict"] == "explained", D.verdict["text"]
+    text = format_summary(build_report(D, []), "out")
+    assert "(P_rx/P_ru, the recording's r as instrument, " in text
+    rec, _ = recording(Case("null", 0.0, "pdi", "multisine", 5000.0), seed=12, excitation=True)
+    D = diagnose(rec)
+    assert D.frf.method == "H1" and "the recording's r has no power above the rows' band" in D.frf.note
+    assert recording(Case("null", 0.0, "open", "chirp", 1000.0), seed=12, excitation=True)[0].r is None
 
 
 @pytest.mark.parametrize("controller,excitation,rate", [("pdi", "prbs", 20000.0), ("open", "chirp", 1000.0)])

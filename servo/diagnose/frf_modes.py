@@ -52,6 +52,16 @@ full sample rate on the input-to-position frequency response instead:
    and with the mode (the sum of squared departures over their variances on the test
    part's usable bins, the smooth factor refitted for each); a mode that does not lower
    it is dropped (reported with its parameters).
+6. **An instrument, where the recording has one.**  A recording's ``r`` column (a
+   reference, or better the excitation injected at the plant's input: what a lab
+   records for a closed-loop frequency response) is exogenous: the sensor noise a loop
+   feeds back into ``u`` is uncorrelated with it.  Then ``H = P_rx/P_ru`` (the
+   instrumental-variable estimate of :func:`servo.frf.estimate.instrumental`, here on
+   the sliding segments and the high-passed signals of step 1) has no closed-loop
+   bias, so the margin is :data:`REL_MARGIN` alone; its variance and usable bins are in
+   :func:`measure`.  Where ``r`` has too little power above the band for
+   :data:`MIN_BINS` usable bins in either part (a seek reference, an excitation below
+   the band), the path falls back to ``H1`` and says so.  An open loop needs none.
 
 Cost: 0.4 s of a 1 000 000-sample diagnosis (two high-pass filters, the friction's
 force at full rate, the spectra of both parts).  ``docs/diagnosis.md`` section 6b.
@@ -111,8 +121,10 @@ KERNEL_RES, KERNEL_HALF = 4, 3
 class Response:
     """One part's measured response: ``f`` (k,) Hz, ``H`` (k,) complex m/F, ``coh`` (k,),
     ``rel_std`` (k,) of each complex component relative to ``|H|``, ``Puu`` (k,)
-    the (high-passed) input's spectrum, ``K``/``K_eq`` segments used, ``samples``,
-    ``segments_all`` the segments before those where the arm may stick were left out."""
+    the (high-passed) input's spectrum the response is read from (with an instrument,
+    the part of it the instrument explains), ``K``/``K_eq`` segments used, ``samples``,
+    ``segments_all`` the segments before those where the arm may stick were left out,
+    ``method`` ``"H1"`` or ``"instrumental"`` (:func:`measure`)."""
 
     f: np.ndarray
     H: np.ndarray
@@ -123,6 +135,7 @@ class Response:
     K_eq: float
     samples: int
     segments_all: int = 0
+    method: str = "H1"
 
 
 @dataclass
@@ -147,6 +160,8 @@ class Result:
     band_hz: list
     note: str = ""
     ran: bool = False
+    #: ``"H1"``, or ``"instrumental"`` with the recording's ``r`` as instrument
+    method: str = "H1"
     nperseg: int = 0
     train: Response | None = None
     test: Response | None = None
@@ -167,7 +182,8 @@ class Result:
             return None if r is None else {"samples": r.samples, "segments": r.K, "segments_all": r.segments_all,
                                            "equivalent_averages": r.K_eq}
 
-        return {"band_hz": self.band_hz, "ran": self.ran, "note": self.note, "nperseg": self.nperseg,
+        return {"band_hz": self.band_hz, "ran": self.ran, "method": self.method, "note": self.note,
+                "nperseg": self.nperseg,
                 "resolution_hz": (float(self.train.f[1] - self.train.f[0]) if self.train is not None else None),
                 "train": part(self.train), "test": part(self.test),
                 "level": {"coherence_min": COH_MIN, "snr_min": SNR_MIN, "rel_margin": REL_MARGIN},
@@ -200,15 +216,32 @@ def choose_nperseg(moving_train: np.ndarray, moving_test: np.ndarray, shortest: 
     return 0
 
 
-def measure(u: np.ndarray, x: np.ndarray, moving: np.ndarray, dt: float, nperseg: int, highpass_hz: float) -> Response:
-    """``H1`` from ``u`` to ``x`` ((n,) each) over the Welch segments of ``nperseg``
+def measure(u: np.ndarray, x: np.ndarray, moving: np.ndarray, dt: float, nperseg: int, highpass_hz: float,
+            z: np.ndarray | None = None) -> Response:
+    """The response from ``u`` to ``x`` ((n,) each) over the Welch segments of ``nperseg``
     samples (Hann, 50 % overlap) in which the arm slides: at most :data:`STUCK_MAX` of
     their samples outside ``moving`` (n,) bool; after a common zero-phase high-pass at
-    ``highpass_hz`` (module doc, step 1).  Spectra one-sided, per Hz."""
+    ``highpass_hz`` (module doc, step 1).  Spectra one-sided, per Hz.
+
+    Without ``z``: ``H1 = P_ux/P_uu``, each complex component's std
+    ``|H1|*sqrt((1 - g2)/(2*K_eq*g2))`` (Bendat & Piersol eq. 9.90).
+
+    With an instrument ``z`` (n,) (the recording's ``r``: a reference or an excitation
+    injected in the loop, uncorrelated with the sensor's noise): ``H = P_zx/P_zu``,
+    which the noise a loop feeds back into ``u`` does not bias (module doc, step 6).
+    Its first-order error is ``avg(conj(Z)*V)/P_zu`` with ``V = X - H*U`` the part of
+    the position the response does not explain, so each complex component has the
+    variance ``P_vv/(2*K_eq*g2_zu*P_uu)``, ``P_vv = P_xx - 2*Re(conj(H)*P_ux) +
+    |H|^2*P_uu`` (for ``z = u`` this is eq. 9.90 again).  The first order holds where
+    the denominator ``P_zu`` is well estimated (the numerator's error enters linearly):
+    ``coh`` is the instrument's coherence with the input, ``g2_zu``; ``Puu`` the input's
+    power the instrument explains, ``g2_zu*P_uu`` (the position's share of the sensor
+    noise is then :func:`snr`'s rule, as for ``H1``)."""
     fs = 1.0 / dt
     sos = signal.butter(4, highpass_hz / (fs / 2), btype="high", output="sos")
     uf = signal.sosfiltfilt(sos, u)
     xf = signal.sosfiltfilt(sos, x)
+    zf = None if z is None else signal.sosfiltfilt(sos, z)
     hop = nperseg // 2
     starts = np.arange(0, u.size - nperseg + 1, hop)
     c = np.concatenate([[0], np.cumsum(~moving)])
@@ -220,29 +253,50 @@ def measure(u: np.ndarray, x: np.ndarray, moving: np.ndarray, dt: float, nperseg
     k = sel.size
     nf = nperseg // 2 + 1
     Puu, Pxx, Pux = np.zeros(nf), np.zeros(nf), np.zeros(nf, complex)
+    Pzz, Pzu, Pzx = np.zeros(nf), np.zeros(nf, complex), np.zeros(nf, complex)
+
+    def fft(sig, idx):
+        fr = sig[idx]
+        return np.fft.rfft((fr - fr.mean(axis=1, keepdims=True)) * w, axis=1)
+
     for a in range(0, k, 64):  # chunks: a 1e6-sample recording's frames need not all be held at once
         idx = sel[a : a + 64, None] + np.arange(nperseg)[None, :]
-        fu, fx = uf[idx], xf[idx]
-        U = np.fft.rfft((fu - fu.mean(axis=1, keepdims=True)) * w, axis=1)
-        X = np.fft.rfft((fx - fx.mean(axis=1, keepdims=True)) * w, axis=1)
+        U, X = fft(uf, idx), fft(xf, idx)
         Puu += np.sum(np.abs(U) ** 2, axis=0)
         Pxx += np.sum(np.abs(X) ** 2, axis=0)
         Pux += np.sum(np.conj(U) * X, axis=0)
+        if zf is not None:
+            Z = fft(zf, idx)
+            Pzz += np.sum(np.abs(Z) ** 2, axis=0)
+            Pzu += np.sum(np.conj(Z) * U, axis=0)
+            Pzx += np.sum(np.conj(Z) * X, axis=0)
     f = np.fft.rfftfreq(nperseg, dt)
+    method = "H1" if z is None else "instrumental"
     if k == 0:
         nan = np.full(nf, np.nan)
-        return Response(f, nan.astype(complex), np.zeros(nf), np.full(nf, np.inf), np.zeros(nf), 0, 0.0, u.size)
+        return Response(f, nan.astype(complex), np.zeros(nf), np.full(nf, np.inf), np.zeros(nf), 0, 0.0, u.size,
+                        method=method)
     Puu, Pxx, Pux = Puu * scale / k, Pxx * scale / k, Pux * scale / k
     # overlapping neighbours are correlated (Welch 1967): rho = 0.028 for Hann at 50 %
     rho = (np.sum(w[:hop] * w[hop:]) / np.sum(w**2)) ** 2
     pairs = int(np.sum(np.diff(sel) == hop))
     K_eq = k / (1.0 + 2.0 * rho * pairs / k)
     with np.errstate(divide="ignore", invalid="ignore"):
-        H = Pux / Puu
-        coh = np.clip(np.abs(Pux) ** 2 / (Puu * Pxx), 0.0, 1.0)
-        rel = np.sqrt((1.0 - coh) / (2.0 * K_eq * coh))
-    return Response(f, H, np.nan_to_num(coh), np.nan_to_num(rel, nan=np.inf), Puu, k, float(K_eq), u.size,
-                    int(starts.size))
+        if z is None:
+            H = Pux / Puu
+            coh = np.clip(np.abs(Pux) ** 2 / (Puu * Pxx), 0.0, 1.0)
+            rel = np.sqrt((1.0 - coh) / (2.0 * K_eq * coh))
+            Pin = Puu
+        else:
+            Pzz, Pzu, Pzx = Pzz * scale / k, Pzu * scale / k, Pzx * scale / k
+            H = Pzx / Pzu
+            g2_zu = np.clip(np.abs(Pzu) ** 2 / (Pzz * Puu), 0.0, 1.0)
+            coh = g2_zu
+            Pvv = np.maximum(Pxx - 2.0 * np.real(np.conj(H) * Pux) + np.abs(H) ** 2 * Puu, 0.0)
+            rel = np.sqrt(Pvv / (2.0 * K_eq * g2_zu * Puu)) / np.abs(H)
+            Pin = g2_zu * Puu
+    return Response(f, H, np.nan_to_num(coh), np.nan_to_num(rel, nan=np.inf), np.nan_to_num(Pin), k, float(K_eq),
+                    u.size, int(starts.size), method)
 
 
 #: the terms whose force the response's linear part holds (every other column term's
@@ -370,7 +424,10 @@ def usable(resp: Response, Hm: np.ndarray, band: np.ndarray, noise_psd: float) -
 
 def margin(resp: Response, Hm: np.ndarray, noise_psd: float) -> np.ndarray:
     """Per bin, the relative departure that counts (module doc, step 3): at least
-    :data:`REL_MARGIN`, and at least the closed-loop bias bound ``BIAS_FACTOR/SNR``."""
+    :data:`REL_MARGIN`, and for ``H1`` at least the closed-loop bias bound
+    ``BIAS_FACTOR/SNR`` (an instrument's estimate has no such bias, step 6)."""
+    if resp.method == "instrumental":
+        return np.full(resp.f.size, REL_MARGIN)
     return np.maximum(REL_MARGIN, BIAS_FACTOR / np.maximum(snr(resp, Hm, noise_psd), 1e-300))
 
 
@@ -504,10 +561,12 @@ def plant_with(pl: Plant, modes) -> Plant:
                                                                    m.params["gain"]) for m in modes])  # fmt: skip
 
 
-def run(design, fit, alpha: float) -> Result:
+def run(design, fit, alpha: float, instrument: np.ndarray | None = None) -> Result:
     """The path on ``design``'s recording against the fitted model ``fit`` (module doc):
-    the modes it proposes, each judged on the test part's own ``H1`` (the caller adds
-    the output check and the model's refit)."""
+    the modes it proposes, each judged on the test part's own response (the caller adds
+    the output check and the model's refit).  ``instrument`` (n,): the recording's ``r``,
+    if it has one (step 6); used where both parts have :data:`MIN_BINS` usable bins with
+    it, ``H1`` otherwise (``Result.method`` and ``note`` say which)."""
     t0 = time.perf_counter()
     sig = design.sig
     fs = 1.0 / sig.dt
@@ -532,20 +591,32 @@ def run(design, fit, alpha: float) -> Result:
     res.nperseg = nper
     hp = 0.5 * edge
     u = linear_input(design, fit)
-    tr = measure(u[:n_train], sig.x[:n_train], moving[:n_train], sig.dt, nper, hp)
-    te = measure(u[n_train:], sig.x[n_train:], moving[n_train:], sig.dt, nper, hp)
-    res.train, res.test = tr, te
-    df = float(tr.f[1] - tr.f[0])
+    f = np.fft.rfftfreq(nper, sig.dt)
+    df = float(f[1] - f[0])
     ker = kernel(nper)
-    band = (tr.f > edge) & (tr.f <= top)
+    band = (f > edge) & (f <= top)
     noise_psd = 2.0 * sig.noise_x**2 * sig.dt  # one-sided, white
-    Hm_tr = model_response(pl, tr.f, sig.dt, df, ker)
-    Hm_te = model_response(pl, te.f, sig.dt, df, ker)
-    use_tr = usable(tr, Hm_tr, band, noise_psd)
-    use_te = usable(te, Hm_te, band, noise_psd)
+    Hm_tr = model_response(pl, f, sig.dt, df, ker)
+    Hm_te = Hm_tr
+
+    def parts(z):
+        zt, ze = (None, None) if z is None else (z[:n_train], z[n_train:])
+        tr = measure(u[:n_train], sig.x[:n_train], moving[:n_train], sig.dt, nper, hp, zt)
+        te = measure(u[n_train:], sig.x[n_train:], moving[n_train:], sig.dt, nper, hp, ze)
+        return tr, te, usable(tr, Hm_tr, band, noise_psd), usable(te, Hm_te, band, noise_psd)
+
+    if instrument is not None:
+        tr, te, use_tr, use_te = parts(np.asarray(instrument, dtype=float))
+        if min(use_tr.sum(), use_te.sum()) < MIN_BINS:
+            res.note = (f"the recording's r has no power above the rows' band ({int(use_tr.sum())} training and "
+                        f"{int(use_te.sum())} test bins usable with it as instrument): H1 from the input instead")
+            instrument = None
+    if instrument is None:
+        tr, te, use_tr, use_te = parts(None)
+    res.train, res.test, res.method = tr, te, tr.method
     res.before = public(departure(te, Hm_te, use_te, alpha, noise_psd))
     if use_tr.sum() < MIN_BINS or use_te.sum() < MIN_BINS:
-        res.note = (f"the input has no power above the rows' band: {int(use_tr.sum())} training and "
+        res.note = ((res.note + "; ") if res.note else "") + (f"the input has no power above the rows' band: {int(use_tr.sum())} training and "
                     f"{int(use_te.sum())} test bins of {edge:.4g}-{top:.4g} Hz are usable (coherence >= {COH_MIN:g} "
                     f"and the model's position there >= {SNR_MIN:g} x the sensor noise's power)")  # fmt: skip
         res.after = res.before

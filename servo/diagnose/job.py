@@ -462,7 +462,7 @@ def _breakaway(design: Design, fit: Fit, rounds: list, errs: list, nr: list, opt
 
 
 def _frf_modes(design: Design, fits: list, errs: list, nr: list, preds: list, starts: np.ndarray, H: int,
-               alpha: float):  # fmt: skip
+               alpha: float, instrument: np.ndarray | None = None):  # fmt: skip
     """The frequency-domain path (:mod:`servo.diagnose.frf_modes`) on the final model of
     the rows; each mode it proves on the test part's own response is added to the model
     as a ``resonance`` term with its gain held (the rows, below the mode, cannot fit it).
@@ -471,13 +471,14 @@ def _frf_modes(design: Design, fits: list, errs: list, nr: list, preds: list, st
     1.4 kHz on a 20 kHz open-loop chirp, the output NRMSE rose from 0.00085 to 0.00091,
     the rows' force error from 0.064 to 0.068 %); both are reported.  Appends to
     ``fits``, ``errs``, ``nr``, ``preds``; returns ``(result, findings, terms,
-    unconfirmed)``."""
+    unconfirmed)``.  ``instrument``: the recording's ``r``, if any (step 6 of that
+    module)."""
     found, terms, dropped = [], [], []
     scope = _scope_of(design, fits[-1])
     if scope:
         res = frf_modes.Result(band_hz=[], note=f"not run: the recording is out of scope ({scope})")
         return res, found, terms, dropped
-    res = frf_modes.run(design, fits[-1], alpha)
+    res = frf_modes.run(design, fits[-1], alpha, instrument)
     test_rows = ~design.train_rows & design.sig.valid
     for m in list(res.modes):
         p = m.params
@@ -565,7 +566,7 @@ def diagnose(rec: Recording, opt: Options | None = None) -> Diagnosis:
     if bdrop is not None:
         unconfirmed.append(bdrop)
     progress.stage("the frequency response above the rows' band")
-    frf, frf_found, frf_terms, frf_dropped = _frf_modes(design, fits, errs, nr, preds, starts_test, H, opt.alpha)
+    frf, frf_found, frf_terms, frf_dropped = _frf_modes(design, fits, errs, nr, preds, starts_test, H, opt.alpha, rec.r)
     findings += frf_found
     unconfirmed += frf_dropped
     final = fits[-1]

@@ -233,8 +233,10 @@ def format_summary(report: dict, out: Path) -> str:
     ]
     fr = report.get("frf")
     if fr and fr["band_hz"]:
-        what = (f"{fr['nperseg']}-sample Welch segments in which the arm slides, {fr['train']['segments']} training "
-                f"and {fr['test']['segments']} held out" if fr["ran"] else fr["note"])  # fmt: skip
+        how = "P_rx/P_ru, the recording's r as instrument" if fr.get("method") == "instrumental" else "H1"
+        what = (f"{how}, {fr['nperseg']}-sample Welch segments in which the arm slides, {fr['train']['segments']} "
+                f"training and {fr['test']['segments']} held out" + (f"; {fr['note']}" if fr["note"] else "")
+                if fr["ran"] else fr["note"])  # fmt: skip
         lines.append(f"  band above: the frequency response at full rate covers {fr['band_hz'][0]:.4g}-"
                      f"{fr['band_hz'][1]:.4g} Hz ({what})")  # fmt: skip
     elif fr:

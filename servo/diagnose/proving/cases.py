@@ -280,13 +280,17 @@ def _simulate(case: Case, seed: int, u_max_late: float | None = None):
     u, y, x = np.zeros(n), np.zeros(n), np.zeros(n)
     ig.run(p, np.ascontiguousarray(r), np.ascontiguousarray(w), u_max, gate, noise, b, a_,
            np.ascontiguousarray(mk), np.ascontiguousarray(md), u, y, x, n)  # fmt: skip
-    return u, y, x, info
+    return u, y, x, info, w
 
 
-def recording(case: Case, seed: int = 0) -> tuple[Recording, dict]:
+def recording(case: Case, seed: int = 0, excitation: bool = False) -> tuple[Recording, dict]:
     """One recording of ``case`` (module doc) and its truth: ``expect`` (the vocabulary
     term a diagnosis should name, None for none), ``verdicts`` (the right verdicts),
-    the plant's parameters."""
+    the plant's parameters.  With ``excitation``, a closed loop's recording carries the
+    force excitation injected at the plant's input as its ``r`` (what a lab records for
+    a closed-loop frequency response; the diagnosis's instrument,
+    :mod:`servo.diagnose.frf_modes`); an open loop's never does (its whole input is
+    exogenous)."""
     if case.family not in FAMILIES:
         raise ValueError(f"unknown family {case.family!r}")
     fam = FAMILIES[case.family]
@@ -294,10 +298,10 @@ def recording(case: Case, seed: int = 0) -> tuple[Recording, dict]:
     if case.family == "saturation_late":  # the level that clips a fraction `size` of the last 30 %
         u, *_ = _simulate(case, seed)
         lim = float(np.quantile(np.abs(u[int(0.7 * case.samples) :]), 1.0 - case.size))
-    u, y, x, info = _simulate(case, seed, lim)
+    u, y, x, info, w = _simulate(case, seed, lim)
     if case.family == "out_of_scope":  # the position of an unrelated run
         other = "seeks" if case.excitation != "seeks" else "chirp"  # no frequency lines shared with the input
-        _, y, x, _ = _simulate(Case("null", 0.0, case.controller, other, case.rate_hz, case.samples), seed + 7919)
+        _, y, x, *_ = _simulate(Case("null", 0.0, case.controller, other, case.rate_hz, case.samples), seed + 7919)
     t = np.arange(case.samples) / case.rate_hz
     if not (np.all(np.isfinite(y)) and np.all(np.isfinite(u))):
         raise FloatingPointError(f"proving ground: {case} seed {seed} diverged")
@@ -305,8 +309,9 @@ def recording(case: Case, seed: int = 0) -> tuple[Recording, dict]:
              "case": case.__dict__, "seed": seed, **info}  # fmt: skip
     if lim is not None:
         truth["u_max_late"] = lim
+    ref = w.copy() if excitation and case.controller != "open" else None
     rec = Recording(t, u, y, None, source=f"proving:{case.family}:{case.size:g}:{case.controller}:{case.excitation}:"
-                    f"{case.rate_hz:g}Hz:seed{seed}", meta={"truth": truth})  # fmt: skip
+                    f"{case.rate_hz:g}Hz:seed{seed}", meta={"truth": truth}, r=ref)  # fmt: skip
     return rec, truth
 
 

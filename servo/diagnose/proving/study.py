@@ -53,13 +53,15 @@ def combo(family: str, size: float, seed: int) -> tuple:
 
 
 def run_one(job: tuple) -> dict:
-    family, size, seed = job
+    """Diagnose one recording: ``(family, size, seed)``, or with a fourth item True, a
+    closed loop's recording carries its excitation as ``r`` (``--excitation-as-r``)."""
+    family, size, seed, with_r = (*job, False)[:4]
     ctl, exc, rate = combo(family, size, seed)
     out = {"family": family, "size": size, "seed": seed, "controller": ctl, "excitation": exc, "rate_hz": rate}
     from servo.diagnose.job import diagnose
 
     try:
-        rec, truth = recording(Case(family, size, ctl, exc, rate), seed)
+        rec, truth = recording(Case(family, size, ctl, exc, rate), seed, excitation=with_r)
         t0 = time.perf_counter()
         D = diagnose(rec)
     except Exception as exc_:  # a study records failures instead of stopping
@@ -78,6 +80,7 @@ def run_one(job: tuple) -> dict:
             "decimate": int(D.sig.settings.decimate),
             "base_ratio": v["baseline_checks"]["level"]["ratio"], "final_ratio": v["final_checks"]["level"]["ratio"],
             "frf_ran": bool(D.frf is not None and D.frf.ran),
+            "frf_method": D.frf.method if D.frf is not None else None,
             "gated": {f.physics: f.term.params["from_s"] for f in D.findings if "from_s" in f.term.params},
             "frf_findings": [f.physics for f in D.findings if getattr(f, "frf", None) is not None],
             "frf_failed": bool(v["final_checks"].get("frf", {}).get("failed"))}  # fmt: skip
@@ -90,7 +93,7 @@ def run_batch(jobs: list) -> list[dict]:
 
 def failed_batch(jobs: list, why: str) -> list[dict]:
     """The runs of a batch whose workers kept dying."""
-    return [{"family": f, "size": size, "seed": seed, "error": why} for f, size, seed in jobs]
+    return [{"family": j[0], "size": j[1], "seed": j[2], "error": why} for j in jobs]
 
 
 def named_right(r: dict) -> bool:
@@ -198,6 +201,9 @@ def main(argv=None) -> int:
     ap.add_argument("--workers", "--jobs", type=int, dest="workers",
                     help="local Dask worker processes (default: one per CPU; 0: this process)")
     ap.add_argument("--scheduler", metavar="tcp://HOST:PORT", help="run on this existing Dask cluster")
+    ap.add_argument("--excitation-as-r", action="store_true",
+                    help="closed loops' recordings carry their injected excitation as r, the frequency path's "
+                         "instrument (default: no r, H1)")
     ap.add_argument("--out", default="proving-study")
     a = ap.parse_args(argv)
     fams = a.families.split(",") if a.families else [f for f in FAMILIES if f != "null"]
@@ -206,6 +212,8 @@ def main(argv=None) -> int:
         ap.error(f"--families: unknown {', '.join(unknown)} (known: {', '.join(FAMILIES)})")
     jobs = [("null", 0.0, 50_000 + a.seed_offset + s) for s in range(a.nulls)]
     jobs += [(f, size, 60_000 + a.seed_offset + s) for f in fams for size in FAMILIES[f].sizes for s in range(a.seeds)]
+    if a.excitation_as_r:
+        jobs = [(*j, True) for j in jobs]
     where = Where(a.scheduler, a.workers)
     t0 = time.time()
     with reporting(Reporter("servo.diagnose.proving.study")) as reporter:
