@@ -26,6 +26,8 @@
 """
 from __future__ import annotations
 
+import math
+
 from dataclasses import dataclass, field, replace
 
 import numpy as np
@@ -599,12 +601,16 @@ def diagnose(rec: Recording, opt: Options | None = None) -> Diagnosis:
     if bfind is not None:  # not a column of the rows: after the findings it does not change
         findings.append(bfind)
 
+    # a named quantum is sensor noise too: q^2/12 wherever the arm moves across steps
+    # (the rows' estimate misses it where the arm rests on one step most of the time)
+    noise_x = max(sig.noise_x, qfind.params["step"] / math.sqrt(12.0)) if qfind is not None else None
+
     def checks(fit, r, nrmse):
         w = design.train_valid
         first, last = np.flatnonzero(w)[[0, -1]]
         tau_r = integrated_time(np.where(w, r, 0.0)[first : last + 1])
         J = fit.combined().get("inertia", {}).get("J", 0.0)
-        return verdict_mod.assess(design, r, J, tau_r, variables, opt.alpha, nrmse)
+        return verdict_mod.assess(design, r, J, tau_r, variables, opt.alpha, nrmse, noise_x)
 
     base_checks, final_checks = checks(fits[0], r_before, nr[0]), checks(final, r_after, nr[-1])
     verdict_mod.add_frf(base_checks, frf.before, frf)

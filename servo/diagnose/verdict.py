@@ -85,9 +85,11 @@ def acceleration_noise_gain(settings, fs: float) -> float:
     return math.sqrt(tot)
 
 
-def force_floor(sig, J: float) -> float:
-    """Force-residual std (force unit) that the position noise alone produces."""
-    return abs(J) * sig.noise_x * acceleration_noise_gain(sig.settings, 1.0 / sig.dt)
+def force_floor(sig, J: float, noise_x: float | None = None) -> float:
+    """Force-residual std (force unit) that the position noise alone produces: white, of
+    std ``noise_x`` (m; default the rows' estimate ``sig.noise_x``)."""
+    noise = sig.noise_x if noise_x is None else noise_x
+    return abs(J) * noise * acceleration_noise_gain(sig.settings, 1.0 / sig.dt)
 
 
 def _chi2_bound(n_eff: float, level: float) -> float:
@@ -146,13 +148,14 @@ def window_checks(design, residual: np.ndarray, floor: float, tau: float, alpha:
 
 
 def assess(design, residual: np.ndarray, J: float, tau: float, variables: dict, alpha: float,
-           output_nrmse: float | None) -> dict:  # fmt: skip
-    """The checks of the module doc on one model's held-out ``residual`` (m,) rows."""
+           output_nrmse: float | None, noise_x: float | None = None) -> dict:  # fmt: skip
+    """The checks of the module doc on one model's held-out ``residual`` (m,) rows, against
+    the floor of a position noise of std ``noise_x`` (m; default the rows' estimate)."""
     sig = design.sig
     train = design.train_valid
     test = ~design.train_rows & sig.valid
     usable = sig.valid
-    floor = force_floor(sig, J)
+    floor = force_floor(sig, J, noise_x)
     fl = max(floor, 1e-300)
     tau = max(float(tau), 1.0)
 
@@ -162,7 +165,8 @@ def assess(design, residual: np.ndarray, J: float, tau: float, variables: dict, 
     checks: dict = {}
     ratio = rms(usable) / fl
     bound = max(MARGIN, _chi2_bound(usable.sum() / tau, alpha))
-    checks["level"] = {"rms": rms(usable), "floor": floor, "ratio": ratio, "test_ratio": rms(test) / fl,
+    checks["level"] = {"rms": rms(usable), "floor": floor, "position_noise_m": sig.noise_x if noise_x is None else noise_x,
+                       "ratio": ratio, "test_ratio": rms(test) / fl,
                        "train_ratio": rms(train) / fl, "bound": bound, "failed": bool(ratio > bound)}  # fmt: skip
 
     wins = window_checks(design, residual, floor, tau, alpha)
