@@ -255,18 +255,18 @@ def measure(u: np.ndarray, x: np.ndarray, moving: np.ndarray, dt: float, nperseg
     Puu, Pxx, Pux = np.zeros(nf), np.zeros(nf), np.zeros(nf, complex)
     Pzz, Pzu, Pzx = np.zeros(nf), np.zeros(nf, complex), np.zeros(nf, complex)
 
-    def fft(sig, idx):
+    def windowed_fft(sig, idx):
         fr = sig[idx]
         return np.fft.rfft((fr - fr.mean(axis=1, keepdims=True)) * w, axis=1)
 
     for a in range(0, k, 64):  # chunks: a 1e6-sample recording's frames need not all be held at once
         idx = sel[a : a + 64, None] + np.arange(nperseg)[None, :]
-        U, X = fft(uf, idx), fft(xf, idx)
+        U, X = windowed_fft(uf, idx), windowed_fft(xf, idx)
         Puu += np.sum(np.abs(U) ** 2, axis=0)
         Pxx += np.sum(np.abs(X) ** 2, axis=0)
         Pux += np.sum(np.conj(U) * X, axis=0)
         if zf is not None:
-            Z = fft(zf, idx)
+            Z = windowed_fft(zf, idx)
             Pzz += np.sum(np.abs(Z) ** 2, axis=0)
             Pzu += np.sum(np.conj(Z) * U, axis=0)
             Pzx += np.sum(np.conj(Z) * X, axis=0)
