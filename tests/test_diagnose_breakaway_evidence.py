@@ -58,7 +58,7 @@ def test_event_pvalues_are_at_least_uniform_on_fresh_noise():
 def test_combined_test_keeps_its_level_on_null_events():
     """Sets of 3, 8 and 25 null events (fresh noise): the combined p-value falls below a
     level no more often than the level (within three binomial standard errors)."""
-    ps = np.concatenate([_pvalues(*_null_events(s)[:3], _null_events(s)[3]) for s in (21, 22, 23)])
+    ps = np.concatenate([_pvalues(*ev[:3], ev[3]) for ev in map(_null_events, (21, 22, 23))])
     rng = np.random.default_rng(5)
     for N in (3, 8, 25):
         sets = [rng.choice(ps, N, replace=False) for _ in range(600)]
@@ -67,30 +67,40 @@ def test_combined_test_keeps_its_level_on_null_events():
             assert np.mean(comb < a) <= a + 3 * np.sqrt(a * (1 - a) / comb.size), (N, a)
 
 
-def test_combination_of_uniform_pvalues_is_calibrated():
-    """Fisher's and the truncated product's null laws, checked on uniform p-values."""
+def test_truncated_product_is_calibrated_on_uniform_pvalues():
+    """The truncated product's null law (Zaykin et al. 2002), checked on uniform p-values."""
     rng = np.random.default_rng(7)
     for N in (1, 4, 20):
-        P = rng.random((3000, N))
-        for fn in (be.fisher, be.truncated_product):
-            r = np.array([fn(p) for p in P])
-            assert abs(np.mean(r < 0.05) - 0.05) < 3 * np.sqrt(0.05 * 0.95 / 3000) + 0.003, (fn.__name__, N)
+        P = rng.random((2000, N))
+        for tau in (0.05, be.TAU, 0.5):
+            r = np.array([be.truncated_product(p, tau) for p in P])
+            for a in (0.05, 0.01):
+                assert abs(np.mean(r < a) - a) < 3 * np.sqrt(a * (1 - a) / 2000) + 0.002, (tau, N, a)
+
+
+def test_a_few_events_beyond_their_noise_are_not_diluted_by_many_at_rest():
+    """Seven of twenty-two events at p = 0.01 and the rest holding nothing: Fisher's
+    combination would give 0.024; the truncated product keeps the evidence."""
+    p = np.r_[np.full(7, 0.01), np.ones(15)]
+    assert be.combine(p) < 1e-3
+    assert be.combine(np.ones(22)) == 1.0
 
 
 def test_few_strong_or_many_weak_events_prove_a_breakaway():
     abs_e, outside, centres, peak = _null_events(31, 60)
-    loc = np.quantile(peak, [0.5, 0.95, 0.999])
+    # the law each event is compared with: the maximum over windows of 64 samples
+    win = np.lib.stride_tricks.sliding_window_view(abs_e, 64)[::64].max(axis=1)
+    q50, q95, q999 = np.quantile(win, [0.5, 0.95, 0.999])
     # three events held well above their noise, among twenty that hold nothing more
     strong = peak[:23].copy()
-    strong[:3] = 2.0 * loc[2]
+    strong[:3] = 2.0 * q999
     p = _pvalues(abs_e, outside, centres[:23], strong)
     assert be.combine(p) < 0.005
     assert be.combine(p[:3]) < 0.005  # three events alone
-    # twenty events each a little above (at the noise's 95th percentile)
-    weak = np.full(20, loc[1])
-    assert be.combine(_pvalues(abs_e, outside, centres[:20], weak)) < 0.005
+    # twenty events each a little above their noise (at its 95th percentile)
+    assert be.combine(_pvalues(abs_e, outside, centres[:20], np.full(20, q95))) < 0.005
     # the same twenty at the noise's median: nothing
-    assert be.combine(_pvalues(abs_e, outside, centres[:20], np.full(20, loc[0]))) > 0.05
+    assert be.combine(_pvalues(abs_e, outside, centres[:20], np.full(20, q50))) > 0.05
 
 
 def test_pvalue_floor_limits_one_event():

@@ -38,8 +38,8 @@ the peak is a breakaway: it comes from rest and points where the arm then moves
 :data:`P_EXCEED`.  The test no longer counts exceedances (docs/diagnosis.md, 10h): each
 event gets a p-value, its peak's excess over ``g*(Fc + Z_FC*std(Fc)) + MARGIN*Fc``
 against the local law of the same window maximum (at least uniform under the null), and
-the training part's ``N`` p-values are combined (twice the smaller of Fisher's and the
-truncated product's p-values, :mod:`servo.diagnose.breakaway_evidence`), so that three
+the training part's ``N`` p-values are combined (their truncated product,
+:mod:`servo.diagnose.breakaway_evidence`), so that three
 events far beyond their noise prove a breakaway, and twenty each a little beyond do too;
 ``k`` counts the events at ``p <= TAU``.  It is one candidate of the vocabulary round in which ``stribeck_friction`` may
 be tried (the round's family-wise level is shared with it: :func:`applicable`), and it
@@ -242,7 +242,7 @@ class Result:
         training events the fit did not use (``held_excess_rms`` of the finding's
         errors is over the same events)."""
         return {"test": "held forces at rest beyond the sliding level (per-event p-values against the local noise, "
-                        "combined: Fisher and truncated product)",
+                        "combined: truncated product)",
                 "bound": self.bound, "level_bound": self.level_bound, "sigma": self.sigma, "filter_l1": self.l1, "Fc": self.Fc,
                 "events_train": self.n, "exceeding_train": self.k, "p": self.p,
                 "events_test": self.n_test, "exceeding_test": self.k_test, "p_test": self.p_test,
