@@ -244,7 +244,7 @@ class Result:
         return {"test": "held forces at rest beyond the sliding level (per-event p-values against the local noise, "
                         "combined: truncated product)",
                 "bound": self.bound, "level_bound": self.level_bound, "sigma": self.sigma, "filter_l1": self.l1, "Fc": self.Fc,
-                "events_train": self.n, "exceeding_train": self.k, "p": self.p,
+                "events_train": self.n, "exceeding_train": self.k, "exceeding_at_event_p": TAU, "p": self.p,
                 "events_test": self.n_test, "exceeding_test": self.k_test, "p_test": self.p_test,
                 "Fs_test": self.Fs_test, "proof": self.proof, "events_at_rest_heldout": self.n_rest_test,
                 "p_all_training": self.p_all}  # fmt: skip
