@@ -35,29 +35,30 @@ an open loop's PRBS kicks, does not raise every event's bound; :func:`noise_max`
 quantised sensor's step pulse added, :func:`step_pulse`), **and**
 the peak is a breakaway: it comes from rest and points where the arm then moves
 (:func:`_toward`).  Under the null an event exceeds with probability at most
-:data:`P_EXCEED`, and the test is the binomial tail ``P(X >= k; N, P_EXCEED)`` of the
-``k`` exceeding events among the training part's
-``N``.  It is one candidate of the vocabulary round in which ``stribeck_friction`` may
+:data:`P_EXCEED`.  The test no longer counts exceedances (docs/diagnosis.md, 10h): each
+event gets a p-value, its peak's excess over ``g*(Fc + Z_FC*std(Fc)) + MARGIN*Fc``
+against the local law of the same window maximum (at least uniform under the null), and
+the training part's ``N`` p-values are combined (their truncated product,
+:mod:`servo.diagnose.breakaway_evidence`), so that three
+events far beyond their noise prove a breakaway, and twenty each a little beyond do too;
+``k`` counts the events at ``p <= TAU``.  It is one candidate of the vocabulary round in which ``stribeck_friction`` may
 be tried (the round's family-wise level is shared with it: :func:`applicable`), and it
 is tried only after the rows' rounds, on the model they ended with, so that a
 hysteresis or a delay the rows name first is in the model the held forces are
 computed with.
 
-**Fit**: ``Fs`` is the median peak of the training part's exceeding events (a peak
+**Fit**: ``Fs`` is the median peak of the training part's ``k`` events (a peak
 is the held force through the low-pass: a breakaway held for longer than the filter's
 time scale shows at its level, a shorter one below it), with the standard deviation of
 that median (``1.2533*std/sqrt(k)``).  The Stribeck velocity is the
 smallest speed the data resolve, the direction threshold (``3`` noise std of the
 filtered velocity): a breakaway faster than that is a step at rest.
 
-**Proof** on the held-out part: its own events must exceed the same bound (binomial
-tail at ``alpha``, no search), and the held-out exceeding events' median peak must lie
+**Proof** on the held-out part: its own events' p-values, combined the same way, must
+be below ``alpha`` (no search), and the median peak of its events at ``p <= TAU`` must lie
 above the sliding level's bound with a noise margin of ``Z_NOISE`` robust std
-(``level_bound``): "the test part's stuck intervals hold forces in ``(Fc, Fs]``".  (Every
-exceeding event's peak is already beyond its own bound, whose noise margin is at least
-``Z_NOISE`` robust std, so this check fails only where the exceeding events sit where
-the filtered switch ``g`` is below its median: in practice the proof is the binomial
-tail.)  The
+(``level_bound``): "the test part's stuck intervals hold forces in ``(Fc, Fs]``".  (In
+practice the proof is the combined p-value.)  The
 finding's before/after errors are the held-out events' RMS excess over the model's
 static level through the filter (``g*Fc`` without, ``g*Fs`` with the finding).
 
@@ -80,9 +81,10 @@ from dataclasses import dataclass, field, replace
 from functools import lru_cache
 
 import numpy as np
-from scipy import signal, stats
+from scipy import signal
 from scipy.ndimage import maximum_filter1d
 
+from servo.diagnose.breakaway_evidence import TAU, combine, event_pvalues
 from servo.diagnose.signals import butter_ba
 
 #: an event's window reaches this many Butterworth time scales (``fs/cutoff`` samples) past its run
@@ -98,8 +100,9 @@ P_NOISE = 0.01
 #: probability that one event of a null recording exceeds the bound (its noise margin is
 #: the :data:`P_NOISE` quantile of the window maximum, with a factor 2 to spare)
 P_EXCEED = 0.02
-#: fewer training events than this: not testable
-MIN_EVENTS = 5
+#: fewer training events than this: not testable (the combined p-value holds its level for any
+#: number of events; three far beyond their noise prove a breakaway, docs 10h)
+MIN_EVENTS = 3
 #: the local noise margin (:func:`noise_max`) is taken over the sliding windows within
 #: this many window widths around each event (about as many independent windows)
 LOCAL_WINDOWS = 100
@@ -177,6 +180,8 @@ class Events:
     toward: np.ndarray
     #: (N,) whether the arm is held at rest in the window (:func:`dwell`, :data:`REST_MIN`)
     still: np.ndarray | None = None
+    #: (N,) each event's p-value against its local noise (:mod:`servo.diagnose.breakaway_evidence`)
+    pvalue: np.ndarray | None = None
 
 
 @dataclass
@@ -236,9 +241,10 @@ class Result:
         (``proof``): the held-out part's, or, where it holds no interval at rest, the
         training events the fit did not use (``held_excess_rms`` of the finding's
         errors is over the same events)."""
-        return {"test": "held forces at rest beyond the sliding level (binomial tail over events)",
+        return {"test": "held forces at rest beyond the sliding level (per-event p-values against the local noise, "
+                        "combined: truncated product)",
                 "bound": self.bound, "level_bound": self.level_bound, "sigma": self.sigma, "filter_l1": self.l1, "Fc": self.Fc,
-                "events_train": self.n, "exceeding_train": self.k, "p": self.p,
+                "events_train": self.n, "exceeding_train": self.k, "exceeding_at_event_p": TAU, "p": self.p,
                 "events_test": self.n_test, "exceeding_test": self.k_test, "p_test": self.p_test,
                 "Fs_test": self.Fs_test, "proof": self.proof, "events_at_rest_heldout": self.n_rest_test,
                 "p_all_training": self.p_all}  # fmt: skip
@@ -354,15 +360,18 @@ def step_pulse(sig, fit, step: float) -> float:
 
 
 def _score(res: Result, over: np.ndarray, peak: np.ndarray, ref: np.ndarray, sigma: float, fit_ev: np.ndarray,
-           proof_ev: np.ndarray) -> None:
+           proof_ev: np.ndarray, pv: np.ndarray) -> None:
     """Fill ``res``'s test (``k`` of ``n``, ``p``) and fit (``Fs``) on the events
     ``fit_ev`` and its proof (``k_test`` of ``n_test``, ``p_test``, ``Fs_test``, the
-    excess before and after) on the events ``proof_ev`` ((N,) masks)."""
+    excess before and after) on the events ``proof_ev`` ((N,) masks): ``p`` and
+    ``p_test`` combine the events' p-values ``pv`` ((N,),
+    :func:`servo.diagnose.breakaway_evidence.combine`), ``over`` ((N,)) the events beyond
+    their noise at :data:`~servo.diagnose.breakaway_evidence.TAU` (counted, and the fit's)."""
     Fc = res.Fc
     res.n, res.n_test = int(fit_ev.sum()), int(proof_ev.sum())
     res.k, res.k_test = int((over & fit_ev).sum()), int((over & proof_ev).sum())
-    res.p = float(stats.binom.sf(res.k - 1, res.n, P_EXCEED)) if res.n else 1.0
-    res.p_test = float(stats.binom.sf(res.k_test - 1, res.n_test, P_EXCEED)) if res.n_test else 1.0
+    res.p = combine(pv[fit_ev]) if res.n else 1.0
+    res.p_test = combine(pv[proof_ev]) if res.n_test else 1.0
     res.Fs = res.Fs_std = res.Fs_test = 0.0
     if res.k:
         pk = peak[over & fit_ev]
@@ -424,12 +433,16 @@ def test(design, fit, step: float = 0.0) -> Result:
     last = int(np.flatnonzero(design.train_samples)[-1])
     train = b <= last
     test_ = a > last
-    res.events = Events(a, b, peak, train, bounds, toward, still)
+    # each event's p-value: its excess over the sliding level's switch and margins against
+    # the local window maximum of the sliding misfit (breakaway_evidence)
+    excess = peak - (bounds - noise)
+    pv = event_pvalues(np.abs(e), outside, b - a, (a + b) // 2, excess, toward, sigma, LOCAL_WINDOWS) if a.size else np.ones(0)
+    res.events = Events(a, b, peak, train, bounds, toward, still, pv)
     res.bound, res.sigma, res.l1, res.Fc, res.Fc_std = bound, sigma, l1, Fc, Fc_std
     res.n_rest_test = int((still & test_).sum())
-    over = (peak > bounds) & toward
+    over = (pv <= TAU) & toward
     res.n_train = int(train.sum())
-    _score(res, over, peak, ref, sigma, train, test_)
+    _score(res, over, peak, ref, sigma, train, test_, pv)
     res.p_all = res.p
     if res.n_rest_test == 0 and res.n_train >= MIN_EVENTS:
         # the held-out part holds no interval at rest (a chirp past the sticking speeds):
@@ -439,7 +452,7 @@ def test(design, fit, step: float = 0.0) -> Result:
         fit_ev, proof_ev = np.zeros(a.size, bool), np.zeros(a.size, bool)
         fit_ev[idx[0::2]], proof_ev[idx[1::2]] = True, True
         res.split = replace(res, proof="training events held out from the fit", split=None)
-        _score(res.split, over, peak, ref, sigma, fit_ev, proof_ev)
+        _score(res.split, over, peak, ref, sigma, fit_ev, proof_ev, pv)
     if not res.testable:
         res.note = f"{res.n_train} events at rest or reversing in the training part (need {MIN_EVENTS})"
     return res

@@ -449,8 +449,9 @@ def _breakaway(design: Design, fit: Fit, rounds: list, errs: list, nr: list, opt
         counts = (f"the held-out part holds no interval at rest, so it cannot test a breakaway; {res.k} of {res.n} "
                   f"training intervals (every other one) and {res.k_test} of {res.n_test} training intervals held out "
                   f"from that test and fit")  # fmt: skip
-    f.where = {"text": f"at rest: {counts} at rest or reversing hold forces beyond the sliding level's bound "
-                       f"{res.bound:.3g} (Fc {res.Fc:.3g}); breakaway Fs {res.Fs:.3g} (proof {res.Fs_test:.3g})"}  # fmt: skip
+    f.where = {"text": f"at rest: {counts} at rest or reversing hold forces beyond the sliding level and their local "
+                       f"noise (p <= {breakaway_mod.TAU:g} each; combined p {res.p:.3g}, proof {res.p_test:.3g}; "
+                       f"typical bound {res.bound:.3g}, Fc {res.Fc:.3g}); breakaway Fs {res.Fs:.3g} (proof {res.Fs_test:.3g})"}  # fmt: skip
     if res.confirmed(opt.alpha):
         return f, None
     ev["reason"] = (f"the held-out part's intervals at rest do not hold forces beyond the sliding level "

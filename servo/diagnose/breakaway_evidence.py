@@ -1,0 +1,161 @@
+"""Per-event evidence of a breakaway: each event's p-value against its local noise, and
+their combination over events (docs/diagnosis.md, section 10h).
+
+The breakaway test (:mod:`servo.diagnose.breakaway`) compares each event's peak held
+force with the sliding level's switch through the filter plus a noise margin.  Counting
+the events beyond a conservative bound throws away how far beyond (or how near) each
+one is.  Here each event gets a **p-value**: the event's excess over the sliding level
+
+    x = peak - (g*(Fc + Z_FC*std(Fc)) + MARGIN*Fc + pulse)            (F)
+
+is compared with the null distribution of the sliding misfit's window maximum
+``max |f - Fc*sgn(x')|`` over windows of the event's width, among the windows nearest the
+event (the neighbourhood :func:`servo.diagnose.breakaway.noise_max` takes its quantile
+over):
+
+    p = (1 + K*q) / (1 + K)              where some window reaches x
+    p = clip(Gumbel P(M >= x), P_FLOOR, 1/(1 + K))   beyond every one of them
+
+``q`` the share of the neighbourhood's window positions whose maximum reaches ``x``,
+``K`` the neighbourhood's number of windows (positions / width: about as many
+independent ones), the usual "plus one" of an empirical p-value.  Beyond the largest of
+them a Gumbel law fitted by moments to the neighbourhood's non-overlapping window maxima
+extends the tail (the law of a maximum of many weakly dependent samples of light tail;
+for a Gaussian maximum the moment fit's tail is heavier than the truth, so
+conservative), floored at :data:`P_FLOOR` so that one event never carries more than
+``ln P_FLOOR`` of the combined statistic.  An event whose
+peak does not point where the arm then moves (not a breakaway: ``toward`` false) has
+``p = 1``.  Under the null (no breakaway) ``x`` stays below the window maximum it is
+compared with or the deterministic margins put it lower still, so ``p`` is at least
+uniform (the unit test checks it on fresh noise windows).
+
+The events' p-values are combined by the **truncated product** of those at or below
+:data:`TAU` (Zaykin et al. 2002, its null law exact for independent uniform p-values,
+at least as conservative for p-values that are at least uniform: :func:`truncated_product`;
+the events are independent, separated by at least the filter's reach).  Three events far
+beyond their noise prove a breakaway, and so do twenty each a little beyond (each at
+``p <= TAU``), while events at rest that hold nothing (``p`` near 1, most of a
+recording's) do not dilute the few that do, as they do Fisher's ``-2 sum ln p``
+(with 7 of 22 events at ``p = 0.01`` and the rest at 1, Fisher's p-value is 0.024, the
+truncated product's 8e-5; docs/diagnosis.md, section 10h).
+"""
+from __future__ import annotations
+
+import numpy as np
+from scipy import stats
+from scipy.ndimage import maximum_filter1d
+
+#: smallest p-value one event may have (its largest share of the log product: ln 1e-4 = -9.2)
+P_FLOOR = 1e-4
+#: the truncated product combines the events' p-values at or below this (``k`` of the
+#: breakaway test counts them, and ``Fs`` is their median peak)
+TAU = 0.1
+#: Euler-Mascheroni constant (the Gumbel law's mean is ``mu + EULER*beta``)
+EULER = 0.5772156649015329
+
+
+def _pow2(widths: np.ndarray) -> np.ndarray:
+    return (2 ** np.ceil(np.log2(np.maximum(widths, 1)))).astype(int)
+
+
+def gumbel_sf(x: float, maxima: np.ndarray) -> float:
+    """``P(M >= x)`` under a Gumbel law fitted by moments to ``maxima`` ((k,), k >= 2)."""
+    s = float(np.std(maxima, ddof=1))
+    if not s > 0:
+        return 0.0 if x > float(maxima[0]) else 1.0
+    beta = s * np.sqrt(6.0) / np.pi
+    mu = float(np.mean(maxima)) - EULER * beta
+    return float(-np.expm1(-np.exp(-(x - mu) / beta)))
+
+
+def gaussian_max_sf(x: float, sigma: float, L: int) -> float:
+    """``P(max of L iid |N(0, sigma)| >= x)``: the fallback where the arm slides too little
+    for a neighbourhood of windows (correlated samples make the maximum smaller, so this
+    is conservative for a correlated Gaussian noise)."""
+    if not sigma > 0:
+        return 1.0
+    q = 2.0 * stats.norm.sf(max(x, 0.0) / sigma)
+    return float(-np.expm1(L * np.log1p(-min(q, 1.0 - 1e-16))))
+
+
+def event_pvalues(abs_e: np.ndarray, outside: np.ndarray, widths: np.ndarray, centres: np.ndarray,
+                  excess: np.ndarray, toward: np.ndarray, sigma: float, local_windows: int) -> np.ndarray:
+    """(N,) each event's p-value (module doc): ``abs_e`` (n,) the sliding misfit ``|f -
+    Fc*sgn(x')|`` (F), ``outside`` (n,) where the arm slides away from every event,
+    ``widths``/``centres`` (N,) the events' widths and centres (full-rate samples),
+    ``excess`` (N,) each peak's excess over the sliding level's switch and margins (F),
+    ``toward`` (N,) whether each peak is a breakaway's direction, ``sigma`` the misfit's
+    robust std (F), ``local_windows`` the neighbourhood's size in window widths."""
+    p = np.ones(widths.size)
+    z = np.where(outside, abs_e, np.inf)
+    L_of = _pow2(widths)
+    for L in np.unique(L_of):
+        sel = np.flatnonzero((L_of == L) & toward)
+        if sel.size == 0:
+            continue
+        m = maximum_filter1d(z, size=int(L), mode="constant", cval=np.inf)
+        ok = np.isfinite(m)
+        pos = np.flatnonzero(ok)
+        if pos.size < 20 * L:
+            for j in sel:
+                p[j] = max(gaussian_max_sf(float(excess[j]), sigma, int(L)), P_FLOOR)
+            continue
+        need = int(min(local_windows * L, pos.size))
+        for j in sel:
+            i = int(np.searchsorted(pos, centres[j]))
+            lo, hi = max(0, i - need // 2), min(pos.size, i + need // 2)
+            lo, hi = max(0, min(lo, hi - need)), min(pos.size, max(hi, lo + need))
+            loc = m[pos[lo:hi]]
+            x = float(excess[j])
+            n_eff = loc.size / L  # about as many independent windows
+            emp = float(np.count_nonzero(loc >= x)) / loc.size
+            if emp > 0:
+                p[j] = min(1.0, (1.0 + n_eff * emp) / (1.0 + n_eff))
+            else:  # beyond every window of the neighbourhood: the Gumbel tail, within (P_FLOOR, 1/(1 + n_eff))
+                blocks = loc[:: int(L)]
+                gum = gumbel_sf(x, blocks) if blocks.size >= 2 else 1.0
+                p[j] = max(P_FLOOR, min(gum, 1.0 / (1.0 + n_eff)))
+    return p
+
+
+def truncated_product(p: np.ndarray, tau: float = TAU) -> float:
+    """The truncated product method's p-value (Zaykin et al. 2002): ``W`` the product of the
+    p-values at or below ``tau`` (1 when none), its exact null tail for ``N`` independent
+    uniform p-values: ``sum_k C(N,k) (1-tau)^(N-k) sum_{s<k} (k ln tau - ln W)^s/s! * w``
+    with ``w = W`` where ``W <= tau^k``, else ``tau^k`` (the product of ``k`` values at or
+    below ``tau`` is then certainly at most ``W``) and the inner sum dropped."""
+    n = int(p.size)
+    small = p[p <= tau]
+    if small.size == 0:
+        return 1.0
+    lw = float(np.sum(np.log(small)))
+    total = 0.0
+    for k in range(1, n + 1):
+        ck = float(stats.binom.pmf(k, n, tau))  # C(N,k) tau^k (1-tau)^(N-k)
+        if ck == 0.0:
+            continue
+        klt = k * np.log(tau)
+        if lw <= klt:
+            # P(prod of k iid U(0,tau) <= W) = (W/tau^k) * sum_{s<k} (ln(tau^k/W))^s/s!
+            t = klt - lw
+            s = np.arange(k)
+            terms = np.exp(s * np.log(t) - _lgamma1(s)) if t > 0 else (s == 0).astype(float)
+            total += ck * float(np.exp(lw - klt)) * float(terms.sum())
+        else:
+            total += ck
+    return float(min(1.0, total))
+
+
+def _lgamma1(s: np.ndarray) -> np.ndarray:
+    from scipy.special import gammaln
+
+    return gammaln(s + 1.0)
+
+
+def combine(p: np.ndarray) -> float:
+    """The test's p-value over the events' p-values ``p`` ((N,)): their truncated product at
+    :data:`TAU` (module doc); 1 without events."""
+    return truncated_product(p, TAU) if p.size else 1.0
+
+
+__all__ = ["P_FLOOR", "TAU", "combine", "event_pvalues", "gaussian_max_sf", "gumbel_sf", "truncated_product"]
