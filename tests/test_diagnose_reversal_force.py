@@ -47,7 +47,7 @@ def test_the_crossing_under_a_varying_force_is_where_the_friction_switches(phase
     xf = signal.filtfilt(b, a, x, padlen=3 * s.butter_order)
     vf = derivative(xf, 1.0)
     force = signal.filtfilt(b, a, align(u), padlen=3 * s.butter_order)
-    with_force = reversal_times(vf, s, fs, 1e-9, force)
+    with_force = reversal_times(vf, s, fs, 1e-9, force, 1.0)
     without = reversal_times(vf, s, fs, 1e-9)
     assert with_force.size == 1
     assert with_force[0] == pytest.approx(t_rev, abs=0.01)

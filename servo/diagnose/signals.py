@@ -103,7 +103,23 @@ class Signals:
         """``sgn(x')`` as the rows see it (n,): :func:`held_sign` of the filtered velocity
         with its reversals placed by :func:`reversal_times` (with the recorded force, whose
         variation near a reversal the crossing's fit must not read as a kink)."""
-        return held_sign(self.vf, reversal_times(self.vf, self.settings, 1.0 / self.dt, self.v_threshold, self.force()))
+        force = self.force()
+        J = self.inertia_estimate(force)
+        t0 = reversal_times(self.vf, self.settings, 1.0 / self.dt, self.v_threshold, force if J else None, J)
+        return held_sign(self.vf, t0)
+
+    def inertia_estimate(self, force: np.ndarray) -> float | None:
+        """The inertia (F s^2/m) of eq. (3) fitted on the usable rows with the sign at
+        the samples (``J, B, K, h0, Fc``: what the crossings' fit needs to take the
+        input's part out of the velocity near a reversal, :func:`reversal_times`);
+        None where it is not positive or the rows are too few."""
+        if self.valid.sum() < 50:
+            return None
+        Z = [self.af, self.vf, self.xf, np.ones(self.n), held_sign(self.vf)]
+        A = np.column_stack([self.rows(z)[self.valid] for z in Z])
+        coef = np.linalg.lstsq(A / np.abs(A).max(axis=0).clip(1e-300), self.rows(force)[self.valid], rcond=None)[0]
+        J = float(coef[0] / max(np.abs(A[:, 0]).max(), 1e-300))
+        return J if J > 0 and np.isfinite(J) else None
 
     @cached_property
     def t_rows(self) -> np.ndarray:
@@ -254,11 +270,13 @@ KINK_GRID = np.linspace(-2.0, 1.0, 121)
 
 
 @lru_cache(maxsize=8)
-def _kink_projectors(order: int, wn: float, half: int) -> np.ndarray:
+def _kink_projectors(order: int, wn: float, half: int, cubic: bool = False) -> np.ndarray:
     """``I - Q Q'`` (F, 2*half+1, 2*half+1) per candidate crossing offset of
     :data:`KINK_GRID`: the projection off the velocity, through the path's filter and
     derivative, of a motion whose velocity is zero at that offset and whose
-    acceleration jumps there (a kinked parabola in position) plus a constant."""
+    acceleration jumps there (a kinked parabola in position) plus a constant; with
+    ``cubic``, an acceleration changing linearly in time too (the viscous and spring
+    forces across a fast reversal, once the input's own part is a column)."""
     b, a = signal.butter(order, wn)
     N = 8 * half + 201
     tt = np.arange(N) - N // 2
@@ -271,7 +289,7 @@ def _kink_projectors(order: int, wn: float, half: int) -> np.ndarray:
     for phi in KINK_GRID:
         tau = tt - phi
         B = np.column_stack([pipe(np.where(tau < 0, tau * tau / 2, 0.0)), pipe(np.where(tau > 0, tau * tau / 2, 0.0)),
-                             np.ones(j.size)])  # fmt: skip
+                             np.ones(j.size)] + ([pipe(tt**3 / 6.0)] if cubic else []))  # fmt: skip
         Q, _ = np.linalg.qr(B)
         out.append(np.eye(j.size) - Q @ Q.T)
     # the same without a kink (a smooth motion: quadratic and cubic in time, and a constant)
@@ -294,7 +312,8 @@ def force_velocity(force: np.ndarray, centres: np.ndarray, half: int) -> np.ndar
     return sum(STENCIL[j] * P[:, j : j + P.shape[1] - 6] for j in range(7))  # v at k[3:-3] = -half..half
 
 
-def reversal_times(vf: np.ndarray, settings, fs: float, fast: float, force: np.ndarray | None = None) -> np.ndarray:
+def reversal_times(vf: np.ndarray, settings, fs: float, fast: float, force: np.ndarray | None = None,
+                   inertia: float | None = None) -> np.ndarray:
     """Fractional sample position of every sign change of the filtered velocity ``vf``.
 
     A friction force that flips at a reversal makes the acceleration jump there, and
@@ -309,13 +328,19 @@ def reversal_times(vf: np.ndarray, settings, fs: float, fast: float, force: np.n
     interpolation of ``vf``.
 
     ``force`` (n,), the recorded force through the position's Butterworth
-    (:meth:`Signals.force`), adds the velocity it drives (:func:`force_velocity`, its
-    scale, the inverse inertia, free) to both the kinked and the smooth motion: the
+    (:meth:`Signals.force`), and ``inertia`` (F s^2/m, :meth:`Signals.inertia_estimate`):
+    the velocity the force drives in that inertia (:func:`force_velocity`) is taken out
+    of the filtered velocity before the kinked and the smooth motion are fitted: the
     input changes the acceleration near a reversal too (a multisine, an open loop's
     feedforward), and a kinked parabola alone then put the kink up to 1.3 samples
     from the friction's switch, where the force balance put it (docs/diagnosis.md
     section 10i); the rows kept at those fast reversals carried up to 30 x their noise
-    floor, and the verdict was ``unexplained`` on nulls."""
+    floor, and the verdict was ``unexplained`` on nulls.  With the force, the kinked
+    motion's acceleration may also change linearly in time (the viscous force across
+    a reversal whose speed changes fast: a chirp's fast end, where without it the
+    kink was placed up to 0.9 sample off).  The inertia is the rows' fit, not a free
+    scale per reversal: a free scale and that slope traded off against the kink's
+    place (0.5 sample off on a multisine)."""
     v = vf
     n = v.size
     cross = np.flatnonzero(np.sign(v[1:]) * np.sign(v[:-1]) < 0)
@@ -325,19 +350,14 @@ def reversal_times(vf: np.ndarray, settings, fs: float, fast: float, force: np.n
     ok[ok] &= (np.abs(v[cross[ok] - 1]) > fast) & (np.abs(v[cross[ok] + 2]) > fast)
     if not ok.any():
         return t0
-    R = _kink_projectors(int(settings.butter_order), float(settings.cutoff(fs) / (fs / 2)), h)
+    known = force is not None and inertia is not None and inertia > 0
+    R = _kink_projectors(int(settings.butter_order), float(settings.cutoff(fs) / (fs / 2)), h, known)
     idx = np.flatnonzero(ok)
     Y = np.stack([v[cross[i] - h : cross[i] + h + 1] for i in idx])  # (c, 2h+1)
+    if known:  # the velocity the input drives, x = P*dt^2/J: vf = derivative(P)*dt/J
+        Y = Y - force_velocity(np.asarray(force, dtype=float), cross[idx], h) / (fs * inertia)
     Ry = np.einsum("fij,cj->cfi", R, Y)
     e = np.einsum("cfi,cfi->cf", Ry, Ry)
-    if force is not None:
-        # the force's velocity as one more column: e -= (Rf.Ry)^2/|Rf|^2 (a rank-one update)
-        Fv = force_velocity(np.asarray(force, dtype=float), cross[idx], h)
-        Rf = np.einsum("fij,cj->cfi", R, Fv)
-        ff = np.einsum("cfi,cfi->cf", Rf, Rf)
-        fy = np.einsum("cfi,cfi->cf", Rf, Ry)
-        use = ff > 1e-12 * np.einsum("ci,ci->c", Fv, Fv)[:, None]  # not within the other columns' span
-        e = e - np.where(use, fy * fy / np.where(use, ff, 1.0), 0.0)
     smooth, e = e[:, -1], e[:, :-1]
     best = e.argmin(axis=1)
     # only a kink that explains the filtered velocity far better than a smooth motion is
