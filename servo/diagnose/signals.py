@@ -101,8 +101,25 @@ class Signals:
     @cached_property
     def sign_v(self) -> np.ndarray:
         """``sgn(x')`` as the rows see it (n,): :func:`held_sign` of the filtered velocity
-        with its reversals placed by :func:`reversal_times`."""
-        return held_sign(self.vf, reversal_times(self.vf, self.settings, 1.0 / self.dt, self.v_threshold))
+        with its reversals placed by :func:`reversal_times` (with the recorded force, whose
+        variation near a reversal the crossing's fit must not read as a kink)."""
+        force = self.force()
+        J = self.inertia_estimate(force)
+        t0 = reversal_times(self.vf, self.settings, 1.0 / self.dt, self.v_threshold, force if J else None, J)
+        return held_sign(self.vf, t0)
+
+    def inertia_estimate(self, force: np.ndarray) -> float | None:
+        """The inertia (F s^2/m) of eq. (3) fitted on the usable rows with the sign at
+        the samples (``J, B, K, h0, Fc``: what the crossings' fit needs to take the
+        input's part out of the velocity near a reversal, :func:`reversal_times`);
+        None where it is not positive or the rows are too few."""
+        if self.valid.sum() < 50:
+            return None
+        Z = [self.af, self.vf, self.xf, np.ones(self.n), held_sign(self.vf)]
+        A = np.column_stack([self.rows(z)[self.valid] for z in Z])
+        coef = np.linalg.lstsq(A / np.abs(A).max(axis=0).clip(1e-300), self.rows(force)[self.valid], rcond=None)[0]
+        J = float(coef[0] / max(np.abs(A[:, 0]).max(), 1e-300))
+        return J if J > 0 and np.isfinite(J) else None
 
     @cached_property
     def t_rows(self) -> np.ndarray:
@@ -253,11 +270,13 @@ KINK_GRID = np.linspace(-2.0, 1.0, 121)
 
 
 @lru_cache(maxsize=8)
-def _kink_projectors(order: int, wn: float, half: int) -> np.ndarray:
+def _kink_projectors(order: int, wn: float, half: int, cubic: bool = False) -> np.ndarray:
     """``I - Q Q'`` (F, 2*half+1, 2*half+1) per candidate crossing offset of
     :data:`KINK_GRID`: the projection off the velocity, through the path's filter and
     derivative, of a motion whose velocity is zero at that offset and whose
-    acceleration jumps there (a kinked parabola in position) plus a constant."""
+    acceleration jumps there (a kinked parabola in position) plus a constant; with
+    ``cubic``, an acceleration changing linearly in time too (the viscous and spring
+    forces across a fast reversal, once the input's own part is a column)."""
     b, a = signal.butter(order, wn)
     N = 8 * half + 201
     tt = np.arange(N) - N // 2
@@ -270,7 +289,7 @@ def _kink_projectors(order: int, wn: float, half: int) -> np.ndarray:
     for phi in KINK_GRID:
         tau = tt - phi
         B = np.column_stack([pipe(np.where(tau < 0, tau * tau / 2, 0.0)), pipe(np.where(tau > 0, tau * tau / 2, 0.0)),
-                             np.ones(j.size)])  # fmt: skip
+                             np.ones(j.size)] + ([pipe(tt**3 / 6.0)] if cubic else []))  # fmt: skip
         Q, _ = np.linalg.qr(B)
         out.append(np.eye(j.size) - Q @ Q.T)
     # the same without a kink (a smooth motion: quadratic and cubic in time, and a constant)
@@ -280,7 +299,21 @@ def _kink_projectors(order: int, wn: float, half: int) -> np.ndarray:
     return np.array(out)
 
 
-def reversal_times(vf: np.ndarray, settings, fs: float, fast: float) -> np.ndarray:
+def force_velocity(force: np.ndarray, centres: np.ndarray, half: int) -> np.ndarray:
+    """(c, 2*half+1) the velocity a unit mass would gain from ``force`` (the force through
+    the position's Butterworth, full rate) over ``centres[i] +- half`` samples, through
+    the rows' derivative, up to a constant per window: the position ``P`` whose second
+    difference is the force (:func:`second_difference`, exact for a held input),
+    differentiated by :func:`derivative`.  In samples (``dt = 1``); the scale is free."""
+    k = np.arange(-half - 3, half + 4)  # the stencil needs 3 samples either side
+    f = force[centres[:, None] + k[None, :]]
+    P = np.zeros_like(f)
+    P[:, 2:] = np.cumsum(np.cumsum(f[:, 1:-1], axis=1), axis=1)  # P[k+1] - 2P[k] + P[k-1] = f[k]
+    return sum(STENCIL[j] * P[:, j : j + P.shape[1] - 6] for j in range(7))  # v at k[3:-3] = -half..half
+
+
+def reversal_times(vf: np.ndarray, settings, fs: float, fast: float, force: np.ndarray | None = None,
+                   inertia: float | None = None) -> np.ndarray:
     """Fractional sample position of every sign change of the filtered velocity ``vf``.
 
     A friction force that flips at a reversal makes the acceleration jump there, and
@@ -292,21 +325,39 @@ def reversal_times(vf: np.ndarray, settings, fs: float, fast: float) -> np.ndarr
     are used), the crossing is fitted: the filtered velocity of a kinked motion,
     over :data:`KINK_HALF_WIDTH` samples either side, for each candidate position;
     elsewhere, and when the best candidate is at the edge of the grid, linear
-    interpolation of ``vf``."""
+    interpolation of ``vf``.
+
+    ``force`` (n,), the recorded force through the position's Butterworth
+    (:meth:`Signals.force`), and ``inertia`` (F s^2/m, :meth:`Signals.inertia_estimate`):
+    the velocity the force drives in that inertia (:func:`force_velocity`) is taken out
+    of the filtered velocity before the kinked and the smooth motion are fitted: the
+    input changes the acceleration near a reversal too (a multisine, an open loop's
+    feedforward), and a kinked parabola alone then put the kink up to 1.3 samples
+    from the friction's switch, where the force balance put it (docs/diagnosis.md
+    section 10i); the rows kept at those fast reversals carried up to 30 x their noise
+    floor, and the verdict was ``unexplained`` on nulls.  With the force, the kinked
+    motion's acceleration may also change linearly in time (the viscous force across
+    a reversal whose speed changes fast: a chirp's fast end, where without it the
+    kink was placed up to 0.9 sample off).  The inertia is the rows' fit, not a free
+    scale per reversal: a free scale and that slope traded off against the kink's
+    place (0.5 sample off on a multisine)."""
     v = vf
     n = v.size
     cross = np.flatnonzero(np.sign(v[1:]) * np.sign(v[:-1]) < 0)
     t0 = cross + v[cross] / (v[cross] - v[cross + 1])
     h = KINK_HALF_WIDTH
-    ok = (cross >= h + 1) & (cross + h + 2 < n)
+    ok = (cross >= h + 4) & (cross + h + 5 < n)
     ok[ok] &= (np.abs(v[cross[ok] - 1]) > fast) & (np.abs(v[cross[ok] + 2]) > fast)
     if not ok.any():
         return t0
-    R = _kink_projectors(int(settings.butter_order), float(settings.cutoff(fs) / (fs / 2)), h)
+    known = force is not None and inertia is not None and inertia > 0
+    R = _kink_projectors(int(settings.butter_order), float(settings.cutoff(fs) / (fs / 2)), h, known)
     idx = np.flatnonzero(ok)
     Y = np.stack([v[cross[i] - h : cross[i] + h + 1] for i in idx])  # (c, 2h+1)
-    e = np.einsum("fij,cj->cfi", R, Y)
-    e = np.einsum("cfi,cfi->cf", e, e)
+    if known:  # the velocity the input drives, x = P*dt^2/J: vf = derivative(P)*dt/J
+        Y = Y - force_velocity(np.asarray(force, dtype=float), cross[idx], h) / (fs * inertia)
+    Ry = np.einsum("fij,cj->cfi", R, Y)
+    e = np.einsum("cfi,cfi->cf", Ry, Ry)
     smooth, e = e[:, -1], e[:, :-1]
     best = e.argmin(axis=1)
     # only a kink that explains the filtered velocity far better than a smooth motion is
