@@ -13,14 +13,25 @@ difference, the force's alignment, the Butterworth, the decimation filter): for 
 linear part of the plant, ``J*y'' + B*y' + K*y + h0 = L(u)`` holds exactly where
 ``J*x'' + B*x' + K*x + h0 = u`` does.  So the term acts like an *input* term: it filters
 the recorded input by ``L`` before the rows are made (:meth:`SensorLag.transform`), and
-the columns stay those of the measured motion.  (The inverse filter on the position,
-``x = y + tau*y'``, would have to be differentiated three times and amplifies the sensor
-noise by ``1/a`` at Nyquist; the lag on the force adds no noise.)  For the nonlinear
-columns the equivalence is approximate: a Coulomb force switches at the true
-velocity's zero crossing, which the lag moves by ``tau`` on average; ``L`` applied to
-the switching force and a switch at the measured crossing differ by a doublet of
-width ``tau`` and zero mean, which the rows' band (``0.4*fs/q``) removes when ``tau`` is
-a few samples.
+the linear columns stay those of the measured motion.  (The inverse filter on the
+position, ``x = y + tau*y'``, would have to be differentiated three times and amplifies
+the sensor noise by ``1/a`` at Nyquist; the lag on the force adds no noise.)
+
+**The nonlinear columns** do not commute with ``L``: a Coulomb force switches at the
+arm's velocity's zero crossing, ``tau`` before the measured one, and ``L`` of that switch
+differs from a switch at the measured crossing by a doublet of width ``tau`` (at ``fs/20``
+the model stayed at 1.2-2.4 x the noise floor).  So a model holding the lag builds every
+column that is a nonlinear function of the motion alone (:func:`corrects`: Coulomb,
+asymmetric friction, Stribeck, hysteresis, cogging) on the lag-corrected motion
+(:func:`unlag` of the filtered position, velocity, acceleration: exact, since ``L``
+commutes with the path's filter and differences) and passes it through ``L`` like the
+input: :class:`LagCorrected`, built once per effective input
+(:meth:`SensorLag.corrected`, :meth:`~servo.diagnose.model.Design.column_design`).  The
+force balance of a Coulomb plant behind the sensor then holds as without the lag
+(tested).  The inverse filter amplifies the velocity's noise (by the gain its threshold
+carries, :class:`LaggedSignals`), which moves the sign's crossings a little; the linear
+columns, the resonance (linear in the input) stay as they were, and a position-dependent
+gain (the motion times the input) is not corrected.
 
 **A lag is not a delay, but at low frequency it is one.**  ``1/(1 + s*tau)`` and
 ``exp(-s*tau)`` agree to first order in ``w*tau``: both are a lag of ``tau`` in phase.
