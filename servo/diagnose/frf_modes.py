@@ -316,8 +316,7 @@ def linear_input(design, fit) -> np.ndarray:
         phys = VOCABULARY[t.physics]
         if phys.kind != "column" or t.physics in LINEAR:
             continue
-        F = np.asarray(phys.full(design, t.params, u), dtype=float).reshape(u.size, -1)
-        d += F @ np.asarray(fit.coefs[i], dtype=float)
+        d += design.full_columns(t, fit.model) @ np.asarray(fit.coefs[i], dtype=float)  # a sensor lag's too
     return u - d
 
 

@@ -207,6 +207,26 @@ class Design:
         q = self.sig.settings.decimate
         return self.per_input("time_delay", model, lambda: DelayedForce(self.sig, self.u_eff(model), 2.0 * q + 1.0))
 
+    def column_design(self, phys, model: Model):
+        """The design whose ``sig`` the term ``phys``'s columns read under ``model``: this
+        one, or where ``model`` holds a sensor lag and ``phys`` is nonlinear in the motion,
+        the lag-corrected one (:class:`servo.diagnose.sensor_lag.LagCorrected`: the motion
+        the arm made, its rows through the lag)."""
+        if model.has("sensor_lag"):
+            from servo.diagnose.sensor_lag import corrects
+
+            if corrects(phys):
+                return VOCABULARY["sensor_lag"].corrected(self, model)
+        return self
+
+    def full_columns(self, term: Term, model: Model) -> np.ndarray:
+        """Full-rate columns (n, k) of ``term`` under ``model`` as the force balance of the
+        measured motion sees them (through a sensor lag where :meth:`column_design` says)."""
+        phys = VOCABULARY[term.physics]
+        d = self.column_design(phys, model)
+        F = np.atleast_2d(np.asarray(phys.full(d, term.params, self.u_eff(model)), dtype=float).T).T
+        return F if d is self else d.sig.seen(F)
+
     def term_rows(self, term: Term, model: Model) -> np.ndarray:
         """Rows of the columns of ``term`` (m, k) under ``model``'s input.  A term gated in
         time (an onset ``from_s``, :mod:`servo.diagnose.partial`) has its full-rate
@@ -215,16 +235,19 @@ class Design:
         decimation filter's reach of the onset)."""
         phys = VOCABULARY[term.physics]
         key = (term.physics, term.theta) + (self.input_key(model) if phys.uses_input else ())
+        d = self.column_design(phys, model)
+        if d is not self:
+            key += self.input_key(model)
         if GATE in term.params:
             p = term.params
             t0 = p.pop(GATE)
 
             def make():
-                F = np.atleast_2d(phys.full(self, p, self.u_eff(model)).T).T * (self.sig.t >= t0)[:, None]
-                return np.column_stack([self.sig.rows(np.ascontiguousarray(F[:, j])) for j in range(F.shape[1])])
+                F = np.atleast_2d(phys.full(d, p, self.u_eff(model)).T).T * (self.sig.t >= t0)[:, None]
+                return np.column_stack([d.sig.rows(np.ascontiguousarray(F[:, j])) for j in range(F.shape[1])])
 
             return self.cached_rows(key, make)
-        return self.cached_rows(key, lambda: phys.rows(self, term.params, self.u_eff(model)))
+        return self.cached_rows(key, lambda: phys.rows(d, term.params, self.u_eff(model)))
 
     def variant_rows(self, physics: str, theta: dict, model: Model) -> np.ndarray:
         """:meth:`term_rows` of the vocabulary term ``physics`` at ``theta``."""

@@ -167,14 +167,15 @@ def _exact_onset(sel: Selector, model: Model, physics: str, theta: dict, y0, Phi
     sig = d.sig
     phys = VOCABULARY[physics]
     p = {k: v for k, v in theta.items() if k != GATE}
-    F = np.atleast_2d(phys.full(d, p, d.u_eff(model)).T).T
+    dd = d.column_design(phys, model)  # a sensor lag in the model: the arm's motion, rows through the lag
+    F = np.atleast_2d(phys.full(dd, p, d.u_eff(model)).T).T
     k0 = int(np.searchsorted(sig.t, theta[GATE]))
     q = sig.settings.decimate
     last = int(sig.keep[np.flatnonzero(d.train_rows)[-1]])
     best = (np.inf, theta[GATE])
     for k in range(max(k0 - (3 * q) // 2, 1), min(k0 + (3 * q) // 2, last) + 1):
         G = F * (np.arange(sig.n) >= k)[:, None]
-        C = np.column_stack([sig.rows(np.ascontiguousarray(G[:, j])) for j in range(G.shape[1])])
+        C = np.column_stack([dd.sig.rows(np.ascontiguousarray(G[:, j])) for j in range(G.shape[1])])
         Z = np.column_stack([Phi, C])
         r = (y0 - Z @ fit_rows(y0, Z, w))[w]
         e = float(r @ r)

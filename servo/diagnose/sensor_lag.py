@@ -13,14 +13,25 @@ difference, the force's alignment, the Butterworth, the decimation filter): for 
 linear part of the plant, ``J*y'' + B*y' + K*y + h0 = L(u)`` holds exactly where
 ``J*x'' + B*x' + K*x + h0 = u`` does.  So the term acts like an *input* term: it filters
 the recorded input by ``L`` before the rows are made (:meth:`SensorLag.transform`), and
-the columns stay those of the measured motion.  (The inverse filter on the position,
-``x = y + tau*y'``, would have to be differentiated three times and amplifies the sensor
-noise by ``1/a`` at Nyquist; the lag on the force adds no noise.)  For the nonlinear
-columns the equivalence is approximate: a Coulomb force switches at the true
-velocity's zero crossing, which the lag moves by ``tau`` on average; ``L`` applied to
-the switching force and a switch at the measured crossing differ by a doublet of
-width ``tau`` and zero mean, which the rows' band (``0.4*fs/q``) removes when ``tau`` is
-a few samples.
+the linear columns stay those of the measured motion.  (The inverse filter on the
+position, ``x = y + tau*y'``, would have to be differentiated three times and amplifies
+the sensor noise by ``1/a`` at Nyquist; the lag on the force adds no noise.)
+
+**The nonlinear columns** do not commute with ``L``: a Coulomb force switches at the
+arm's velocity's zero crossing, ``tau`` before the measured one, and ``L`` of that switch
+differs from a switch at the measured crossing by a doublet of width ``tau`` (at ``fs/20``
+the model stayed at 1.2-2.4 x the noise floor).  So a model holding the lag builds every
+column that is a nonlinear function of the motion alone (:func:`corrects`: Coulomb,
+asymmetric friction, Stribeck, hysteresis, cogging) on the lag-corrected motion
+(:func:`unlag` of the filtered position, velocity, acceleration: exact, since ``L``
+commutes with the path's filter and differences) and passes it through ``L`` like the
+input: :class:`LagCorrected`, built once per effective input
+(:meth:`SensorLag.corrected`, :meth:`~servo.diagnose.model.Design.column_design`).  The
+force balance of a Coulomb plant behind the sensor then holds as without the lag
+(tested).  The inverse filter amplifies the velocity's noise (by the gain its threshold
+carries, :class:`LaggedSignals`), which moves the sign's crossings a little; the linear
+columns, the resonance (linear in the input) stay as they were, and a position-dependent
+gain (the motion times the input) is not corrected.
 
 **A lag is not a delay, but at low frequency it is one.**  ``1/(1 + s*tau)`` and
 ``exp(-s*tau)`` agree to first order in ``w*tau``: both are a lag of ``tau`` in phase.
@@ -51,6 +62,7 @@ import numpy as np
 from scipy import signal
 
 from servo.diagnose.band import band_hz
+from servo.diagnose.signals import Signals
 from servo.diagnose.terms import Effect, Physics, register
 
 
@@ -100,6 +112,85 @@ class LaggedForce:
         return np.ascontiguousarray(lowpass(self.g, lag_coefficient(tau, self.dt))[self.sl])
 
 
+def unlag(z: np.ndarray, a: float) -> np.ndarray:
+    """The exact inverse of :func:`lowpass` (n,): ``x[k] = (y[k] - (1 - a)*y[k-1])/a``,
+    ``x[0] = y[0]`` (the filter starts at rest)."""
+    z = np.asarray(z, dtype=float)
+    if a >= 1.0 or z.size == 0:
+        return z.copy()
+    out = np.empty_like(z)
+    out[0] = z[0]
+    out[1:] = (z[1:] - (1.0 - a) * z[:-1]) / a
+    return out
+
+
+#: column terms linear in the motion: their columns of the measured motion already obey
+#: the lagged force balance exactly (``L`` commutes with them), and the true motion would
+#: only add the inverse filter's noise
+LINEAR_IN_MOTION = frozenset({"inertia", "viscous_friction", "stiffness", "offset"})
+
+
+def corrects(phys) -> bool:
+    """Whether a model holding a sensor lag builds ``phys``'s columns on the lag-corrected
+    motion (:class:`LagCorrected`): a column term that is a nonlinear function of the
+    motion alone (Coulomb, asymmetric friction, Stribeck, hysteresis, cogging).  Terms of
+    the input (a resonance: linear in it, exact already; a position-dependent gain, the
+    product of the motion and the input: not corrected) and the linear terms are not."""
+    return phys.kind == "column" and not phys.uses_input and phys.name not in LINEAR_IN_MOTION
+
+
+class LaggedSignals(Signals):
+    """A recording's :class:`~servo.diagnose.signals.Signals` with the motion the arm made
+    (the filtered position, velocity, acceleration through :func:`unlag`: the inverse of
+    the sensor's low-pass), whose :meth:`rows` pass a full-rate column through the
+    sensor's low-pass first.  A column term's ``full``/``rows`` read on it give
+    ``rows(L(f(x)))``: the force the arm felt, seen through the sensor like the input
+    (:meth:`SensorLag.transform`).  The sign column (:attr:`sign_v`) is placed at the
+    corrected velocity's crossings.  ``noise_v`` and ``v_threshold`` grow by the inverse
+    filter's noise gain (white position noise through the path's filter, the derivative
+    and :func:`unlag`)."""
+
+    lag_a: float = 1.0
+
+    @classmethod
+    def of(cls, sig: Signals, tau: float) -> "LaggedSignals":
+        a = lag_coefficient(tau, sig.dt)
+        gain = _unlag_noise_gain(sig.settings, 1.0 / sig.dt, a)
+        out = cls(sig.t, sig.u, sig.x, unlag(sig.xf, a), unlag(sig.vf, a), unlag(sig.af, a), sig.dt, sig.settings,
+                  sig.keep, sig.valid, sig.noise_x, sig.noise_v * gain, sig.v_threshold * gain)  # fmt: skip
+        out.lag_a = a
+        return out
+
+    def rows(self, z: np.ndarray) -> np.ndarray:
+        return super().rows(lowpass(z, self.lag_a))
+
+    def seen(self, F: np.ndarray) -> np.ndarray:
+        """Full-rate columns ``F`` (n, k) of the arm's forces as the measured motion's force
+        balance sees them: through the sensor's low-pass."""
+        return np.column_stack([lowpass(F[:, j], self.lag_a) for j in range(F.shape[1])])
+
+
+def _unlag_noise_gain(settings, fs: float, a: float) -> float:
+    """``std(unlag(vf))/std(vf)`` for white position noise."""
+    from servo.diagnose.signals import derivative
+
+    b, a_ = signal.butter(settings.butter_order, settings.cutoff(fs) / (fs / 2))
+    imp = np.zeros(801)
+    imp[400] = 1.0
+    h = derivative(signal.filtfilt(b, a_, imp, padlen=3 * settings.butter_order), 1.0 / fs)
+    return float(np.linalg.norm(unlag(h, a)) / np.linalg.norm(h))
+
+
+class LagCorrected:
+    """The design a column term reads (``d.sig``) when the model holds a sensor lag of
+    time constant ``tau``: :class:`LaggedSignals` of the recording, and the design's
+    training rows and samples (the terms' ranges read them)."""
+
+    def __init__(self, d, tau: float):
+        self.sig = LaggedSignals.of(d.sig, tau)
+        self.train_rows, self.train_valid, self.train_samples = d.train_rows, d.train_valid, d.train_samples
+
+
 class SensorLag(Physics):
     name, kind, thetas = "sensor_lag", "input", ("time_constant_s",)
     units = {"time_constant_s": "s", "cutoff_hz": "Hz"}
@@ -140,6 +231,12 @@ class SensorLag(Physics):
         lagged = d.per_input(self.name, model, lambda: LaggedForce(d.sig, d.u_eff(model)))
         return lagged.rows(theta["time_constant_s"])
 
+    def corrected(self, d, model):
+        """The :class:`LagCorrected` design of ``model``'s lag (which ``model`` holds),
+        built once per effective input (:meth:`~servo.diagnose.model.Design.per_input`)."""
+        tau = model.get(self.name).params["time_constant_s"]
+        return d.per_input("sensor_lag_motion", model, lambda: LagCorrected(d, tau))
+
     def _range(self, d):
         s = d.sig
         w_e = 2 * math.pi * band_hz(s.settings, 1.0 / s.dt) * s.dt  # the rows' band edge, rad/sample
@@ -169,4 +266,4 @@ class SensorLag(Physics):
 
 register(SensorLag)
 
-__all__ = ["LaggedForce", "SensorLag", "lag_coefficient", "lowpass"]
+__all__ = ["LagCorrected", "LaggedForce", "LaggedSignals", "SensorLag", "corrects", "lag_coefficient", "lowpass", "unlag"]
