@@ -49,9 +49,10 @@ def servo_cmd(*args):
 
 
 @contextmanager
-def emulator(*args, timeout=60.0):
+def emulator(*args, timeout=60.0, preexec_fn=None):
     """``servo emulate ARGS`` in a subprocess; yields (process, url).  Always ends it."""
-    proc = subprocess.Popen(servo_cmd("emulate", *args), stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    proc = subprocess.Popen(servo_cmd("emulate", *args), stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                            preexec_fn=preexec_fn)  # fmt: skip
     proc.pending = b""  # stdout read by _read_line only
     try:
         line = _read_line(proc, time.monotonic() + timeout) or ""
@@ -411,6 +412,16 @@ def test_a_corrupt_answer_to_hello_is_reported_as_corrupt_not_as_silence():
         with pytest.raises(DriverError, match=r"no valid answer to HELLO .* 1 corrupt and 0 malformed frame") as err:
             drv.configure()
     assert "\n" not in str(err.value) and drv.state is DriverState.CLOSED
+
+
+def test_an_emulator_started_with_sigint_ignored_still_stops_on_it():
+    """A script's ``servo emulate &`` inherits an ignored SIGINT from its shell; the
+    emulator says "stop with Ctrl-C", so it takes SIGINT back."""
+    ignore = lambda: signal.signal(signal.SIGINT, signal.SIG_IGN)  # noqa: E731
+    with emulator("--pty", preexec_fn=ignore) as (emu, url):
+        emu.send_signal(signal.SIGINT)
+        line = _wait_session_line(emu, "stopped after", timeout=10)
+    assert "stopped after 0 session(s); drive at zero current" in line
 
 
 def test_an_emulator_interrupted_mid_session_says_which_session(lockstep_emulator, tmp_path):

@@ -2,7 +2,9 @@
 from __future__ import annotations
 
 import argparse
+import signal
 import sys
+import threading
 
 from servo.cli.common import add_config_options, config_from_args
 from servo.errors import ServoError
@@ -57,6 +59,10 @@ def handle(args: argparse.Namespace) -> int:
         raise ServoError(f"emulate: cannot listen: {exc}") from None
     mode = "real time" if args.realtime else "lockstep"
     ctx = (realtime_section(args.cpu, args.fifo, args.lock_memory) if args.realtime else nullcontext())
+    # it says "stop with Ctrl-C", so SIGINT must stop it: also when started in the
+    # background of a script, whose shell hands it an ignored SIGINT (restored after)
+    main = threading.current_thread() is threading.main_thread()
+    previous = signal.signal(signal.SIGINT, signal.default_int_handler) if main else None
     try:
         with ctx as grant:
             say(f"listening on {transport.url} ({mode}, {cfg.run.sample_rate_hz:g} Hz, seed {cfg.run.seed}); "
@@ -70,6 +76,8 @@ def handle(args: argparse.Namespace) -> int:
         say(f"stopped after {board.session} session(s){during}; drive at zero current")
         return 0
     finally:
+        if main:
+            signal.signal(signal.SIGINT, previous)
         transport.close()
         sys.stdout.flush()
     say(f"done after {board.sessions_ended} session(s)")
