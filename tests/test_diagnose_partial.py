@@ -123,3 +123,21 @@ def test_a_report_holding_a_gated_term_is_a_model_file_with_that_onset(late, tmp
     hy = D2.baseline.get("hysteresis")
     assert hy is not None and not hy.free and hy.params[GATE] == pytest.approx(D.findings[0].params[GATE])
     assert D2.findings == [] and D2.verdict["verdict"] == "consistent", D2.verdict["text"]
+
+
+def test_a_gated_terms_full_rate_columns_are_zero_before_its_onset():
+    """What the frequency path subtracts from the input (``Design.full_columns``) is the
+    gated force the rows hold: nothing before the onset, the ungated force after it."""
+    from servo.diagnose.job import Options, prepare
+    from servo.diagnose.model import GATE, Model, Term
+    from servo.diagnose.proving.cases import Case, recording
+
+    rec, _ = recording(Case("hysteresis_late", 0.5, "pdi", "multisine", 5000.0), 40001)
+    d = prepare(rec, Options().settings, Options())
+    t0 = float(rec.t[rec.n // 2])
+    ungated = Term.make("coulomb_friction", {}, (1.0,))
+    gated = Term.make("coulomb_friction", {GATE: t0}, (1.0,))
+    m = Model([ungated])
+    F0, F1 = d.full_columns(ungated, m), d.full_columns(gated, m)
+    before = d.sig.t < t0
+    assert np.all(F1[before] == 0.0) and np.array_equal(F1[~before], F0[~before]) and np.any(F0[before] != 0.0)

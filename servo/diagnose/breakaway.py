@@ -436,7 +436,7 @@ def test(design, fit, step: float = 0.0) -> Result:
     # each event's p-value: its excess over the sliding level's switch and margins against
     # the local window maximum of the sliding misfit (breakaway_evidence)
     excess = peak - (bounds - noise)
-    pv = event_pvalues(np.abs(e), outside, b - a, (a + b) // 2, excess, toward, sigma, LOCAL_WINDOWS) if a.size else np.ones(0)
+    pv = event_pvalues(np.abs(e), outside, b - a, (a + b) // 2, excess, toward, LOCAL_WINDOWS) if a.size else np.ones(0)
     res.events = Events(a, b, peak, train, bounds, toward, still, pv)
     res.bound, res.sigma, res.l1, res.Fc, res.Fc_std = bound, sigma, l1, Fc, Fc_std
     res.n_rest_test = int((still & test_).sum())

@@ -221,10 +221,14 @@ class Design:
 
     def full_columns(self, term: Term, model: Model) -> np.ndarray:
         """Full-rate columns (n, k) of ``term`` under ``model`` as the force balance of the
-        measured motion sees them (through a sensor lag where :meth:`column_design` says)."""
+        measured motion sees them (through a sensor lag where :meth:`column_design` says),
+        zero before a gated term's onset (``from_s``), as in :meth:`term_rows`."""
         phys = VOCABULARY[term.physics]
         d = self.column_design(phys, model)
-        F = np.atleast_2d(np.asarray(phys.full(d, term.params, self.u_eff(model)), dtype=float).T).T
+        p = {k: v for k, v in term.params.items() if k != GATE}
+        F = np.atleast_2d(np.asarray(phys.full(d, p, self.u_eff(model)), dtype=float).T).T
+        if GATE in term.params:
+            F = F * (self.sig.t >= term.params[GATE])[:, None]
         return F if d is self else d.sig.seen(F)
 
     def term_rows(self, term: Term, model: Model) -> np.ndarray:
