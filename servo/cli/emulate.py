@@ -76,8 +76,8 @@ def handle(args: argparse.Namespace) -> int:
         say(f"stopped after {board.session} session(s){during}; drive at zero current")
         return 0
     finally:
-        if main:
-            signal.signal(signal.SIGINT, previous)
+        if main:  # None: the previous handler was not set from Python (the default then)
+            signal.signal(signal.SIGINT, previous if previous is not None else signal.SIG_DFL)
         transport.close()
         sys.stdout.flush()
     say(f"done after {board.sessions_ended} session(s)")
