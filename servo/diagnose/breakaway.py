@@ -84,7 +84,7 @@ import numpy as np
 from scipy import signal
 from scipy.ndimage import maximum_filter1d
 
-from servo.diagnose.breakaway_evidence import TAU, combine, event_pvalues
+from servo.diagnose.breakaway_evidence import TAU, combine, event_pvalues, nearest, window_lengths
 from servo.diagnose.signals import butter_ba
 
 #: an event's window reaches this many Butterworth time scales (``fs/cutoff`` samples) past its run
@@ -122,10 +122,6 @@ def filter_l1(order: int, wn: float) -> float:
     return float(np.abs(signal.filtfilt(b, a, z, padlen=3 * order)).sum())
 
 
-def _pow2(widths: np.ndarray) -> np.ndarray:
-    return (2 ** np.ceil(np.log2(np.maximum(widths, 1)))).astype(int)
-
-
 def noise_max(abs_e: np.ndarray, outside: np.ndarray, widths: np.ndarray, sigma: float,
               centres: np.ndarray | None = None) -> np.ndarray:
     """The noise margin of each event (F, (N,)): the ``1 - P_NOISE`` quantile of the
@@ -144,7 +140,7 @@ def noise_max(abs_e: np.ndarray, outside: np.ndarray, widths: np.ndarray, sigma:
     holds fewer windows than that."""
     z = np.where(outside, abs_e, np.inf)
     out = np.full(widths.size, Z_NOISE * sigma)
-    L_of = _pow2(widths)
+    L_of = window_lengths(widths)
     for L in np.unique(L_of):
         m = maximum_filter1d(z, size=int(L), mode="constant", cval=np.inf)
         ok = np.isfinite(m)
@@ -157,11 +153,7 @@ def noise_max(abs_e: np.ndarray, outside: np.ndarray, widths: np.ndarray, sigma:
         pos = np.flatnonzero(ok)
         need = int(min(LOCAL_WINDOWS * L, pos.size))
         for j in sel:
-            # the `need` valid window positions nearest the event's centre
-            i = int(np.searchsorted(pos, centres[j]))
-            lo, hi = max(0, i - need // 2), min(pos.size, i + need // 2)
-            lo, hi = max(0, min(lo, hi - need)), min(pos.size, max(hi, lo + need))
-            out[j] = max(float(np.quantile(m[pos[lo:hi]], 1.0 - P_NOISE)), Z_NOISE * sigma)
+            out[j] = max(float(np.quantile(m[pos[nearest(pos, centres[j], need)]], 1.0 - P_NOISE)), Z_NOISE * sigma)
     return out
 
 
@@ -418,10 +410,10 @@ def test(design, fit, step: float = 0.0) -> Result:
     g = np.abs(sig.butter(sig.sign_v))  # the sliding level's switch through the filter, per unit Fc
     ref = np.array([g[s:e_].max() for s, e_ in zip(a, b)]) if a.size else np.zeros(0)
     noise = noise_max(np.abs(e), outside, b - a, sigma, (a + b) // 2)
-    bounds = ref * (Fc + Z_FC * Fc_std) + MARGIN * Fc + noise
-    bound = float(np.median(bounds)) if bounds.size else 0.0
     pulse = step_pulse(sig, fit, step)
-    bounds = bounds + pulse
+    fixed = ref * (Fc + Z_FC * Fc_std) + MARGIN * Fc  # the bound's deterministic part
+    bound = float(np.median(fixed + noise)) if a.size else 0.0
+    bounds = fixed + noise + pulse
     res.level_bound = float(np.median(ref)) * (Fc + Z_FC * Fc_std) + MARGIN * Fc + Z_NOISE * sigma + pulse if a.size else 0.0
     peak, toward = np.zeros(a.size), np.zeros(a.size, bool)
     rest = marks(sig)
@@ -435,7 +427,7 @@ def test(design, fit, step: float = 0.0) -> Result:
     test_ = a > last
     # each event's p-value: its excess over the sliding level's switch and margins against
     # the local window maximum of the sliding misfit (breakaway_evidence)
-    excess = peak - (bounds - noise)
+    excess = peak - (fixed + pulse)
     pv = event_pvalues(np.abs(e), outside, b - a, (a + b) // 2, excess, toward, LOCAL_WINDOWS) if a.size else np.ones(0)
     res.events = Events(a, b, peak, train, bounds, toward, still, pv)
     res.bound, res.sigma, res.l1, res.Fc, res.Fc_std = bound, sigma, l1, Fc, Fc_std

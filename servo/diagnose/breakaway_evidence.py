@@ -66,8 +66,18 @@ TAU = 0.1
 EULER = 0.5772156649015329
 
 
-def _pow2(widths: np.ndarray) -> np.ndarray:
+def window_lengths(widths: np.ndarray) -> np.ndarray:
+    """The sliding windows an event of each width is compared with: its width rounded
+    up to a power of two (samples, (N,) int), so that events share window maxima."""
     return (2 ** np.ceil(np.log2(np.maximum(widths, 1)))).astype(int)
+
+
+def nearest(pos: np.ndarray, centre: int, need: int) -> slice:
+    """The ``need`` entries of the sorted window positions ``pos`` nearest ``centre``
+    (the event's neighbourhood; the whole of ``pos`` when it holds fewer)."""
+    i = int(np.searchsorted(pos, centre))
+    lo, hi = max(0, i - need // 2), min(pos.size, i + need // 2)
+    return slice(max(0, min(lo, hi - need)), min(pos.size, max(hi, lo + need)))
 
 
 def gumbel_sf(x: float, maxima: np.ndarray) -> float:
@@ -96,7 +106,7 @@ def event_pvalues(abs_e: np.ndarray, outside: np.ndarray, widths: np.ndarray, ce
     ``toward`` (N,) whether each peak is a breakaway's direction, ``local_windows`` the neighbourhood's size in window widths."""
     p = np.ones(widths.size)
     z = np.where(outside, abs_e, np.inf)
-    L_of = _pow2(widths)
+    L_of = window_lengths(widths)
     for L in np.unique(L_of):
         sel = np.flatnonzero((L_of == L) & toward)
         if sel.size == 0:
@@ -111,10 +121,7 @@ def event_pvalues(abs_e: np.ndarray, outside: np.ndarray, widths: np.ndarray, ce
             continue
         need = int(min(local_windows * L, pos.size))
         for j in sel:
-            i = int(np.searchsorted(pos, centres[j]))
-            lo, hi = max(0, i - need // 2), min(pos.size, i + need // 2)
-            lo, hi = max(0, min(lo, hi - need)), min(pos.size, max(hi, lo + need))
-            loc = m[pos[lo:hi]]
+            loc = m[pos[nearest(pos, centres[j], need)]]
             x = float(excess[j])
             n_eff = loc.size / L  # about as many independent windows
             emp = float(np.count_nonzero(loc >= x)) / loc.size
@@ -165,4 +172,5 @@ def combine(p: np.ndarray) -> float:
     return truncated_product(p, TAU) if p.size else 1.0
 
 
-__all__ = ["P_FLOOR", "TAU", "combine", "event_pvalues", "gumbel_sf", "truncated_product", "union_bound"]
+__all__ = ["P_FLOOR", "TAU", "combine", "event_pvalues", "gumbel_sf", "nearest", "truncated_product", "union_bound",
+           "window_lengths"]
