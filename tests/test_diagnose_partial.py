@@ -141,3 +141,22 @@ def test_a_gated_terms_full_rate_columns_are_zero_before_its_onset():
     F0, F1 = d.full_columns(ungated, m), d.full_columns(gated, m)
     before = d.sig.t < t0
     assert np.all(F1[before] == 0.0) and np.array_equal(F1[~before], F0[~before]) and np.any(F0[before] != 0.0)
+
+
+def test_of_two_gated_terms_that_pay_the_one_whose_refined_fit_predicts_better_is_added():
+    """A LuGre element from half-way (lead-lag loop, pulses, 500 Hz): gated, both a
+    Stribeck bump and a Dahl hysteresis pass the test, and on the folds' grid points
+    the bump scores better (the grid's Dahl length is 2x off the element's).  Refined,
+    the hysteresis predicts the held-out folds better and is the one added
+    (:meth:`Selector.ranked`); the model then explains the recording."""
+    rec, truth = recording(Case("hysteresis_late", 0.2, "leadlag", "pulses", 500.0), seed=112001)
+    D = diagnose(rec)
+    g = next(r for r in D.rounds if r.get("gated"))
+    sc = {s.physics: s for s in g["scores"]}
+    assert sc["stribeck_friction"].passes(g["level"]) and sc["hysteresis"].passes(g["level"])
+    assert sc["stribeck_friction"].delta_ic < sc["hysteresis"].delta_ic  # the grid's ranking
+    assert [f.physics for f in D.findings] == ["hysteresis"]
+    assert D.verdict["verdict"] == "explained", D.verdict["text"]
+    f = D.findings[0]
+    assert abs(f.params[GATE] - rec.t[rec.n // 2]) <= 2 * D.sig.dt
+    assert f.params["Ha"] == pytest.approx(0.2 * truth["Fc"], rel=0.35)

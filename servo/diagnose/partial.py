@@ -265,10 +265,9 @@ def rounds(sel: Selector, model: Model, alpha: float, counted: int, room: int, l
                 not_testable[f"{s.physics} (gated in time)"] = s.note
         level = alpha / max(counted + len(testable), 1)
         log.append({"level": level, "scores": testable, "gated": True})
-        ok = sorted((s for s in testable if s.passes(level)), key=lambda s: s.delta_ic)
         found = None
-        for best in ok:
-            term, tstd = refine(sel, model, best.physics, best.thetas)
+        passing = [s for s in testable if s.passes(level)]
+        for term, best, tstd in sel.ranked(model, passing, lambda m, ph, th: refine(sel, m, ph, th)):
             trial = fit_model(sel.d, model.plus(term).refitted())
             why = VOCABULARY[best.physics].implausible(trial.term_params(len(trial.model.terms) - 1))
             if why:
