@@ -145,10 +145,10 @@ def test_a_gated_terms_full_rate_columns_are_zero_before_its_onset():
 
 def test_of_two_gated_terms_that_pay_the_one_whose_refined_fit_predicts_better_is_added():
     """A LuGre element from half-way (lead-lag loop, pulses, 500 Hz): gated, both a
-    Stribeck bump and a Dahl hysteresis pass the test, and on the folds' grid points
-    the bump scores better (the grid's Dahl length is 2x off the element's).  Refined,
-    the hysteresis predicts the held-out folds better and is the one added
-    (:meth:`Selector.ranked`); the model then explains the recording."""
+    Stribeck bump and a Dahl hysteresis pass the test, and with their onsets on gain
+    blocks' boundaries and their parameters on the grid the bump scores better.  Refined
+    (the onset to the sample), the hysteresis predicts the held-out folds better and is
+    the one added (:func:`partial.ranked`); the model then explains the recording."""
     rec, truth = recording(Case("hysteresis_late", 0.2, "leadlag", "pulses", 500.0), seed=112001)
     D = diagnose(rec)
     g = next(r for r in D.rounds if r.get("gated"))

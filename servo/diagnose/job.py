@@ -243,8 +243,10 @@ def _rounds(sel: Selector, model: Model, opt: Options, corrections: bool, findin
         share = not corrections and breakaway_mod.applicable(model, cands)
         level = opt.alpha / max(len(testable) + share, 1)
         rounds.append({"level": level, "scores": testable, "breakaway_share": share})
+        ok = sorted((s for s in testable if s.passes(level)), key=lambda s: s.delta_ic)
         added = False
-        for term, best, tstd in sel.ranked(model, [s for s in testable if s.passes(level)], sel.refine):
+        for best in ok:
+            term, tstd = sel.refine(model, best.physics, best.thetas)
             trial = fit_model(sel.d, model.plus(term).refitted())
             why = VOCABULARY[best.physics].implausible(trial.term_params(len(trial.model.terms) - 1))
             if why:

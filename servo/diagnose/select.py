@@ -26,10 +26,9 @@ lowers every gain block has ``p = 2^-N`` here.  It must also lower an informatio
 criterion on the pooled held-out error, ``n_eff*ln(S1/S0) + k*ln(n_eff) < 0`` (BIC with
 ``k`` the added parameters, linear and nonlinear, and ``n_eff`` the number of training
 rows divided by the residual's integrated autocorrelation time: the rows are filtered,
-so neighbours are not independent).  The candidates that pay each have their nonlinear
-parameters refined on all training rows; the one whose refined term has the lowest
-cross-validated criterion is added (:meth:`Selector.ranked`), and the next round starts
-from the augmented model.
+so neighbours are not independent).  Of the candidates that pay, the one with the
+lowest criterion is added, its nonlinear parameters refined on all training rows, and
+the next round starts from the augmented model.
 """
 from __future__ import annotations
 
@@ -477,28 +476,6 @@ class Selector:
         theta = to_theta(z)
         std = self._theta_std(f, z, names, logs, theta)
         return Term.make(physics, theta), std
-
-    def ranked(self, model: Model, passing: list, refine) -> list:
-        """The candidates that passed the test (their :class:`Score`), each refined on all
-        training rows by ``refine(model, physics, thetas) -> (term, theta_std)``, ordered
-        by the refined term's blocked cross-validated criterion ``n_eff*ln(S1) +
-        k*ln(n_eff)`` (``S1`` the pooled held-out SSE with the refined parameters held):
-        ``[(term, score, theta_std), ...]``, the one to add first.
-
-        The test ranks each candidate on its folds' *grid points*; two terms that both pay
-        trade places once their parameters leave the grid (a gated Dahl hysteresis whose
-        grid length was 2.2x off the truth lost to a Stribeck bump it fits 6x better
-        refined).  Ranked on held-out rows, not the training fit, a term without
-        nonlinear parameters keeps its test's score and a flexible one does not win on
-        its flexibility.  Only candidates that already passed are ranked: no level moves."""
-        out = []
-        for s in passing:
-            term, tstd = refine(model, s.physics, s.thetas)
-            y, Phi, _ = self.d.matrix(model.refitted(keep=s.physics).plus(term))
-            S1 = float(Grams.of(Phi, y, self.blocks).cv().sum())
-            out.append((self.n_eff * np.log(max(S1, 1e-300)) + s.k * np.log(self.n_eff), term, s, tstd))
-        out.sort(key=lambda x: x[0])
-        return [x[1:] for x in out]
 
     def _bracket(self, phys, best, name, lo, hi, lg):
         """Search interval around the best grid point: a factor 1.6 for scale
