@@ -160,3 +160,25 @@ def test_of_two_gated_terms_that_pay_the_one_whose_refined_fit_predicts_better_i
     f = D.findings[0]
     assert abs(f.params[GATE] - rec.t[rec.n // 2]) <= 2 * D.sig.dt
     assert f.params["Ha"] == pytest.approx(0.2 * truth["Fc"], rel=0.35)
+
+
+def test_a_gated_term_is_judged_by_the_criterion_of_its_refined_onset():
+    """A LuGre element from half-way under a chirp at 50 kHz: gated on a gain block's
+    boundary 1.8 ms before the element switches on, the hysteresis passes the sign-flip
+    test but not the information criterion (the rows between the grid's onset and the
+    true one are predicted wrong); with its onset refined to the sample it passes it and
+    is added, and the model explains the recording.  The report carries both criteria."""
+    rec, truth = recording(Case("hysteresis_late", 0.5, "leadlag", "chirp", 50000.0), seed=105010)
+    D = diagnose(rec)
+    g = next(r for r in D.rounds if r.get("gated"))
+    h = next(s for s in g["scores"] if s.physics == "hysteresis")
+    assert h.p < g["level"] and h.delta_ic > 0  # the grid's criterion alone would refuse it
+    assert h.refined_ic is not None and h.refined_ic < 0 and h.passes(g["level"])
+    assert [f.physics for f in D.findings] == ["hysteresis"]
+    assert abs(D.findings[0].params[GATE] - rec.t[rec.n // 2]) <= 2 * D.sig.dt
+    assert D.verdict["verdict"] == "explained", D.verdict["text"]
+    rep = build_report(D)
+    json.dumps(rep, allow_nan=False)
+    assert rep["findings"][0]["evidence"]["delta_ic_refined"] == pytest.approx(h.refined_ic)
+    cand = next(c for r in rep["candidates"] for c in r if c["gated_in_time"] and c["physics"] == "hysteresis")
+    assert cand["passed"] and cand["delta_ic"] > 0 > cand["delta_ic_refined"]

@@ -67,7 +67,7 @@ def _evidence(f: Finding) -> dict:
     s = f.score
     return {
         "test": "blocked CV, sign-flip test on gain blocks + BIC", "t": s.t, "p": s.p, "level": f.level,
-        "delta_ic": s.delta_ic, "cv_improvement_pct": s.improvement_pct,
+        "delta_ic": s.delta_ic, "delta_ic_refined": s.refined_ic, "cv_improvement_pct": s.improvement_pct,
         "blocks_improved": f"{int(np.sum(s.S1 < s.S0))}/{s.S0.size}", "cv_sse_before": s.S0, "cv_sse_after": s.S1,
     }  # fmt: skip
 
@@ -115,7 +115,8 @@ def build_report(D: Diagnosis, files: list | None = None) -> dict:
     rounds = []
     for r in D.rounds:
         rounds.append([{"physics": s.physics, "t": s.t, "p": s.p, "level": r["level"], "delta_ic": s.delta_ic,
-                        "cv_improvement_pct": s.improvement_pct, "passed": s.passes(r["level"]),
+                        "delta_ic_refined": s.refined_ic, "cv_improvement_pct": s.improvement_pct,
+                        "passed": s.passes(r["level"]),
                         "gated_in_time": bool(r.get("gated"))}
                        for s in sorted(r["scores"], key=lambda s: s.p)])  # fmt: skip
     loc = D.locate

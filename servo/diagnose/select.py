@@ -233,7 +233,10 @@ class Score:
 
     ``S0``/``S1`` (K,) held-out SSE per block without/with it; ``t``, ``p`` the corrected
     one-sided t-test; ``delta_ic`` the criterion; ``k`` parameters added; ``thetas`` the
-    nonlinear parameters chosen in each fold; ``note`` why it was not testable."""
+    nonlinear parameters chosen in each fold; ``note`` why it was not testable;
+    ``refined_ic`` the criterion with the parameters refined on all training rows, where
+    a stage judges it so (a gated term: :func:`servo.diagnose.partial.ranked`), None
+    elsewhere."""
 
     physics: str
     S0: np.ndarray | None = None
@@ -244,6 +247,7 @@ class Score:
     k: int = 0
     thetas: list = field(default_factory=list)
     note: str = ""
+    refined_ic: float | None = None
 
     @property
     def improvement_pct(self) -> float:
@@ -253,7 +257,8 @@ class Score:
         return float(100 * (1 - self.S1.sum() / self.S0.sum()))
 
     def passes(self, level: float) -> bool:
-        return self.S0 is not None and self.p < level and self.delta_ic < 0
+        ic = self.delta_ic if self.refined_ic is None else self.refined_ic
+        return self.S0 is not None and self.p < level and ic < 0
 
 
 @lru_cache(maxsize=8)
