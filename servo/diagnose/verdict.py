@@ -172,10 +172,39 @@ def window_checks(design, residual: np.ndarray, floor: float, tau: float, alpha:
     return wins
 
 
+def estimation_error(design, model) -> tuple | None:
+    """How the training fit's error reaches the test part's held-out residual: ``(E, C)``,
+    ``E`` (m, p) the free columns of ``model`` on the test rows (zero elsewhere) and ``C``
+    (p, p) the covariance of the coefficients fitted on the training rows, ``tau * s^2 *
+    (Z'Z)^-1`` (:mod:`servo.diagnose.fit`); None without free columns.  The test part is
+    predicted by one fit whose error ``d`` adds ``E @ d`` to its rows: a structure against
+    position or distance since reversal where the test part reaches further than training
+    did, which the ``state`` check must not read as a misfit (module doc)."""
+    from servo.diagnose.select import integrated_time
+
+    y, Phi, _ = design.matrix(model)
+    if Phi.shape[1] == 0:
+        return None
+    w = design.train_valid
+    Z = Phi[w]
+    G = Z.T @ Z
+    d = np.sqrt(np.clip(np.diag(G), 1e-300, None))
+    Ginv = np.linalg.pinv(G / np.outer(d, d)) / np.outer(d, d)
+    c = Ginv @ (Z.T @ y[w])
+    r = y - Phi @ c
+    first, last = np.flatnonzero(w)[[0, -1]]
+    tau = integrated_time(np.where(w, r, 0.0)[first : last + 1])
+    s2 = float(r[w] @ r[w]) / max(int(w.sum()) - Phi.shape[1], 1)
+    E = np.where((~design.train_rows)[:, None], Phi, 0.0)
+    return E, tau * s2 * Ginv
+
+
 def assess(design, residual: np.ndarray, J: float, tau: float, variables: dict, alpha: float,
-           output_nrmse: float | None, noise_x: float | None = None) -> dict:  # fmt: skip
+           output_nrmse: float | None, noise_x: float | None = None, estimation: tuple | None = None) -> dict:  # fmt: skip
     """The checks of the module doc on one model's held-out ``residual`` (m,) rows, against
-    the floor of a position noise of std ``noise_x`` (m; default the rows' estimate)."""
+    the floor of a position noise of std ``noise_x`` (m; default the rows' estimate);
+    ``estimation``: the training fit's error on the test rows for the ``state`` check
+    (:func:`estimation_error`; None: left out)."""
     sig = design.sig
     train = design.train_valid
     test = ~design.train_rows & sig.valid
@@ -207,7 +236,7 @@ def assess(design, residual: np.ndarray, J: float, tau: float, variables: dict, 
         gap["beyond_training"] = ranges_beyond_training(design, train, test)
     checks["gap"] = gap
 
-    st = state_test(residual, usable, tau, variables, alpha)
+    st = state_test(residual, usable, tau, variables, alpha, estimation)
     hot = {k: v for k, v in st["variables"].items() if v["flagged"]}
     checks["state"] = {"flagged": sorted(hot), "p": {k: v["p"] for k, v in st["variables"].items()},
                        "bins": {k: [b for b in v["bins"] if b["flagged"]] for k, v in hot.items()},
@@ -348,5 +377,5 @@ def decide(base: dict, final: dict, n_findings: int, scope: str, force_unit: str
     return {"verdict": "unexplained", "text": f"the model still fails: {where_text(final, force_unit)}{besides}"}
 
 
-__all__ = ["MARGIN", "VERDICTS", "acceleration_noise_gain", "add_frf", "assess", "decide", "force_floor", "out_of_scope",
-           "ranges_beyond_training", "where_text", "window_checks", "window_rows"]
+__all__ = ["MARGIN", "VERDICTS", "acceleration_noise_gain", "add_frf", "assess", "decide", "estimation_error",
+           "force_floor", "out_of_scope", "ranges_beyond_training", "where_text", "window_checks", "window_rows"]
