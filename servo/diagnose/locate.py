@@ -21,7 +21,9 @@ that it flags anything on a residual that is stationary Gaussian noise.
   times the direction, so that a friction-like force does not cancel between
   directions); ``sum z_j^2`` over the bin means is ``chi2(bins)`` under the null, each
   variable tested at ``alpha/4``; bins with ``|z_j|`` beyond the Bonferroni normal
-  quantile are flagged.
+  quantile are flagged.  Given the error of a fit that predicts part of the rows (the
+  verdict's test part, :func:`servo.diagnose.verdict.estimation_error`), the bin means'
+  covariance holds it too and their Mahalanobis form is the ``chi2(bins)`` statistic.
 * **Spectrum** (:func:`spectrum_test`): Welch's estimate over a running median floor;
   the ratio is ``chi2(2L)/2L`` for ``L`` segments, bins beyond the ``alpha/N_f``
   quantile are flagged.

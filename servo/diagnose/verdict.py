@@ -17,13 +17,19 @@ detectable but negligible excess does not count:
 * ``level``: the RMS of the whole held-out residual over the floor (chi-square with
   ``n/tau`` degrees of freedom, ``tau`` the residual's integrated autocorrelation time);
 * ``windows``: the same per time window (:data:`N_WINDOWS`, Bonferroni over them): an
-  effect present in only part of the recording shows here;
+  effect present in only part of the recording shows here; read on the rows beyond the
+  decimation filter's reach at :data:`LEAK_LEVEL` from the samples the rows cannot trust
+  (:func:`window_rows`: a stick's misfit and the ends' filter transient leak into the
+  first rows beside them);
 * ``gap``: the test part against the training part's cross-validated residual
   (F test): a model that predicts the training part and fails the test part is a
   located mismatch, with the range of ``u``, ``x``, ``v`` and direction the test part
   reaches that training did not (:func:`ranges_beyond_training`);
 * ``state``: bin means of the residual against position, velocity, direction and
-  distance since reversal (:func:`servo.diagnose.locate.state_test`);
+  distance since reversal (:func:`servo.diagnose.locate.state_test`), their null
+  covariance holding the training fit's error on the test part
+  (:func:`estimation_error`: the test part is predicted by one fit, whose error is
+  itself a structure against position where the test part reaches further);
 * ``output``: the short-horizon simulated output does worse than coasting
   (NRMSE > 1);
 * ``frf``: above the rows' band, the test part's frequency response departs from the
