@@ -611,7 +611,8 @@ def diagnose(rec: Recording, opt: Options | None = None) -> Diagnosis:
         first, last = np.flatnonzero(w)[[0, -1]]
         tau_r = integrated_time(np.where(w, r, 0.0)[first : last + 1])
         J = fit.combined().get("inertia", {}).get("J", 0.0)
-        return verdict_mod.assess(design, r, J, tau_r, variables, opt.alpha, nrmse, noise_x)
+        return verdict_mod.assess(design, r, J, tau_r, variables, opt.alpha, nrmse, noise_x,
+                                  verdict_mod.estimation_error(design, fit.model))  # fmt: skip
 
     base_checks, final_checks = checks(fits[0], r_before, nr[0]), checks(final, r_after, nr[-1])
     verdict_mod.add_frf(base_checks, frf.before, frf)

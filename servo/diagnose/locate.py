@@ -21,7 +21,9 @@ that it flags anything on a residual that is stationary Gaussian noise.
   times the direction, so that a friction-like force does not cancel between
   directions); ``sum z_j^2`` over the bin means is ``chi2(bins)`` under the null, each
   variable tested at ``alpha/4``; bins with ``|z_j|`` beyond the Bonferroni normal
-  quantile are flagged.
+  quantile are flagged.  Given the error of a fit that predicts part of the rows (the
+  verdict's test part, :func:`servo.diagnose.verdict.estimation_error`), the bin means'
+  covariance holds it too and their Mahalanobis form is the ``chi2(bins)`` statistic.
 * **Spectrum** (:func:`spectrum_test`): Welch's estimate over a running median floor;
   the ratio is ``chi2(2L)/2L`` for ``L`` segments, bins beyond the ``alpha/N_f``
   quantile are flagged.
@@ -83,16 +85,25 @@ def _bins(values: np.ndarray, n: int) -> np.ndarray:
     return qs
 
 
-def state_test(r: np.ndarray, valid: np.ndarray, tau: float, variables: dict, alpha: float) -> dict:
+def state_test(r: np.ndarray, valid: np.ndarray, tau: float, variables: dict, alpha: float,
+               estimation: tuple | None = None) -> dict:  # fmt: skip
     """Residual bin means against state variables (see module doc).
 
     ``variables``: name -> ``(values (m,), sign (m,) or None, unit)``; with a sign the
-    residual is multiplied by it before binning."""
+    residual is multiplied by it before binning.  ``estimation``: ``(E, C)``, the rows
+    (m, p) through which a fitted coefficient vector's error reaches the residual and
+    that error's covariance (p, p): the bin means then have the covariance
+    ``diag(sigma^2 tau/n_j) + A C A'`` (``A`` the bin means of ``E``'s rows) and are
+    tested by their Mahalanobis form, ``chi2(bins)`` under the null (None: the diagonal
+    alone, the module doc's test)."""
     out = {}
     sigma = float(np.std(r[valid])) or 1e-300
     level = alpha / max(len(variables), 1)
     for name, (vals, sign, unit) in variables.items():
         rr = (r * sign if sign is not None else r)[valid]
+        Ev = None
+        if estimation is not None:
+            Ev = (estimation[0] * sign[:, None] if sign is not None else estimation[0])[valid]
         vv = vals[valid]
         if name == "direction":
             edges = np.array([-1.5, 0.0, 1.5])
@@ -100,18 +111,25 @@ def state_test(r: np.ndarray, valid: np.ndarray, tau: float, variables: dict, al
             edges = _bins(vv, N_BINS)
         idx = np.clip(np.searchsorted(edges, vv, side="right") - 1, 0, edges.size - 2)
         nb = edges.size - 1
-        z, bins = [], []
+        means, var, A, bins = [], [], [], []
         for j in range(nb):
             sel = idx == j
             n = int(sel.sum())
             if n == 0:
                 continue
-            mean = float(rr[sel].mean())
-            zj = mean / (sigma * np.sqrt(tau / n))
-            z.append(zj)
-            bins.append({"lo": float(edges[j]), "hi": float(edges[j + 1]), "n": n, "mean": mean, "z": float(zj)})
-        z = np.array(z)
-        X = float(np.sum(z**2))
+            means.append(float(rr[sel].mean()))
+            var.append(sigma**2 * tau / n)
+            if Ev is not None:
+                A.append(Ev[sel].mean(axis=0))
+            bins.append({"lo": float(edges[j]), "hi": float(edges[j + 1]), "n": n, "mean": means[-1]})
+        means, S = np.array(means), np.diag(var)
+        if Ev is not None and len(A):
+            A = np.array(A)
+            S = S + A @ estimation[1] @ A.T
+        z = means / np.sqrt(np.diag(S))
+        for b, zj in zip(bins, z):
+            b["z"] = float(zj)
+        X = float(means @ np.linalg.solve(S, means)) if means.size else 0.0
         p = float(stats.chi2.sf(X, max(z.size, 1)))
         zc = float(stats.norm.isf(level / (2 * max(z.size, 1))))
         for b in bins:

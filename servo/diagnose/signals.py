@@ -384,9 +384,9 @@ def velocity_noise_gain(settings: RobustSettings, fs: float) -> float:
     return float(np.linalg.norm(h))
 
 
-def filter_reach(settings: RobustSettings) -> int:
+def filter_reach(settings: RobustSettings, level: float = REACH_LEVEL) -> int:
     """Samples (full rate) over which the rows' decimation filter spreads one sample:
-    the extent of its response above :data:`REACH_LEVEL` of the peak."""
+    the extent of its response above ``level`` (default :data:`REACH_LEVEL`) of the peak."""
     q = settings.decimate
     if q == 1:
         return 2
@@ -396,7 +396,7 @@ def filter_reach(settings: RobustSettings) -> int:
         z = np.zeros(n)
         z[n // 2 + off] = 1.0
         r = np.abs(decimate(z, q, settings.decimate_order, settings.decimate_ripple_db))
-        big = np.flatnonzero(r > REACH_LEVEL * r.max())
+        big = np.flatnonzero(r > level * r.max())
         worst = max(worst, (big.max() - big.min()) // 2 + 1)
     return int(worst * q)
 
