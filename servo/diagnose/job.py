@@ -31,6 +31,7 @@ import math
 from dataclasses import dataclass, field, replace
 
 import numpy as np
+from threadpoolctl import threadpool_limits
 
 from servo.diagnose import baseline as baseline_mod
 from servo.diagnose import breakaway as breakaway_mod
@@ -521,9 +522,22 @@ def _frf_modes(design: Design, fits: list, errs: list, nr: list, preds: list, st
     return res, found, terms, dropped
 
 
+#: BLAS threads while a diagnosis runs: its products are a few columns wide, where
+#: OpenBLAS's threads cost more than they give and, spinning while they wait, slow down
+#: beside other processes (the 1 000 000-sample benchmark: 5.3 s on one thread against
+#: 7.2 s on two with another job on the machine; docs/diagnosis.md, section 12)
+BLAS_THREADS = 1
+
+
 def diagnose(rec: Recording, opt: Options | None = None) -> Diagnosis:
     """Diagnose ``rec`` (see module doc).  Raises a one-line
-    :class:`~servo.errors.ServoError` for data that cannot be diagnosed."""
+    :class:`~servo.errors.ServoError` for data that cannot be diagnosed.  BLAS runs on
+    :data:`BLAS_THREADS` threads meanwhile, as it did before once it returns."""
+    with threadpool_limits(limits=BLAS_THREADS, user_api="blas"):
+        return _diagnose(rec, opt)
+
+
+def _diagnose(rec: Recording, opt: Options | None) -> Diagnosis:
     opt = opt or Options()
     if not 0.05 <= opt.test_fraction <= 0.5:
         raise IdentificationError(f"test fraction {opt.test_fraction:g} must lie between 0.05 and 0.5")
