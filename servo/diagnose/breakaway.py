@@ -109,6 +109,10 @@ LOCAL_WINDOWS = 100
 #: an event is **at rest** when its filtered velocity stays within its noise for at
 #: least this many Butterworth time scales (a hold long enough to show a breakaway)
 REST_MIN = 0.3
+#: read each event's peak at its last departure from rest (:func:`departures`), not over the whole event
+DEPARTURE = True
+#: a peak held inside a rest of :data:`REST_MIN` time scales counts whichever way the arm then moves (:func:`_held`)
+HELD_EITHER_WAY = True
 
 
 @lru_cache(maxsize=16)
@@ -313,6 +317,41 @@ def dwell(sig, a: np.ndarray, b: np.ndarray) -> np.ndarray:
     return out
 
 
+def departures(sig, a: np.ndarray, b: np.ndarray, rest: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Full-rate windows ``(start, stop)`` ((N,) each) where each event's breakaway would
+    show: :data:`WIDEN` Butterworth time scales either side of the event's last departure
+    from rest (the first sample after its last run of ``rest``, :func:`marks`), within the
+    event.  A breakaway's held force peaks there (the arm stays put until the net force
+    reaches ``Fs``, then slides against ``Fc``), so the event's statistic is read there and
+    compared with sliding windows of that width, not of the whole hold (a hold of 1500
+    samples among few sliding samples was compared, by the union bound, with noise it
+    could never beat; docs/diagnosis.md, 10k).  An event without a departure (its run of
+    rest reaches its end) keeps its whole window."""
+    fs = 1.0 / sig.dt
+    w = int(np.ceil(WIDEN * fs / sig.settings.cutoff(fs)))
+    da, db = a.copy(), b.copy()
+    for j, (s, e) in enumerate(zip(a, b)):
+        r = rest[s:e]
+        out = np.flatnonzero(r[:-1] & ~r[1:])  # last rest sample before a moving one
+        if out.size == 0:
+            continue
+        d = s + int(out[-1]) + 1
+        da[j], db[j] = max(s, d - w), min(e, d + w + 1)
+    return da, db
+
+
+def _held(still: np.ndarray, i: int, hold: float) -> bool:
+    """Whether sample ``i`` lies inside a run of ``still`` (the filtered velocity within its
+    noise) at least ``hold`` samples long: the arm held at rest there, so a force beyond the
+    sliding level at ``i`` is held by static friction whichever way the arm then moves
+    (a pulse train's input flips while the arm is held: it leaves the other way)."""
+    if not still[i]:
+        return False
+    lo = i - int(np.argmin(still[i::-1])) if not still[: i + 1].all() else -1
+    hi = i + int(np.argmin(still[i:])) if not still[i:].all() else still.size
+    return hi - lo - 1 >= hold
+
+
 def _toward(f: np.ndarray, v: np.ndarray, rest: np.ndarray, s: int, i: int) -> bool:
     """Whether the peak held force ``f[i]`` of the event starting at ``s`` is a breakaway:
     it comes at or after a sample at rest, and points where the arm moves when it leaves
@@ -408,19 +447,22 @@ def test(design, fit, step: float = 0.0) -> Result:
     e = f - Fc * sig.sign_v
     sigma = float(1.4826 * np.median(np.abs(e[outside] - np.median(e[outside]))))
     g = np.abs(sig.butter(sig.sign_v))  # the sliding level's switch through the filter, per unit Fc
-    ref = np.array([g[s:e_].max() for s, e_ in zip(a, b)]) if a.size else np.zeros(0)
-    noise = noise_max(np.abs(e), outside, b - a, sigma, (a + b) // 2)
+    rest = marks(sig)
+    da, db = departures(sig, a, b, rest) if DEPARTURE else (a, b)  # where each event's breakaway shows
+    ref = np.array([g[s:e_].max() for s, e_ in zip(da, db)]) if a.size else np.zeros(0)
+    noise = noise_max(np.abs(e), outside, db - da, sigma, (da + db) // 2)
     pulse = step_pulse(sig, fit, step)
     fixed = ref * (Fc + Z_FC * Fc_std) + MARGIN * Fc  # the bound's deterministic part
     bound = float(np.median(fixed + noise)) if a.size else 0.0
     bounds = fixed + noise + pulse
     res.level_bound = float(np.median(ref)) * (Fc + Z_FC * Fc_std) + MARGIN * Fc + Z_NOISE * sigma + pulse if a.size else 0.0
     peak, toward = np.zeros(a.size), np.zeros(a.size, bool)
-    rest = marks(sig)
-    for j, (s, e_) in enumerate(zip(a, b)):
-        i = s + int(np.argmax(np.abs(f[s:e_])))
+    still_v = np.abs(sig.vf) <= sig.v_threshold
+    hold = REST_MIN * fs / sig.settings.cutoff(fs)
+    for j, (s, s_, e_) in enumerate(zip(a, da, db)):
+        i = s_ + int(np.argmax(np.abs(f[s_:e_])))
         peak[j] = abs(f[i])
-        toward[j] = _toward(f, sig.vf, rest, s, i)
+        toward[j] = _toward(f, sig.vf, rest, s, i) or (HELD_EITHER_WAY and _held(still_v, i, hold))
     still = dwell(sig, a, b) >= REST_MIN * fs / sig.settings.cutoff(fs)
     last = int(np.flatnonzero(design.train_samples)[-1])
     train = b <= last
@@ -428,7 +470,7 @@ def test(design, fit, step: float = 0.0) -> Result:
     # each event's p-value: its excess over the sliding level's switch and margins against
     # the local window maximum of the sliding misfit (breakaway_evidence)
     excess = peak - (fixed + pulse)
-    pv = event_pvalues(np.abs(e), outside, b - a, (a + b) // 2, excess, toward, LOCAL_WINDOWS) if a.size else np.ones(0)
+    pv = event_pvalues(np.abs(e), outside, db - da, (da + db) // 2, excess, toward, LOCAL_WINDOWS) if a.size else np.ones(0)
     res.events = Events(a, b, peak, train, bounds, toward, still, pv)
     res.bound, res.sigma, res.l1, res.Fc, res.Fc_std = bound, sigma, l1, Fc, Fc_std
     res.n_rest_test = int((still & test_).sum())
