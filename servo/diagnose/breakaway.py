@@ -34,7 +34,11 @@ the largest ``|f - Fc*sgn(x')|`` over windows of the event's width where the arm
 an open loop's PRBS kicks, does not raise every event's bound; :func:`noise_max`; a
 quantised sensor's step pulse added, :func:`step_pulse`), **and**
 the peak is a breakaway: it comes from rest and points where the arm then moves
-(:func:`_toward`).  Under the null an event exceeds with probability at most
+(:func:`_toward`), or it is held inside a rest of :data:`REST_MIN` time scales (the arm
+held against it, whichever way it then leaves: :func:`_held`).  The peak is read near
+the event's last departure from rest (:func:`departures`; docs/diagnosis.md, 10k), where
+a breakaway's held force peaks, and compared with sliding windows of that width, not of
+the whole hold.  Under the null an event exceeds with probability at most
 :data:`P_EXCEED`.  The test no longer counts exceedances (docs/diagnosis.md, 10h): each
 event gets a p-value, its peak's excess over ``g*(Fc + Z_FC*std(Fc)) + MARGIN*Fc``
 against the local law of the same window maximum (at least uniform under the null), and
@@ -62,10 +66,11 @@ practice the proof is the combined p-value.)  The
 finding's before/after errors are the held-out events' RMS excess over the model's
 static level through the filter (``g*Fc`` without, ``g*Fs`` with the finding).
 
-**A held-out part that never rests** (a chirp rising past the sticking speeds: every
+**A held-out part that hardly rests** (a chirp rising past the sticking speeds: every
 held-out event passes through zero speed without a hold of :data:`REST_MIN` Butterworth
-time scales, :func:`dwell`) cannot show a breakaway, so its failure to confirm one says
-nothing.  There (and only there, a rule on the velocity, not on the forces) a finding
+time scales, :func:`dwell`; seek strokes whose held-out part holds one or two rests:
+fewer than :data:`MIN_REST_TEST`) cannot show a breakaway on its own, so its failure to
+confirm one says little.  There (and only there, a rule on the velocity, not on the forces) a finding
 the held-out part does not confirm gets a second, stated proof: the training events are
 split alternately, the test (at the same level) and the fit of ``Fs`` run on one half,
 and the other half must confirm it as the held-out part would.  Both halves are training
@@ -113,6 +118,9 @@ REST_MIN = 0.3
 DEPARTURE = True
 #: a peak held inside a rest of :data:`REST_MIN` time scales counts whichever way the arm then moves (:func:`_held`)
 HELD_EITHER_WAY = True
+#: a held-out part with fewer events at rest than this cannot test a breakaway on its own
+#: (one or two holds, a seek's last stroke): the split proof on training events is stated instead
+MIN_REST_TEST = 3
 
 
 @lru_cache(maxsize=16)
@@ -206,7 +214,7 @@ class Result:
     excess_before: float = 0.0
     excess_after: float = 0.0
     #: where the finding is proven: the held-out part's events, or (where that part
-    #: holds no interval at rest) the training events held out from the fit of ``Fs``
+    #: holds fewer than MIN_REST_TEST intervals at rest) the training events held out from the fit of ``Fs``
     proof: str = "held-out part"
     #: the held-out part's events at rest (:data:`REST_MIN`)
     n_rest_test: int = 0
@@ -234,7 +242,7 @@ class Result:
 
     def evidence(self) -> dict:
         """The report's evidence.  The ``*_test`` keys are the events of the proof
-        (``proof``): the held-out part's, or, where it holds no interval at rest, the
+        (``proof``): the held-out part's, or, where it holds fewer than :data:`MIN_REST_TEST` intervals at rest, the
         training events the fit did not use (``held_excess_rms`` of the finding's
         errors is over the same events)."""
         return {"test": "held forces at rest beyond the sliding level (per-event p-values against the local noise, "
@@ -478,9 +486,9 @@ def test(design, fit, step: float = 0.0) -> Result:
     res.n_train = int(train.sum())
     _score(res, over, peak, ref, sigma, train, test_, pv)
     res.p_all = res.p
-    if res.n_rest_test == 0 and res.n_train >= MIN_EVENTS:
-        # the held-out part holds no interval at rest (a chirp past the sticking speeds):
-        # it cannot show a breakaway.  The alternative proof: the test and the fit of Fs
+    if res.n_rest_test < MIN_REST_TEST and res.n_train >= MIN_EVENTS:
+        # the held-out part holds fewer than MIN_REST_TEST intervals at rest (a chirp past
+        # the sticking speeds, a seek's last stroke): it cannot show a breakaway on its own.  The alternative proof: the test and the fit of Fs
         # on every other training event, the proof on the others (module doc, "Proof")
         idx = np.flatnonzero(train)
         fit_ev, proof_ev = np.zeros(a.size, bool), np.zeros(a.size, bool)
