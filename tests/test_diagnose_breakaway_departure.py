@@ -83,3 +83,27 @@ def test_null_long_holds_name_nothing(case, seed):
     assert res.p > 0.05
     report = build_report(D)
     assert "stribeck_friction" not in [x["physics"] for x in report["findings"]]
+
+
+def test_held_force_and_sliding_sign_through_a_named_sensor_lag():
+    """A sensor low-pass (fs/10, open loop, multisine at 1 kHz) named ``sensor_lag``: the
+    held force's columns and the sliding level's switch are the force balance's under the
+    lag (``Design.full_columns``), so the sliding misfit the events are compared with is
+    smaller than with the recorded velocity's sign, and nothing is held at rest."""
+    rec, _ = recording(Case("sensor_lowpass", 10.0, "open", "multisine", 1000.0), 100001)
+    D = diagnose(rec)
+    fit = D.final_fit
+    assert fit.model.has("sensor_lag")
+    ci = next(i for i, t in enumerate(fit.model.terms) if t.physics == "coulomb_friction")
+    Fc = float(fit.combined()["coulomb_friction"]["Fc"])
+    f = breakaway.held_force(D.design, fit)
+    a, b = breakaway.events(D.sig)
+    sliding = np.ones(D.sig.n, bool)
+    for s, e in zip(a, b):
+        sliding[s:e] = False
+    st = D.sig.settings
+    sliding[: st.trim_start] = sliding[D.sig.n - st.trim_end :] = False
+    rms = [float(np.sqrt(np.mean((f - Fc * sg)[sliding] ** 2))) for sg in (D.sig.sign_v, breakaway.sliding_sign(D.design, fit, ci))]
+    assert rms[1] < 0.95 * rms[0]
+    res = breakaway.test(D.design, fit)
+    assert res.p > 0.05 and not any(x.physics == "stribeck_friction" for x in D.findings)

@@ -266,15 +266,22 @@ def held_force(design, fit) -> np.ndarray:
     from servo.diagnose.terms import VOCABULARY
 
     sig = design.sig
-    u = design.u_eff(fit.model)
-    f = sig.force(u).copy()
+    f = sig.force(design.u_eff(fit.model)).copy()
     for i, t in enumerate(fit.model.terms):
-        phys = VOCABULARY[t.physics]
-        if phys.kind != "column" or t.physics in ("coulomb_friction", "stribeck_friction"):
+        if VOCABULARY[t.physics].kind != "column" or t.physics in ("coulomb_friction", "stribeck_friction"):
             continue
-        C = np.atleast_2d(np.asarray(phys.full(design, t.params, u), dtype=float).T).T
-        f -= C @ np.asarray(fit.coefs[i], dtype=float)
+        # as the force balance of the measured motion sees it: through a sensor lag the
+        # model holds, zero before a gated term's onset (Design.full_columns)
+        f -= design.full_columns(t, fit.model) @ np.asarray(fit.coefs[i], dtype=float)
     return f
+
+
+def sliding_sign(design, fit, ci: int) -> np.ndarray:
+    """(n,) the sliding level's switch per unit ``Fc``: the Coulomb column of ``fit``
+    (term ``ci``) at full rate, ``sgn(x')`` at the lag-corrected velocity's crossings and
+    through the sensor's low-pass where the model holds a sensor lag
+    (:class:`servo.diagnose.sensor_lag.LaggedSignals`), the recording's sign otherwise."""
+    return design.full_columns(fit.model.terms[ci], fit.model)[:, 0]
 
 
 def events(sig) -> tuple[np.ndarray, np.ndarray]:
@@ -452,9 +459,10 @@ def test(design, fit, step: float = 0.0) -> Result:
     if np.count_nonzero(outside) < 100:
         res.note = "the arm is hardly ever sliding away from a reversal"
         return res
-    e = f - Fc * sig.sign_v
+    sgn = sliding_sign(design, fit, ci)
+    e = f - Fc * sgn
     sigma = float(1.4826 * np.median(np.abs(e[outside] - np.median(e[outside]))))
-    g = np.abs(sig.butter(sig.sign_v))  # the sliding level's switch through the filter, per unit Fc
+    g = np.abs(sig.butter(sgn))  # the sliding level's switch through the filter, per unit Fc
     rest = marks(sig)
     da, db = departures(sig, a, b, rest) if DEPARTURE else (a, b)  # where each event's breakaway shows
     ref = np.array([g[s:e_].max() for s, e_ in zip(da, db)]) if a.size else np.zeros(0)
@@ -500,5 +508,6 @@ def test(design, fit, step: float = 0.0) -> Result:
     return res
 
 
-__all__ = ["Events", "MIN_EVENTS", "Result", "applicable", "events", "filter_l1", "held_force", "marks", "noise_max", "step_pulse", "dwell",
+__all__ = ["Events", "MIN_EVENTS", "Result", "applicable", "events", "filter_l1", "held_force", "marks", "noise_max", "sliding_sign", "step_pulse", "dwell",
+           "departures",
            "test"]
