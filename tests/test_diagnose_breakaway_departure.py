@@ -42,9 +42,11 @@ def test_departure_window_is_around_the_last_exit_from_rest():
 
 def test_held_counts_a_force_inside_a_long_enough_rest_only():
     still = np.array([0, 1, 1, 1, 1, 0, 1, 1, 0], bool)
-    assert [breakaway._held(still, i, 4) for i in range(9)] == [False, True, True, True, True, False, False, False,
-                                                               False]  # fmt: skip
-    assert breakaway._held(np.ones(5, bool), 0, 5) and not breakaway._held(np.ones(5, bool), 2, 6)
+    runs = breakaway.still_runs(still)
+    assert [breakaway._held(runs, i, 4) for i in range(9)] == [False, True, True, True, True, False, False, False,
+                                                              False]  # fmt: skip
+    whole = breakaway.still_runs(np.ones(5, bool))
+    assert breakaway._held(whole, 0, 5) and breakaway._held(whole, 4, 5) and not breakaway._held(whole, 2, 6)
 
 
 @pytest.mark.parametrize("case,seed,proof", [

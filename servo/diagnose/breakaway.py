@@ -355,16 +355,21 @@ def departures(sig, a: np.ndarray, b: np.ndarray, rest: np.ndarray) -> tuple[np.
     return da, db
 
 
-def _held(still: np.ndarray, i: int, hold: float) -> bool:
-    """Whether sample ``i`` lies inside a run of ``still`` (the filtered velocity within its
-    noise) at least ``hold`` samples long: the arm held at rest there, so a force beyond the
-    sliding level at ``i`` is held by static friction whichever way the arm then moves
-    (a pulse train's input flips while the arm is held: it leaves the other way)."""
-    if not still[i]:
-        return False
-    lo = i - int(np.argmin(still[i::-1])) if not still[: i + 1].all() else -1
-    hi = i + int(np.argmin(still[i:])) if not still[i:].all() else still.size
-    return hi - lo - 1 >= hold
+def _held(runs: tuple[np.ndarray, np.ndarray], i: int, hold: float) -> bool:
+    """Whether sample ``i`` lies inside a run of samples with the filtered velocity within
+    its noise (``runs``: their starts and stops, :func:`still_runs`) at least ``hold``
+    samples long: the arm held at rest there, so a force beyond the sliding level at ``i``
+    is held by static friction whichever way the arm then moves (a pulse train's input
+    flips while the arm is held: it leaves the other way)."""
+    up, dn = runs
+    k = int(np.searchsorted(up, i, side="right")) - 1
+    return k >= 0 and i < dn[k] and dn[k] - up[k] >= hold
+
+
+def still_runs(still: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Starts and stops ((R,) each, stop exclusive) of the runs of ``still`` ((n,) bool)."""
+    d = np.diff(np.r_[0, still.astype(np.int8), 0])
+    return np.flatnonzero(d == 1), np.flatnonzero(d == -1)
 
 
 def _toward(f: np.ndarray, v: np.ndarray, rest: np.ndarray, s: int, i: int) -> bool:
@@ -473,12 +478,12 @@ def test(design, fit, step: float = 0.0) -> Result:
     bounds = fixed + noise + pulse
     res.level_bound = float(np.median(ref)) * (Fc + Z_FC * Fc_std) + MARGIN * Fc + Z_NOISE * sigma + pulse if a.size else 0.0
     peak, toward = np.zeros(a.size), np.zeros(a.size, bool)
-    still_v = np.abs(sig.vf) <= sig.v_threshold
+    runs = still_runs(np.abs(sig.vf) <= sig.v_threshold)
     hold = REST_MIN * fs / sig.settings.cutoff(fs)
     for j, (s, s_, e_) in enumerate(zip(a, da, db)):
         i = s_ + int(np.argmax(np.abs(f[s_:e_])))
         peak[j] = abs(f[i])
-        toward[j] = _toward(f, sig.vf, rest, s, i) or (HELD_EITHER_WAY and _held(still_v, i, hold))
+        toward[j] = _toward(f, sig.vf, rest, s, i) or (HELD_EITHER_WAY and _held(runs, i, hold))
     still = dwell(sig, a, b) >= REST_MIN * fs / sig.settings.cutoff(fs)
     last = int(np.flatnonzero(design.train_samples)[-1])
     train = b <= last
@@ -509,5 +514,5 @@ def test(design, fit, step: float = 0.0) -> Result:
 
 
 __all__ = ["Events", "MIN_EVENTS", "Result", "applicable", "events", "filter_l1", "held_force", "marks", "noise_max", "sliding_sign", "step_pulse", "dwell",
-           "departures",
+           "departures", "still_runs",
            "test"]
