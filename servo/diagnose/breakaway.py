@@ -34,7 +34,11 @@ the largest ``|f - Fc*sgn(x')|`` over windows of the event's width where the arm
 an open loop's PRBS kicks, does not raise every event's bound; :func:`noise_max`; a
 quantised sensor's step pulse added, :func:`step_pulse`), **and**
 the peak is a breakaway: it comes from rest and points where the arm then moves
-(:func:`_toward`).  Under the null an event exceeds with probability at most
+(:func:`_toward`), or it is held inside a rest of :data:`REST_MIN` time scales (the arm
+held against it, whichever way it then leaves: :func:`_held`).  The peak is read near
+the event's last departure from rest (:func:`departures`; docs/diagnosis.md, 10k), where
+a breakaway's held force peaks, and compared with sliding windows of that width, not of
+the whole hold.  Under the null an event exceeds with probability at most
 :data:`P_EXCEED`.  The test no longer counts exceedances (docs/diagnosis.md, 10h): each
 event gets a p-value, its peak's excess over ``g*(Fc + Z_FC*std(Fc)) + MARGIN*Fc``
 against the local law of the same window maximum (at least uniform under the null), and
@@ -62,10 +66,11 @@ practice the proof is the combined p-value.)  The
 finding's before/after errors are the held-out events' RMS excess over the model's
 static level through the filter (``g*Fc`` without, ``g*Fs`` with the finding).
 
-**A held-out part that never rests** (a chirp rising past the sticking speeds: every
+**A held-out part that hardly rests** (a chirp rising past the sticking speeds: every
 held-out event passes through zero speed without a hold of :data:`REST_MIN` Butterworth
-time scales, :func:`dwell`) cannot show a breakaway, so its failure to confirm one says
-nothing.  There (and only there, a rule on the velocity, not on the forces) a finding
+time scales, :func:`dwell`; seek strokes whose held-out part holds one or two rests:
+fewer than :data:`MIN_REST_TEST`) cannot show a breakaway on its own, so its failure to
+confirm one says little.  There (and only there, a rule on the velocity, not on the forces) a finding
 the held-out part does not confirm gets a second, stated proof: the training events are
 split alternately, the test (at the same level) and the fit of ``Fs`` run on one half,
 and the other half must confirm it as the held-out part would.  Both halves are training
@@ -109,6 +114,13 @@ LOCAL_WINDOWS = 100
 #: an event is **at rest** when its filtered velocity stays within its noise for at
 #: least this many Butterworth time scales (a hold long enough to show a breakaway)
 REST_MIN = 0.3
+#: read each event's peak at its last departure from rest (:func:`departures`), not over the whole event
+DEPARTURE = True
+#: a peak held inside a rest of :data:`REST_MIN` time scales counts whichever way the arm then moves (:func:`_held`)
+HELD_EITHER_WAY = True
+#: a held-out part with fewer events at rest than this cannot test a breakaway on its own
+#: (one or two holds, a seek's last stroke): the split proof on training events is stated instead
+MIN_REST_TEST = 3
 
 
 @lru_cache(maxsize=16)
@@ -202,7 +214,7 @@ class Result:
     excess_before: float = 0.0
     excess_after: float = 0.0
     #: where the finding is proven: the held-out part's events, or (where that part
-    #: holds no interval at rest) the training events held out from the fit of ``Fs``
+    #: holds fewer than MIN_REST_TEST intervals at rest) the training events held out from the fit of ``Fs``
     proof: str = "held-out part"
     #: the held-out part's events at rest (:data:`REST_MIN`)
     n_rest_test: int = 0
@@ -230,7 +242,7 @@ class Result:
 
     def evidence(self) -> dict:
         """The report's evidence.  The ``*_test`` keys are the events of the proof
-        (``proof``): the held-out part's, or, where it holds no interval at rest, the
+        (``proof``): the held-out part's, or, where it holds fewer than :data:`MIN_REST_TEST` intervals at rest, the
         training events the fit did not use (``held_excess_rms`` of the finding's
         errors is over the same events)."""
         return {"test": "held forces at rest beyond the sliding level (per-event p-values against the local noise, "
@@ -254,15 +266,22 @@ def held_force(design, fit) -> np.ndarray:
     from servo.diagnose.terms import VOCABULARY
 
     sig = design.sig
-    u = design.u_eff(fit.model)
-    f = sig.force(u).copy()
+    f = sig.force(design.u_eff(fit.model)).copy()
     for i, t in enumerate(fit.model.terms):
-        phys = VOCABULARY[t.physics]
-        if phys.kind != "column" or t.physics in ("coulomb_friction", "stribeck_friction"):
+        if VOCABULARY[t.physics].kind != "column" or t.physics in ("coulomb_friction", "stribeck_friction"):
             continue
-        C = np.atleast_2d(np.asarray(phys.full(design, t.params, u), dtype=float).T).T
-        f -= C @ np.asarray(fit.coefs[i], dtype=float)
+        # as the force balance of the measured motion sees it: through a sensor lag the
+        # model holds, zero before a gated term's onset (Design.full_columns)
+        f -= design.full_columns(t, fit.model) @ np.asarray(fit.coefs[i], dtype=float)
     return f
+
+
+def sliding_sign(design, fit, ci: int) -> np.ndarray:
+    """(n,) the sliding level's switch per unit ``Fc``: the Coulomb column of ``fit``
+    (term ``ci``) at full rate, ``sgn(x')`` at the lag-corrected velocity's crossings and
+    through the sensor's low-pass where the model holds a sensor lag
+    (:class:`servo.diagnose.sensor_lag.LaggedSignals`), the recording's sign otherwise."""
+    return design.full_columns(fit.model.terms[ci], fit.model)[:, 0]
 
 
 def events(sig) -> tuple[np.ndarray, np.ndarray]:
@@ -311,6 +330,46 @@ def dwell(sig, a: np.ndarray, b: np.ndarray) -> np.ndarray:
         up, dn = np.flatnonzero(d == 1), np.flatnonzero(d == -1)
         out[j] = int((dn - up).max()) if up.size else 0
     return out
+
+
+def departures(sig, a: np.ndarray, b: np.ndarray, rest: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Full-rate windows ``(start, stop)`` ((N,) each) where each event's breakaway would
+    show: :data:`WIDEN` Butterworth time scales either side of the event's last departure
+    from rest (the first sample after its last run of ``rest``, :func:`marks`), within the
+    event.  A breakaway's held force peaks there (the arm stays put until the net force
+    reaches ``Fs``, then slides against ``Fc``), so the event's statistic is read there and
+    compared with sliding windows of that width, not of the whole hold (a hold of 1500
+    samples among few sliding samples was compared, by the union bound, with noise it
+    could never beat; docs/diagnosis.md, 10k).  An event without a departure (its run of
+    rest reaches its end) keeps its whole window."""
+    fs = 1.0 / sig.dt
+    w = int(np.ceil(WIDEN * fs / sig.settings.cutoff(fs)))
+    da, db = a.copy(), b.copy()
+    for j, (s, e) in enumerate(zip(a, b)):
+        r = rest[s:e]
+        out = np.flatnonzero(r[:-1] & ~r[1:])  # last rest sample before a moving one
+        if out.size == 0:
+            continue
+        d = s + int(out[-1]) + 1
+        da[j], db[j] = max(s, d - w), min(e, d + w + 1)
+    return da, db
+
+
+def _held(runs: tuple[np.ndarray, np.ndarray], i: int, hold: float) -> bool:
+    """Whether sample ``i`` lies inside a run of samples with the filtered velocity within
+    its noise (``runs``: their starts and stops, :func:`still_runs`) at least ``hold``
+    samples long: the arm held at rest there, so a force beyond the sliding level at ``i``
+    is held by static friction whichever way the arm then moves (a pulse train's input
+    flips while the arm is held: it leaves the other way)."""
+    up, dn = runs
+    k = int(np.searchsorted(up, i, side="right")) - 1
+    return k >= 0 and i < dn[k] and dn[k] - up[k] >= hold
+
+
+def still_runs(still: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Starts and stops ((R,) each, stop exclusive) of the runs of ``still`` ((n,) bool)."""
+    d = np.diff(np.r_[0, still.astype(np.int8), 0])
+    return np.flatnonzero(d == 1), np.flatnonzero(d == -1)
 
 
 def _toward(f: np.ndarray, v: np.ndarray, rest: np.ndarray, s: int, i: int) -> bool:
@@ -405,22 +464,26 @@ def test(design, fit, step: float = 0.0) -> Result:
     if np.count_nonzero(outside) < 100:
         res.note = "the arm is hardly ever sliding away from a reversal"
         return res
-    e = f - Fc * sig.sign_v
+    sgn = sliding_sign(design, fit, ci)
+    e = f - Fc * sgn
     sigma = float(1.4826 * np.median(np.abs(e[outside] - np.median(e[outside]))))
-    g = np.abs(sig.butter(sig.sign_v))  # the sliding level's switch through the filter, per unit Fc
-    ref = np.array([g[s:e_].max() for s, e_ in zip(a, b)]) if a.size else np.zeros(0)
-    noise = noise_max(np.abs(e), outside, b - a, sigma, (a + b) // 2)
+    g = np.abs(sig.butter(sgn))  # the sliding level's switch through the filter, per unit Fc
+    rest = marks(sig)
+    da, db = departures(sig, a, b, rest) if DEPARTURE else (a, b)  # where each event's breakaway shows
+    ref = np.array([g[s:e_].max() for s, e_ in zip(da, db)]) if a.size else np.zeros(0)
+    noise = noise_max(np.abs(e), outside, db - da, sigma, (da + db) // 2)
     pulse = step_pulse(sig, fit, step)
     fixed = ref * (Fc + Z_FC * Fc_std) + MARGIN * Fc  # the bound's deterministic part
     bound = float(np.median(fixed + noise)) if a.size else 0.0
     bounds = fixed + noise + pulse
     res.level_bound = float(np.median(ref)) * (Fc + Z_FC * Fc_std) + MARGIN * Fc + Z_NOISE * sigma + pulse if a.size else 0.0
     peak, toward = np.zeros(a.size), np.zeros(a.size, bool)
-    rest = marks(sig)
-    for j, (s, e_) in enumerate(zip(a, b)):
-        i = s + int(np.argmax(np.abs(f[s:e_])))
+    runs = still_runs(np.abs(sig.vf) <= sig.v_threshold)
+    hold = REST_MIN * fs / sig.settings.cutoff(fs)
+    for j, (s, s_, e_) in enumerate(zip(a, da, db)):
+        i = s_ + int(np.argmax(np.abs(f[s_:e_])))
         peak[j] = abs(f[i])
-        toward[j] = _toward(f, sig.vf, rest, s, i)
+        toward[j] = _toward(f, sig.vf, rest, s, i) or (HELD_EITHER_WAY and _held(runs, i, hold))
     still = dwell(sig, a, b) >= REST_MIN * fs / sig.settings.cutoff(fs)
     last = int(np.flatnonzero(design.train_samples)[-1])
     train = b <= last
@@ -428,7 +491,7 @@ def test(design, fit, step: float = 0.0) -> Result:
     # each event's p-value: its excess over the sliding level's switch and margins against
     # the local window maximum of the sliding misfit (breakaway_evidence)
     excess = peak - (fixed + pulse)
-    pv = event_pvalues(np.abs(e), outside, b - a, (a + b) // 2, excess, toward, LOCAL_WINDOWS) if a.size else np.ones(0)
+    pv = event_pvalues(np.abs(e), outside, db - da, (da + db) // 2, excess, toward, LOCAL_WINDOWS) if a.size else np.ones(0)
     res.events = Events(a, b, peak, train, bounds, toward, still, pv)
     res.bound, res.sigma, res.l1, res.Fc, res.Fc_std = bound, sigma, l1, Fc, Fc_std
     res.n_rest_test = int((still & test_).sum())
@@ -436,9 +499,9 @@ def test(design, fit, step: float = 0.0) -> Result:
     res.n_train = int(train.sum())
     _score(res, over, peak, ref, sigma, train, test_, pv)
     res.p_all = res.p
-    if res.n_rest_test == 0 and res.n_train >= MIN_EVENTS:
-        # the held-out part holds no interval at rest (a chirp past the sticking speeds):
-        # it cannot show a breakaway.  The alternative proof: the test and the fit of Fs
+    if res.n_rest_test < MIN_REST_TEST and res.n_train >= MIN_EVENTS:
+        # the held-out part holds fewer than MIN_REST_TEST intervals at rest (a chirp past
+        # the sticking speeds, a seek's last stroke): it cannot show a breakaway on its own.  The alternative proof: the test and the fit of Fs
         # on every other training event, the proof on the others (module doc, "Proof")
         idx = np.flatnonzero(train)
         fit_ev, proof_ev = np.zeros(a.size, bool), np.zeros(a.size, bool)
@@ -450,5 +513,6 @@ def test(design, fit, step: float = 0.0) -> Result:
     return res
 
 
-__all__ = ["Events", "MIN_EVENTS", "Result", "applicable", "events", "filter_l1", "held_force", "marks", "noise_max", "step_pulse", "dwell",
+__all__ = ["Events", "MIN_EVENTS", "Result", "applicable", "events", "filter_l1", "held_force", "marks", "noise_max", "sliding_sign", "step_pulse", "dwell",
+           "departures", "still_runs",
            "test"]

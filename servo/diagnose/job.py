@@ -418,7 +418,8 @@ def _prove(design: Design, base: Model, findings: list, test_rows: np.ndarray, s
                             {"force_rel_pct": errs[bad], "output_nrmse": nr[bad]}))  # fmt: skip
 
 
-def _breakaway(design: Design, fit: Fit, rounds: list, errs: list, nr: list, opt: Options, step: float = 0.0):
+def _breakaway(design: Design, fit: Fit, rounds: list, errs: list, nr: list, opt: Options, step: float = 0.0,
+               not_testable: dict | None = None):  # fmt: skip
     """The breakaway test (:mod:`servo.diagnose.breakaway`) on the final model of the rows,
     at the level of the last round that shared its family-wise level with it (the round on
     that model); ``step`` a quantised sensor's lattice step (0: none).  Returns
@@ -430,6 +431,8 @@ def _breakaway(design: Design, fit: Fit, rounds: list, errs: list, nr: list, opt
         return None, None
     level = shared[-1]
     res = breakaway_mod.test(design, fit, step)
+    if not res.testable and not_testable is not None:  # say why it could not be tested
+        not_testable["stribeck_friction (breakaway at rest)"] = res.note
     if not res.passes(level):
         return None, None
     alt = res.split  # the held-out part holds no interval at rest: proven on training events held out from the fit
@@ -447,7 +450,8 @@ def _breakaway(design: Design, fit: Fit, rounds: list, errs: list, nr: list, opt
     if res.proof == "held-out part":
         counts = f"{res.k} of {res.n} training and {res.k_test} of {res.n_test} held-out intervals"
     else:  # the held-out part holds no interval at rest: proven on training events the fit did not use
-        counts = (f"the held-out part holds no interval at rest, so it cannot test a breakaway; {res.k} of {res.n} "
+        counts = (f"the held-out part holds {res.n_rest_test} intervals at rest (fewer than "
+                  f"{breakaway_mod.MIN_REST_TEST}), so it cannot test a breakaway on its own; {res.k} of {res.n} "
                   f"training intervals (every other one) and {res.k_test} of {res.n_test} training intervals held out "
                   f"from that test and fit")  # fmt: skip
     f.where = {"text": f"at rest: {counts} at rest or reversing hold forces beyond the sliding level and their local "
@@ -458,7 +462,8 @@ def _breakaway(design: Design, fit: Fit, rounds: list, errs: list, nr: list, opt
     ev["reason"] = (f"the held-out part's intervals at rest do not hold forces beyond the sliding level "
                     f"({res.k_test} of {res.n_test}, p {res.p_test:.3g} against {opt.alpha:g})")  # fmt: skip
     if alt is not None:  # say that the held-out part could not test it, and what the split gave
-        ev["reason"] = (f"not proven: the held-out part holds no interval at rest, so it cannot test a breakaway "
+        ev["reason"] = (f"not proven: the held-out part holds {res.n_rest_test} intervals at rest (fewer than "
+                        f"{breakaway_mod.MIN_REST_TEST}), so it cannot test a breakaway on its own "
                         f"({res.k_test} of {res.n_test} of its events beyond the bound), and the training events "
                         f"held out from the fit do not confirm it ({alt.k} of {alt.n} fitted, p {alt.p:.3g} against "
                         f"{level:.3g}; {alt.k_test} of {alt.n_test} held out, p {alt.p_test:.3g} against {opt.alpha:g})")  # fmt: skip
@@ -579,7 +584,7 @@ def _diagnose(rec: Recording, opt: Options | None) -> Diagnosis:
         k = len(fits[i + 1].model.terms) - 1
         f.params, f.std = fits[i + 1].term_params(k), fits[i + 1].term_std(k)
     step = lattice.step if lattice.found(opt.alpha) else 0.0  # a quantised sensor's pulses near rest
-    bfind, bdrop = _breakaway(design, fits[-1], rounds, errs, nr, opt, step)
+    bfind, bdrop = _breakaway(design, fits[-1], rounds, errs, nr, opt, step, not_testable)
     if bdrop is not None:
         unconfirmed.append(bdrop)
     progress.stage("the frequency response above the rows' band")
