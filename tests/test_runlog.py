@@ -68,11 +68,11 @@ def test_a_journal_left_by_a_kill_is_finalised_later(tmp_path):
     assert np.load(tmp_path / "k.npz")["t"].shape == (30,)
 
 
-def _start_run(tmp_path, *extra, rows=2 * 8192):
+def _start_run(tmp_path, *extra, rows=2 * 8192, preexec_fn=None):
     out = tmp_path / "run"
     cmd = [sys.executable, "-m", "servo", "run", "--duration", "30", "--compensation", "on", "--quiet", "--out", str(out),
            *extra]  # --quiet: the test reads stderr's one error line, not the progress
-    proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, preexec_fn=preexec_fn)
     journal = tmp_path / "run.incomplete" / "log_compensated.journal"
     deadline = time.time() + 60
     while time.time() < deadline:  # wait until at least two blocks are on disk
@@ -99,8 +99,12 @@ def test_a_hard_kill_loses_at_most_the_blocks_not_yet_synced(tmp_path):
     assert np.load(staging / "log_compensated.npz")["tick"].shape == (rows.shape[0],)
 
 
-def test_ctrl_c_stops_cleanly_and_keeps_everything(tmp_path):
-    proc, out = _start_run(tmp_path)
+@pytest.mark.parametrize("sigint", ["default", "ignored at start"])
+def test_ctrl_c_stops_cleanly_and_keeps_everything(tmp_path, sigint):
+    """Also for a run started in a script's background, whose shell hands it an ignored
+    SIGINT (seen: a test suite run in the background got exit 0 after the whole run)."""
+    ignore = (lambda: signal.signal(signal.SIGINT, signal.SIG_IGN)) if sigint != "default" else None
+    proc, out = _start_run(tmp_path, preexec_fn=ignore)
     proc.send_signal(signal.SIGINT)
     _, err = proc.communicate(timeout=60)
     assert proc.returncode == 130

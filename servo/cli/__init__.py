@@ -90,7 +90,11 @@ def use_agg() -> None:
 
 
 def main(argv: list[str] | None = None) -> int:
+    # every command stops the same way on SIGTERM and SIGINT (the actuator to its safe
+    # state, what it recorded kept): also when started in a script's background, whose
+    # shell hands it an ignored SIGINT
     signal.signal(signal.SIGTERM, _sigterm)
+    signal.signal(signal.SIGINT, signal.default_int_handler)
     use_agg()
     try:
         parser = build_parser()

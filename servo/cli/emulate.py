@@ -2,9 +2,7 @@
 from __future__ import annotations
 
 import argparse
-import signal
 import sys
-import threading
 
 from servo.cli.common import add_config_options, config_from_args
 from servo.errors import ServoError
@@ -59,11 +57,7 @@ def handle(args: argparse.Namespace) -> int:
         raise ServoError(f"emulate: cannot listen: {exc}") from None
     mode = "real time" if args.realtime else "lockstep"
     ctx = (realtime_section(args.cpu, args.fifo, args.lock_memory) if args.realtime else nullcontext())
-    # it says "stop with Ctrl-C", so SIGINT must stop it: also when started in the
-    # background of a script, whose shell hands it an ignored SIGINT (restored after)
-    main = threading.current_thread() is threading.main_thread()
-    previous = signal.signal(signal.SIGINT, signal.default_int_handler) if main else None
-    try:
+    try:  # it says "stop with Ctrl-C": servo.cli.main takes SIGINT back if it was ignored
         with ctx as grant:
             say(f"listening on {transport.url} ({mode}, {cfg.run.sample_rate_hz:g} Hz, seed {cfg.run.seed}); "
                 "stop with Ctrl-C")  # fmt: skip
@@ -76,8 +70,6 @@ def handle(args: argparse.Namespace) -> int:
         say(f"stopped after {board.session} session(s){during}; drive at zero current")
         return 0
     finally:
-        if main:  # None: the previous handler was not set from Python (the default then)
-            signal.signal(signal.SIGINT, previous if previous is not None else signal.SIG_DFL)
         transport.close()
         sys.stdout.flush()
     say(f"done after {board.sessions_ended} session(s)")
