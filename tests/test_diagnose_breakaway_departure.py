@@ -66,6 +66,7 @@ def test_breakaway_found_on_long_holds(case, seed, proof):
     if proof != "held-out part":
         assert 0 < ev["events_at_rest_heldout"] < breakaway.MIN_REST_TEST
         assert "cannot test a breakaway on its own" in f.where["text"]
+        assert "of its 1 events beyond the bound, p " in f.where["text"]  # what its own rest gave is said
 
 
 @pytest.mark.parametrize("case,seed", [

@@ -69,7 +69,7 @@ def test_the_training_fits_error_is_the_test_parts_structure_against_position(ch
     full = fit_model(design, D.baseline, rows=sig.valid)
     r2 = np.where(design.train_rows, r, full.residual)
     assert not state_test(r2, sig.valid, tau, D.state, 0.05)["variables"]["position"]["flagged"]
-    est = estimation_error(design, D.baseline)
+    est = estimation_error(design, D.baseline_fit)
     assert not state_test(r, sig.valid, tau, D.state, 0.05, est)["variables"]["position"]["flagged"]
     assert D.verdict["verdict"] == "consistent" and not D.findings
     # power kept: a position-dependent force of half the floor on every row is still found
@@ -93,3 +93,15 @@ def test_without_the_fits_error_the_state_test_is_the_diagonal_one():
     # a zero covariance changes nothing
     b = state_test(r, valid, 1.0, variables, 0.05, (np.ones((m, 2)), np.zeros((2, 2))))["variables"]["position"]
     assert b["chi2"] == pytest.approx(a["chi2"], rel=1e-12)
+
+
+def test_a_zero_residual_has_no_structure():
+    """A model that predicts the rows exactly: every bin mean is zero, p = 1, nothing
+    flagged (with the fit's error in the covariance too), not a singular solve."""
+    m = 400
+    x = np.linspace(-1, 1, m)
+    variables = {"position": (x, None, "m"), "direction": (np.sign(np.sin(7 * x)), None, "-")}
+    est = (np.column_stack([np.ones(m), x]), np.zeros((2, 2)))
+    for e in (None, est):
+        out = state_test(np.zeros(m), np.ones(m, bool), 1.0, variables, 0.05, e)["variables"]
+        assert all(v["p"] == 1.0 and not v["flagged"] for v in out.values())

@@ -114,10 +114,6 @@ LOCAL_WINDOWS = 100
 #: an event is **at rest** when its filtered velocity stays within its noise for at
 #: least this many Butterworth time scales (a hold long enough to show a breakaway)
 REST_MIN = 0.3
-#: read each event's peak at its last departure from rest (:func:`departures`), not over the whole event
-DEPARTURE = True
-#: a peak held inside a rest of :data:`REST_MIN` time scales counts whichever way the arm then moves (:func:`_held`)
-HELD_EITHER_WAY = True
 #: a held-out part with fewer events at rest than this cannot test a breakaway on its own
 #: (one or two holds, a seek's last stroke): the split proof on training events is stated instead
 MIN_REST_TEST = 3
@@ -220,8 +216,9 @@ class Result:
     n_rest_test: int = 0
     #: ``p`` over every training event (``p`` itself is over the events the test ran on)
     p_all: float = 1.0
-    #: where the held-out part holds no event at rest: the same test with ``Fs`` fitted on
-    #: every other training event and proven on the others (module doc, "Proof")
+    #: where the held-out part holds fewer than :data:`MIN_REST_TEST` events at rest: the
+    #: same test with ``Fs`` fitted on every other training event and proven on the
+    #: others (module doc, "Proof")
     split: "Result | None" = field(default=None, repr=False)
     note: str = ""
     events: Events | None = field(default=None, repr=False)
@@ -319,16 +316,17 @@ def marks(sig) -> np.ndarray:
     return m
 
 
-def dwell(sig, a: np.ndarray, b: np.ndarray) -> np.ndarray:
+def dwell(sig, a: np.ndarray, b: np.ndarray, runs: tuple | None = None) -> np.ndarray:
     """(N,) the longest run of samples of each event ``[a, b)`` where the filtered
     velocity is within its noise (samples): how long the arm was held there.  A
-    reversal that passes through zero without a hold has a run of 0-1 samples."""
-    still = np.abs(sig.vf) <= sig.v_threshold
+    reversal that passes through zero without a hold has a run of 0-1 samples.
+    ``runs``: those runs over the recording (:func:`still_runs`), if found already."""
+    up, dn = runs if runs is not None else still_runs(np.abs(sig.vf) <= sig.v_threshold)
     out = np.zeros(a.size, int)
     for j, (s, e) in enumerate(zip(a, b)):
-        d = np.diff(np.r_[0, still[s:e].astype(np.int8), 0])
-        up, dn = np.flatnonzero(d == 1), np.flatnonzero(d == -1)
-        out[j] = int((dn - up).max()) if up.size else 0
+        k0, k1 = int(np.searchsorted(dn, s, side="right")), int(np.searchsorted(up, e, side="left"))
+        if k1 > k0:  # the runs that overlap the event, clipped to it
+            out[j] = int((np.minimum(dn[k0:k1], e) - np.maximum(up[k0:k1], s)).max())
     return out
 
 
@@ -469,7 +467,7 @@ def test(design, fit, step: float = 0.0) -> Result:
     sigma = float(1.4826 * np.median(np.abs(e[outside] - np.median(e[outside]))))
     g = np.abs(sig.butter(sgn))  # the sliding level's switch through the filter, per unit Fc
     rest = marks(sig)
-    da, db = departures(sig, a, b, rest) if DEPARTURE else (a, b)  # where each event's breakaway shows
+    da, db = departures(sig, a, b, rest)  # where each event's breakaway shows
     ref = np.array([g[s:e_].max() for s, e_ in zip(da, db)]) if a.size else np.zeros(0)
     noise = noise_max(np.abs(e), outside, db - da, sigma, (da + db) // 2)
     pulse = step_pulse(sig, fit, step)
@@ -483,8 +481,9 @@ def test(design, fit, step: float = 0.0) -> Result:
     for j, (s, s_, e_) in enumerate(zip(a, da, db)):
         i = s_ + int(np.argmax(np.abs(f[s_:e_])))
         peak[j] = abs(f[i])
-        toward[j] = _toward(f, sig.vf, rest, s, i) or (HELD_EITHER_WAY and _held(runs, i, hold))
-    still = dwell(sig, a, b) >= REST_MIN * fs / sig.settings.cutoff(fs)
+        # a peak held inside a rest counts whichever way the arm then moves (_held)
+        toward[j] = _toward(f, sig.vf, rest, s, i) or _held(runs, i, hold)
+    still = dwell(sig, a, b, runs) >= hold
     last = int(np.flatnonzero(design.train_samples)[-1])
     train = b <= last
     test_ = a > last

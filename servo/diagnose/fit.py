@@ -22,7 +22,9 @@ class Fit:
     """``model`` with ``coefs[i]`` / ``std[i]`` the coefficients of ``model.terms[i]``
     (fixed ones with zero std); ``y`` (m,) its target rows; ``residual`` (m,) target minus
     fit on every row; ``tau`` the residual's integrated autocorrelation time;
-    ``theta_std[i]`` the std of term ``i``'s nonlinear parameters (if known)."""
+    ``theta_std[i]`` the std of term ``i``'s nonlinear parameters (if known); ``cov``
+    (p, p) the covariance of the free coefficients in the order of the free columns
+    (``tau * s^2 * (Z'Z)^-1``, ``s^2`` the residual variance of the fitted rows)."""
 
     model: Model
     coefs: list
@@ -31,6 +33,7 @@ class Fit:
     residual: np.ndarray
     tau: float
     theta_std: list
+    cov: np.ndarray
 
     def term_params(self, i: int) -> dict:
         """Reported parameters of term ``i`` (:meth:`Physics.physical`)."""
@@ -94,10 +97,10 @@ def fit_model(design: Design, model: Model, theta_std: list | None = None, rows:
     if p:
         G = Z.T @ Z
         d = np.sqrt(np.clip(np.diag(G), 1e-300, None))
-        cov = np.linalg.pinv(G / np.outer(d, d)) / np.outer(d, d)
-        sd = np.sqrt(np.clip(np.diag(cov), 0, None) * s2 * tau)
+        cov = np.linalg.pinv(G / np.outer(d, d)) / np.outer(d, d) * (s2 * tau)
+        sd = np.sqrt(np.clip(np.diag(cov), 0, None))
     else:
-        sd = np.zeros(0)
+        cov, sd = np.zeros((0, 0)), np.zeros(0)
     coefs, std, j = [], [], 0
     for t in model.terms:
         phys = VOCABULARY[t.physics]
@@ -114,7 +117,7 @@ def fit_model(design: Design, model: Model, theta_std: list | None = None, rows:
             std.append(tuple(0.0 for _ in t.coef))
     ts = list(theta_std) if theta_std is not None else [{} for _ in model.terms]
     ts += [{} for _ in range(len(model.terms) - len(ts))]
-    return Fit(model, coefs, std, y, r, tau, ts)
+    return Fit(model, coefs, std, y, r, tau, ts, cov)
 
 
 def force_error_pct(design: Design, fit: Fit, rows: np.ndarray) -> float:

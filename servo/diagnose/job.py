@@ -435,7 +435,8 @@ def _breakaway(design: Design, fit: Fit, rounds: list, errs: list, nr: list, opt
         not_testable["stribeck_friction (breakaway at rest)"] = res.note
     if not res.passes(level):
         return None, None
-    alt = res.split  # the held-out part holds no interval at rest: proven on training events held out from the fit
+    alt = res.split  # the held-out part holds too few intervals at rest: proven on training events held out from the fit
+    held = res  # the held-out part's own result, said beside the split's
     if not res.confirmed(opt.alpha) and alt is not None and alt.passes(level) and alt.confirmed(opt.alpha):
         res = alt
     vs = float(design.sig.v_threshold)
@@ -449,9 +450,11 @@ def _breakaway(design: Design, fit: Fit, rounds: list, errs: list, nr: list, opt
     f.before, f.after = before, after
     if res.proof == "held-out part":
         counts = f"{res.k} of {res.n} training and {res.k_test} of {res.n_test} held-out intervals"
-    else:  # the held-out part holds no interval at rest: proven on training events the fit did not use
+    else:  # the held-out part holds too few intervals at rest: proven on training events the fit did not use
+        own = (f"; {held.k_test} of its {held.n_test} events beyond the bound, p {held.p_test:.3g}" if held.n_test
+               else "")  # fmt: skip
         counts = (f"the held-out part holds {res.n_rest_test} intervals at rest (fewer than "
-                  f"{breakaway_mod.MIN_REST_TEST}), so it cannot test a breakaway on its own; {res.k} of {res.n} "
+                  f"{breakaway_mod.MIN_REST_TEST}{own}), so it cannot test a breakaway on its own; {res.k} of {res.n} "
                   f"training intervals (every other one) and {res.k_test} of {res.n_test} training intervals held out "
                   f"from that test and fit")  # fmt: skip
     f.where = {"text": f"at rest: {counts} at rest or reversing hold forces beyond the sliding level and their local "
@@ -537,7 +540,9 @@ BLAS_THREADS = 1
 def diagnose(rec: Recording, opt: Options | None = None) -> Diagnosis:
     """Diagnose ``rec`` (see module doc).  Raises a one-line
     :class:`~servo.errors.ServoError` for data that cannot be diagnosed.  BLAS runs on
-    :data:`BLAS_THREADS` threads meanwhile, as it did before once it returns."""
+    :data:`BLAS_THREADS` threads meanwhile, as it did before once it returns.  The limit
+    is the process's: diagnoses run side by side in threads of one process would reset
+    each other's; the study and the fleet run them in worker processes."""
     with threadpool_limits(limits=BLAS_THREADS, user_api="blas"):
         return _diagnose(rec, opt)
 
@@ -631,7 +636,7 @@ def _diagnose(rec: Recording, opt: Options | None) -> Diagnosis:
         tau_r = integrated_time(np.where(w, r, 0.0)[first : last + 1])
         J = fit.combined().get("inertia", {}).get("J", 0.0)
         return verdict_mod.assess(design, r, J, tau_r, variables, opt.alpha, nrmse, noise_x,
-                                  verdict_mod.estimation_error(design, fit.model))  # fmt: skip
+                                  verdict_mod.estimation_error(design, fit))  # fmt: skip
 
     base_checks, final_checks = checks(fits[0], r_before, nr[0]), checks(final, r_after, nr[-1])
     verdict_mod.add_frf(base_checks, frf.before, frf)

@@ -118,7 +118,7 @@ def state_test(r: np.ndarray, valid: np.ndarray, tau: float, variables: dict, al
             if n == 0:
                 continue
             means.append(float(rr[sel].mean()))
-            var.append(sigma**2 * tau / n)
+            var.append(max(sigma**2 * tau / n, np.finfo(float).tiny))  # a zero residual: no structure, p = 1
             if Ev is not None:
                 A.append(Ev[sel].mean(axis=0))
             bins.append({"lo": float(edges[j]), "hi": float(edges[j + 1]), "n": n, "mean": means[-1]})

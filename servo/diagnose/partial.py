@@ -23,16 +23,19 @@ eligible vocabulary term **gated in time**: its columns multiplied by the indica
   of the per-gain-block log gains, and the information criterion with ``k`` counting
   ``t0`` as one more parameter, that criterion taken with the term refined (its
   onset to the sample): of the gated candidates whose sign-flip test passes, the one
-  whose refined term predicts the held-out folds best is added (:func:`ranked`), not
-  the one whose grid point did.  The level is the family-wise one with the gated
+  with the lowest refined criterion is added (:func:`ranked`), not the one whose grid
+  point scored best.  The level is the family-wise one with the gated
   candidates *counted among the candidates* of the round that ended the vocabulary
   stage: ``alpha/(N + M)`` with ``N`` the terms that round tested and ``M`` the gated
   ones (as if all had been tried together).
 * **When it runs** (:func:`located`): only after the vocabulary stage has stopped, and
   only when the current model's cross-validated residual on the *training* part stands
   above its noise floor in some time window (the verdict's window check,
-  :func:`servo.diagnose.verdict.assess`, on the training windows only): a model that
-  already predicts its training part to its noise has nothing a gate could explain.
+  :func:`servo.diagnose.verdict.window_checks`, on the training windows only, and on
+  every usable row: the verdict itself leaves out the rows beside a rest,
+  :func:`servo.diagnose.verdict.window_rows`, where a stick's misfit leaks; here such
+  a leak only costs a gated round, which has its own level): a model that already
+  predicts its training part to its noise has nothing a gate could explain.
   The test part is used neither for the trigger nor for the choice; it proves the
   finding like every other (:mod:`servo.diagnose.job`).
 * **Which terms** (:func:`gateable`): column terms eligible on the current model,
@@ -251,9 +254,12 @@ def ranked(sel: Selector, model: Model, tested: list) -> list:
     """The gated candidates whose sign-flip test passed (their :class:`Score`), each
     refined (:func:`refine`: its onset to the sample) and judged by the information
     criterion with the refined term: ``n_eff*ln(S1/S0) + k*ln(n_eff)``, ``S1`` the pooled
-    held-out SSE of the folds with the refined parameters held (set as each score's
-    ``refined_ic``).  Returns ``[(term, score, theta_std), ...]`` in increasing order
-    of it, the one to add first.
+    SSE of each fold's blocks predicted by linear coefficients fitted on the other folds,
+    the onset and the term's nonlinear parameter held at their refined values.  Those
+    two were fitted on every training row, so ``S1`` is not held out for them: it is a
+    fit criterion penalised by ``k*ln(n_eff)``, not a held-out one.  Sets each score's
+    ``refined_ic``; returns ``[(term, score, theta_std), ...]`` in increasing order of
+    it, the one to add first.
 
     The test scores a gated term with its onset on a gain block's boundary (a fortieth
     of the training part) and its other parameters on a grid.  A force that steps on at
@@ -263,8 +269,8 @@ def ranked(sel: Selector, model: Model, tested: list) -> list:
     model's, the Dahl hysteresis 0.40), or left the hysteresis above the criterion
     (0.77 of the model's, ``p`` 5e-5); refined, the hysteresis is at 0.015, the bump at
     0.20.  The level is the sign-flip test's, on the folds' own (nested) choices: the
-    refined criterion ranks and guards against a negligible gain, it admits nothing
-    whose test failed."""
+    refined criterion ranks the candidates and guards against a negligible gain; it
+    admits nothing whose test failed."""
     out = []
     for s in tested:
         term, tstd = refine(sel, model, s.physics, s.thetas)

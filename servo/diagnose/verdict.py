@@ -164,9 +164,10 @@ def window_rows(sig) -> np.ndarray:
 def window_checks(design, residual: np.ndarray, floor: float, tau: float, alpha: float,
                   usable: np.ndarray | None = None) -> list:  # fmt: skip
     """The ``windows`` check's windows (:data:`N_WINDOWS` over all rows): each
-    ``{t0, t1, ratio, bound, test_part, flagged}``, ``ratio`` the RMS of the ``usable``
-    rows (m,; default ``sig.valid``) of ``residual`` in it over ``floor``, flagged
-    beyond ``bound`` (module doc)."""
+    ``{t0, t1, rows, ratio, bound, test_part, flagged}``, ``ratio`` the RMS of the
+    ``rows`` ``usable`` rows (m,; default ``sig.valid``) of ``residual`` in it over
+    ``floor``, flagged beyond ``bound`` (module doc).  A window with fewer than 5 usable
+    rows is left out (the check's ``skipped`` counts them)."""
     sig = design.sig
     usable = sig.valid if usable is None else usable
     fl = max(floor, 1e-300)
@@ -180,36 +181,24 @@ def window_checks(design, residual: np.ndarray, floor: float, tau: float, alpha:
             continue
         r = float(np.sqrt(np.mean(residual[a:b][m] ** 2))) / fl
         bw = max(WINDOW_MARGIN, _chi2_bound(n / tau, alpha / N_WINDOWS))
-        wins.append({"t0": float(sig.t_rows[a]), "t1": float(sig.t_rows[b - 1]), "ratio": r, "bound": bw,
+        wins.append({"t0": float(sig.t_rows[a]), "t1": float(sig.t_rows[b - 1]), "rows": n, "ratio": r, "bound": bw,
                      "test_part": bool(not design.train_rows[a]), "flagged": bool(r > bw)})  # fmt: skip
     return wins
 
 
-def estimation_error(design, model) -> tuple | None:
+def estimation_error(design, fit) -> tuple | None:
     """How the training fit's error reaches the test part's held-out residual: ``(E, C)``,
-    ``E`` (m, p) the free columns of ``model`` on the test rows (zero elsewhere) and ``C``
-    (p, p) the covariance of the coefficients fitted on the training rows, ``tau * s^2 *
-    (Z'Z)^-1`` (:mod:`servo.diagnose.fit`); None without free columns.  The test part is
-    predicted by one fit whose error ``d`` adds ``E @ d`` to its rows: a structure against
-    position or distance since reversal where the test part reaches further than training
-    did, which the ``state`` check must not read as a misfit (module doc)."""
-    from servo.diagnose.select import integrated_time
-
-    y, Phi, _ = design.matrix(model)
+    ``E`` (m, p) the free columns of ``fit.model`` on the test rows (zero elsewhere) and
+    ``C`` (p, p) the covariance of the coefficients fitted on the training rows
+    (``fit.cov``, :func:`servo.diagnose.fit.fit_model`); None without free columns.  The
+    test part is predicted by one fit whose error ``d`` adds ``E @ d`` to its rows: a
+    structure against position or distance since reversal where the test part reaches
+    further than training did, which the ``state`` check must not read as a misfit
+    (module doc)."""
+    _, Phi, _ = design.matrix(fit.model)
     if Phi.shape[1] == 0:
         return None
-    w = design.train_valid
-    Z = Phi[w]
-    G = Z.T @ Z
-    d = np.sqrt(np.clip(np.diag(G), 1e-300, None))
-    Ginv = np.linalg.pinv(G / np.outer(d, d)) / np.outer(d, d)
-    c = Ginv @ (Z.T @ y[w])
-    r = y - Phi @ c
-    first, last = np.flatnonzero(w)[[0, -1]]
-    tau = integrated_time(np.where(w, r, 0.0)[first : last + 1])
-    s2 = float(r[w] @ r[w]) / max(int(w.sum()) - Phi.shape[1], 1)
-    E = np.where((~design.train_rows)[:, None], Phi, 0.0)
-    return E, tau * s2 * Ginv
+    return np.where((~design.train_rows)[:, None], Phi, 0.0), fit.cov
 
 
 def assess(design, residual: np.ndarray, J: float, tau: float, variables: dict, alpha: float,
@@ -238,7 +227,8 @@ def assess(design, residual: np.ndarray, J: float, tau: float, variables: dict, 
 
     wins = window_checks(design, residual, floor, tau, alpha, window_rows(sig))
     flagged = [w for w in wins if w["flagged"]]
-    checks["windows"] = {"windows": wins, "flagged": [[w["t0"], w["t1"]] for w in flagged], "failed": bool(flagged)}
+    checks["windows"] = {"windows": wins, "skipped": N_WINDOWS - len(wins), "flagged": [[w["t0"], w["t1"]] for w in flagged],
+                         "failed": bool(flagged)}  # fmt: skip
 
     n_tr, n_te = train.sum() / tau, test.sum() / tau
     g = (rms(test) / max(rms(train), 1e-300)) if train.any() and test.any() else 1.0
