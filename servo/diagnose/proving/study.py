@@ -19,10 +19,11 @@ The diagnoses run on Dask through the fleet's path
 made by the worker from its ``(family, size, seed)``; the runs come back in the jobs'
 order.
 
-The first scored seeds were nulls 50000+ and families 60000+ (offset 0); the fresh
-scored seeds since issue 11's last round are offset 20000 (nulls 70000+, families
-80000+).  A change to the diagnosis is developed on other seeds (``--seed-offset
-40000`` or 45000) and scored once, its levels fixed first.
+The first scored seeds were nulls 50000+ and families 60000+ (offset 0); fresh
+seeds were scored since on offsets 20000, 25000 and 65000 (docs/diagnosis.md, 10a).
+A change to the diagnosis is developed on other seeds (``--seed-offset 40000``, 45000,
+52000; 70000 has been a second look) and scored once on unused ones, its levels fixed
+first.
 """
 from __future__ import annotations
 
