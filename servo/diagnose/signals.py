@@ -434,17 +434,19 @@ def make_signals(rec: Recording, settings: RobustSettings | None = None) -> Sign
     noise_x = float(1.4826 * np.median(np.abs(hp - np.median(hp))) / np.sqrt(1.0 - frac_kept))
     noise_v = noise_x * velocity_noise_gain(s, fs)
     v_thr = DIRECTION_Z * noise_v
-    uncertain = np.abs(vf) <= v_thr
     # a row is unusable if its decimation filter reaches an uncertain sample
-    reach = filter_reach(s)
-    if np.any(uncertain):
-        c = np.concatenate([[0], np.cumsum(uncertain)])
-        lo = np.clip(keep - reach, 0, n)
-        hi = np.clip(keep + reach + 1, 0, n)
-        valid = (c[hi] - c[lo]) == 0
-    else:
-        valid = np.ones(keep.size, bool)
+    valid = rows_clear_of(keep, np.abs(vf) <= v_thr, filter_reach(s))
     return Signals(t, u, x, xf, vf, af, dt, s, keep, valid, noise_x, noise_v, v_thr)
+
+
+def rows_clear_of(keep: np.ndarray, bad: np.ndarray, reach: int) -> np.ndarray:
+    """(m,) bool: the rows (full-rate indices ``keep``, (m,)) with no ``bad`` sample
+    ((n,) bool) within ``reach`` samples either side, the decimation filter's extent."""
+    if not bad.any():
+        return np.ones(keep.size, bool)
+    n = bad.size
+    c = np.concatenate([[0], np.cumsum(bad)])
+    return (c[np.clip(keep + reach + 1, 0, n)] - c[np.clip(keep - reach, 0, n)]) == 0
 
 
 def distance_since_reversal(x: np.ndarray, v: np.ndarray, threshold: float) -> np.ndarray:

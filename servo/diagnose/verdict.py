@@ -145,20 +145,14 @@ def window_rows(sig) -> np.ndarray:
     keeps out at 1 %) and the samples trimmed at both ends, where the Butterworth's
     zero-phase padding leaves a transient that does not obey the force balance (the
     first row of a null read 9-19 x the floor)."""
-    from servo.diagnose.signals import filter_reach
+    from servo.diagnose.signals import filter_reach, rows_clear_of
 
     uncertain = np.abs(sig.vf) <= sig.v_threshold
     st = sig.settings
     uncertain[: st.trim_start] = True  # the Butterworth's edge transient (module doc)
     if st.trim_end > 0:
         uncertain[sig.n - st.trim_end :] = True
-    if not uncertain.any():
-        return sig.valid.copy()
-    reach = filter_reach(sig.settings, LEAK_LEVEL)
-    c = np.concatenate([[0], np.cumsum(uncertain)])
-    lo = np.clip(sig.keep - reach, 0, sig.n)
-    hi = np.clip(sig.keep + reach + 1, 0, sig.n)
-    return sig.valid & ((c[hi] - c[lo]) == 0)
+    return sig.valid & rows_clear_of(sig.keep, uncertain, filter_reach(st, LEAK_LEVEL))
 
 
 def window_checks(design, residual: np.ndarray, floor: float, tau: float, alpha: float,
