@@ -35,7 +35,7 @@ from servo.io.runlog import RunLog
 from servo.runtime.controller import Controller
 from servo.runtime.loop import run_closed_loop
 from servo.runtime.pacing import realtime_section
-from servo.runtime.scenario import scenario_inputs
+from servo.scenarios import scenario_inputs
 
 
 def one_rate(rate: float, d: int, b: int, seconds: float, cpus: tuple[int, int] | None, fifo: int | None,

@@ -28,7 +28,7 @@ def main() -> int:
     from servo.io.runlog import RunLog
     from servo.runtime.controller import Controller
     from servo.runtime.loop import run_closed_loop
-    from servo.runtime.scenario import scenario_inputs
+    from servo.scenarios import scenario_inputs
     from servo.runtime.simdriver import SimDriver
 
     cfg = Config().replace(run={"duration_s": 0.04})

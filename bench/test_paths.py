@@ -13,7 +13,7 @@ from servo.io.runlog import RunLog
 from servo.runtime.controller import Controller
 from servo.runtime.durations import Durations
 from servo.runtime.loop import run_closed_loop
-from servo.runtime.scenario import scenario_inputs
+from servo.scenarios import scenario_inputs
 from servo.runtime.simdriver import SimDriver
 
 ROUNDS = 9

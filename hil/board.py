@@ -47,7 +47,7 @@ from hil import protocol as P
 from hil.framing import FrameDecoder, encode_frame
 from servo.config import Config
 from servo.runtime.driver import DriverState
-from servo.runtime.scenario import scenario_inputs
+from servo.scenarios import scenario_inputs
 from servo.runtime.simdriver import SimDriver
 
 IDLE, HELLO, READY, ACTIVE, FAULTED = "idle", "hello", "ready", "active", "faulted"

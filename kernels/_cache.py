@@ -4,8 +4,10 @@ Numba's on-disk cache (``cache=True``) checks only the timestamp of the file tha
 each function.  A kernel that calls (and inlines) a kernel of another file keeps its
 cached machine code when only the callee's file changes: after editing ``dahl.py`` the
 cached controller tick would still run the old Dahl model.  Keying the cache directory
-on a hash of every kernel source file (``kernels/`` and ``servo/controllers/``) makes
-any edit start a fresh cache.
+on a hash of the kernels' source makes any edit start a fresh cache: a kernel declared
+with :func:`kernel` is cached under the hash of every ``*.py`` of ``kernels/`` and of the
+folder that declares it (a package above declares kernels that inline these, never the
+reverse), so this module needs to know nothing of the packages that use it.
 
 The directory is ``$SERVO_NUMBA_CACHE`` or ``~/.cache/servo-numba`` (``$XDG_CACHE_HOME``
 if set), then ``<hash>/``.  ``NUMBA_CACHE_DIR``, if the user set it, is respected as is.
@@ -25,59 +27,46 @@ from numba.core import config
 HERE = Path(__file__).resolve().parent
 
 
-#: The folders whose kernels are hashed: ``kernels/`` and the built-in controller kinds
-#: (``servo/controllers/``, whose kernels the composed loops of :mod:`kernels.compose` and
-#: the benchmark loops inline).
-FOLDERS = (HERE, HERE.parent / "servo" / "controllers")
+#: Every kernel declared with :func:`kernel` in this process (for :func:`compiled_here`).
+DECLARED: list = []
 
 
-def source_hash(folders=FOLDERS) -> str:
+def source_hash(folders) -> str:
     """First 16 hex digits of the SHA-256 of every ``*.py`` in ``folders`` (name, content)."""
     h = hashlib.sha256()
-    for folder in [folders] if isinstance(folders, (str, Path)) else folders:
-        for path in sorted(Path(folder).glob("*.py")):
+    for folder in folders:
+        for path in sorted(folder.glob("*.py")):
             h.update(path.name.encode())
             h.update(path.read_bytes())
     return h.hexdigest()[:16]
 
 
-def cache_dir() -> Path:
+def cache_dir(folder: Path = HERE) -> Path:
+    """The cache directory of the kernels declared in ``folder``."""
     base = os.environ.get("SERVO_NUMBA_CACHE")
     if not base:
         xdg = os.environ.get("XDG_CACHE_HOME")
         base = Path(xdg) / "servo-numba" if xdg else Path.home() / ".cache" / "servo-numba"
-    return Path(base) / source_hash()
-
-
+    return Path(base) / source_hash(dict.fromkeys((HERE, Path(folder).resolve())))
 
 
 def compiled_here() -> bool:
-    """Whether this process compiled any kernel (of kernels/, of servo's controller kinds,
-    or composed for a kind) rather than loading it from the cache (the
-    first run after an install, an edit, or a checkout at a new path: Numba's index is
-    keyed by the source file's path and time as well)."""
-    import sys
-
-    from numba.core.registry import CPUDispatcher
-
-    from kernels.compose import composed_kernels
-
-    found = list(composed_kernels())
-    for name, mod in list(sys.modules.items()):
-        if name.split(".")[0] in ("kernels", "servo", "bench"):  # controller kinds live in servo/
-            found += [obj for obj in vars(mod).values() if isinstance(obj, CPUDispatcher)]
-    return any(sum(k.stats.cache_misses.values()) > 0 for k in found)
+    """Whether this process compiled any kernel declared with :func:`kernel` (those of
+    ``kernels/``, of the controller kinds, the composed loops) rather than loading it
+    from the cache (the first run after an install, an edit, or a checkout at a new path:
+    Numba's index is keyed by the source file's path and time as well)."""
+    return any(sum(k.stats.cache_misses.values()) > 0 for k in DECLARED)
 
 
 @contextmanager
-def keyed_cache():
-    """Numba's cache directory set to :func:`cache_dir` for the block, and restored after:
+def keyed_cache(folder: Path = HERE):
+    """Numba's cache directory set to :func:`cache_dir` of ``folder`` for the block, and restored after:
     the kernels' cache locations are fixed when they are decorated, and Numba's global
     configuration is left as the user had it."""
     if os.environ.get("NUMBA_CACHE_DIR"):
         yield
         return
-    path = cache_dir()
+    path = cache_dir(folder)
     try:
         path.mkdir(parents=True, exist_ok=True)
     except OSError:  # no writable cache folder: Numba's default, beside the sources
@@ -97,8 +86,10 @@ def kernel(signature, **options):
     with it, so it has an explicit signature and is ready before any loop runs."""
 
     def decorate(fn):
-        with keyed_cache():
-            return njit(signature, cache=True, **options)(fn)
+        with keyed_cache(Path(fn.__code__.co_filename).resolve().parent):
+            dispatcher = njit(signature, cache=True, **options)(fn)
+        DECLARED.append(dispatcher)
+        return dispatcher
 
     return decorate
 

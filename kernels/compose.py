@@ -144,7 +144,7 @@ Plant: state ``ps``, params ``pp``, modes ``q``/``mab``/``gain``, input-delay bu
 ``ubuf``; ``latency`` the link's command queue (length = latency in ticks).  ``buf``: the
 stage's and the controller's records (:func:`records_dtype`).  Inputs of tick k at index ``k - k0``:
 reference ``r`` (m) and excitation ``u_exc`` (A) as the excitation task holds them
-(:class:`servo.runtime.scenario.Window`), disturbance ``d`` (A), ``noise`` the two
+(:class:`servo.runtime.window.Window`), disturbance ``d`` (A), ``noise`` the two
 standard normal draws.  Logs every ``log_every`` ticks into ``log[row]`` onwards and
 returns the next free row.  ``start != 0``: the controller takes over at ``k0`` with
 ``u_start`` (A) applied."""

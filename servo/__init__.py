@@ -2,10 +2,10 @@
 
 Gong, Guo, Lee, Yao, "Modeling and Cancellation of Pivot Nonlinearity in Hard Disk
 Drives", IEEE Trans. Magnetics 38(5), 2002, as a fixed-rate servo runtime with a compiled
-core (:mod:`kernels`).  Layers: ``kernels`` <- ``servo`` <- ``hil``; the CLI
-(:mod:`servo.cli`) sits on top.
+core (:mod:`kernels`).  The packages' layers, bottom up, are listed (and checked) in
+``tests/test_layers.py``; this facade is their top and imports what it offers lazily.
 """
-__version__ = "0.1.0"
+from servo._version import __version__
 
 
 def __getattr__(name: str):

@@ -21,20 +21,12 @@ import dataclasses
 import difflib
 import math
 import tomllib
-from dataclasses import dataclass, field, fields
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
 from servo.errors import ConfigError
-
-
-def P(default, unit: str, doc: str, lo=None, hi=None, lo_open=False, hi_open=False, choices=None):
-    """A documented config field: default, unit, one-line doc, valid range or choices."""
-    meta = dict(unit=unit, doc=doc, lo=lo, hi=hi, lo_open=lo_open, hi_open=hi_open, choices=choices)
-    # choices: a tuple, or a function returning one (the registered controller kinds)
-    if isinstance(default, list):
-        return field(default_factory=lambda d=tuple(default): list(d), metadata=meta)
-    return field(default=default, metadata=meta)
+from servo.fields import P, check_value, choices_of, documented, range_text
 
 
 @dataclass
@@ -105,7 +97,13 @@ class LinkConfig:
 
 
 def _kind_names() -> tuple[str, ...]:
-    from servo.controllers import kind_names  # the kinds import P from here: a late import
+    from servo.controllers import kind_names  # imported when first needed: the kinds load kernels
+
+    return kind_names()
+
+
+def _scenario_kind_names() -> tuple[str, ...]:
+    from servo.scenarios import kind_names  # imported when first needed: the kinds load scipy
 
     return kind_names()
 
@@ -183,7 +181,7 @@ class ScenarioConfig:
 
     kind: str = P("steps", "-", "steps: the fields below; hdd_benchmark: follow a track with the NSS HDD "
                   "benchmark's runout, force disturbance and noise, reported as PES figures (docs/hdd.md)",
-                  choices=("steps", "hdd_benchmark"))  # fmt: skip
+                  choices=_scenario_kind_names)  # fmt: skip
     hdd_version: int = P(2, "-", "hdd_benchmark: the benchmark's version (1 or 2)", 1, 2)
 
     step_times: list = P([0.05, 0.12, 0.19, 0.28], "s", "times of the reference steps", 0.0)
@@ -250,68 +248,6 @@ class Config:
 # ---------------------------------------------------------------------------- loading
 
 
-def _check_value(key: str, value: Any, f: dataclasses.Field) -> Any:
-    m = f.metadata
-    kind = f.type if isinstance(f.type, str) else f.type.__name__
-    if kind == "bool":
-        if not isinstance(value, bool):
-            raise ConfigError(f"config: {key} must be true or false, got {value!r}")
-        return value
-    if kind == "str":
-        choices = _choices(m)
-        if not isinstance(value, str) or value not in choices:
-            raise ConfigError(f"config: {key} must be one of {', '.join(choices)}, got {value!r}")
-        return value
-    if kind == "list":
-        if not isinstance(value, list):
-            raise ConfigError(f"config: {key} must be a list of numbers, got {value!r}")
-        return [_check_number(f"{key}[{i}]", v, m, float) for i, v in enumerate(value)]
-    return _check_number(key, value, m, int if kind == "int" else float)
-
-
-def _choices(m: dict) -> tuple:
-    c = m["choices"]
-    return tuple(c() if callable(c) else c)
-
-
-def documented(cls) -> list[dataclasses.Field]:
-    """The :func:`P` fields of a section dataclass (not the controller's ``kinds``)."""
-    return [f for f in fields(cls) if "unit" in f.metadata]
-
-
-def _check_number(key: str, value: Any, m: dict, kind: type) -> Any:
-    if isinstance(value, bool) or not isinstance(value, (int, float)):
-        raise ConfigError(f"config: {key} must be a number, got {value!r}")
-    if kind is int and not isinstance(value, int):
-        raise ConfigError(f"config: {key} must be an integer, got {value!r}")
-    if not math.isfinite(value):
-        raise ConfigError(f"config: {key} must be finite, got {value!r}")
-    if abs(value) > MAGNITUDE_MAX and (m["lo"] is None or m["hi"] is None):
-        raise ConfigError(f"config: {key} = {value!r} is beyond any physical value ({_range_text(m)}, {m['unit']})")
-    lo, hi = m["lo"], m["hi"]
-    if lo is not None and (value < lo or (m["lo_open"] and value == lo)):
-        raise ConfigError(f"config: {key} = {value!r} is out of range ({_range_text(m)}, {m['unit']})")
-    if hi is not None and (value > hi or (m["hi_open"] and value == hi)):
-        raise ConfigError(f"config: {key} = {value!r} is out of range ({_range_text(m)}, {m['unit']})")
-    return kind(value)
-
-
-MAGNITUDE_MAX = 1e12
-"""Bound on the magnitude of a number field whose range has no explicit bound on that
-side, and of every recorded value (:mod:`servo.io.recording`): no servo quantity in SI
-units comes near it, and values near 1e300 overflow the plant's matrix exponentials and
-the fits (warnings, NaN results)."""
-
-
-def _range_text(m: dict, number: bool = True) -> str:
-    """The valid range of a field, in words (``true / false`` for a flag)."""
-    if not number:
-        return "true / false"
-    lo = f"{'>' if m['lo_open'] else '>='} {m['lo']:g}" if m["lo"] is not None else f">= {-MAGNITUDE_MAX:g}"
-    hi = f"{'<' if m['hi_open'] else '<='} {m['hi']:g}" if m["hi"] is not None else f"<= {MAGNITUDE_MAX:g}"
-    return f"{lo} and {hi}"
-
-
 def _unknown(kind: str, name: str, known) -> ConfigError:
     close = difflib.get_close_matches(name.split(".")[-1], list(known), n=1)
     hint = f" (did you mean '{close[0]}'?)" if close else ""
@@ -344,7 +280,7 @@ def _section(key: str, cls: type, values: dict, extra=()):
     for k, value in values.items():
         if k not in by_name:
             raise _unknown("key", f"{key}.{k}", [*by_name, *extra])
-        kwargs[k] = _check_value(f"{key}.{k}", value, by_name[k])
+        kwargs[k] = check_value(f"{key}.{k}", value, by_name[k])
     return cls(**kwargs)
 
 
@@ -458,7 +394,7 @@ def to_toml(cfg: Config | None = None, comments: bool = True) -> str:
         for f in documented(cls):
             m = f.metadata
             if comments:
-                rng = f"one of {', '.join(_choices(m))}" if m["choices"] else _range_text(m, f.type != "bool")
+                rng = f"one of {', '.join(choices_of(m))}" if m["choices"] else range_text(m, f.type != "bool")
                 out.append(f"# {m['doc']} [{m['unit']}] ({rng})")
             out.append(f"{f.name} = {_toml_value(getattr(section, f.name))}")
         out.append("")
@@ -490,7 +426,7 @@ def to_markdown() -> str:
         out += ["| key | default | unit | range | meaning |", "|---|---|---|---|---|"]
         for f in documented(cls):
             m = f.metadata
-            rng = " / ".join(_choices(m)) if m["choices"] else _range_text(m, f.type != "bool")
+            rng = " / ".join(choices_of(m)) if m["choices"] else range_text(m, f.type != "bool")
             out.append(
                 f"| `{f.name}` | `{_toml_value(getattr(default, f.name))}` | {m['unit']} | {rng} | {m['doc']} |"
             )

@@ -9,7 +9,7 @@ from hil import protocol as P
 from hil.board import ACTIVE, FAULTED, HELLO, IDLE, READY, Board
 from hil.framing import FrameDecoder, encode_frame
 from servo.config import Config
-from servo.runtime.scenario import scenario_inputs
+from servo.scenarios import scenario_inputs
 from servo.runtime.simdriver import SimDriver
 
 CFG = Config().replace(run={"duration_s": 0.01, "sample_rate_hz": 20_000.0},

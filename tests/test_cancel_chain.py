@@ -12,10 +12,10 @@ from hil.board import Board
 from hil.emulator import start_in_thread
 from hil.serialdriver import SerialDriver
 from servo.config import Config
-from servo.experiments.sim import MemoryLog
+from servo.runtime.closedloop import MemoryLog
 from servo.runtime.controller import Controller
 from servo.runtime.loop import log_rows, run_closed_loop
-from servo.runtime.scenario import scenario_inputs
+from servo.scenarios import scenario_inputs
 from servo.runtime.simdriver import SimDriver
 
 

@@ -12,7 +12,7 @@ from servo.config import CompensatorConfig, Config, load_config, to_toml
 from servo.diagnose.concealed import concealed_recording
 from servo.diagnose.job import diagnose
 from servo.diagnose.report import build_report
-from servo.experiments.sim import simulate
+from servo.runtime.closedloop import simulate
 from tests.helpers import NO_MODES, quiet_config
 from tests.test_cli import servo
 from tests.test_compensation import acceleration_error, drive_open_loop_cfg

@@ -74,10 +74,10 @@ def test_an_incomplete_kind_is_refused_at_registration(kinds_restored):
 
 @pytest.mark.parametrize("kind", sorted(KINDS))
 def test_every_kind_runs_the_same_bits_on_the_tick_and_the_fast_path(tmp_path, kind):
-    from servo.experiments.sim import MemoryLog
+    from servo.runtime.closedloop import MemoryLog
     from servo.runtime.controller import Controller
     from servo.runtime.loop import log_rows, run_closed_loop
-    from servo.runtime.scenario import scenario_inputs
+    from servo.scenarios import scenario_inputs
     from servo.runtime.simdriver import SimDriver
 
     cfg = Config().replace(controller={"kind": kind}, run={"duration_s": 0.06})

@@ -5,7 +5,7 @@ import pytest
 
 from servo.diagnose.band import band_hz
 from servo.diagnose.job import Options, diagnose
-from servo.diagnose.proving import integrate as ig
+import studies.proving.integrate as ig
 from servo.identify.regressors import IdentificationError, RobustSettings
 from servo.io.recording import Recording
 

@@ -11,7 +11,7 @@ from scipy import signal
 
 from servo.diagnose import breakaway
 from servo.diagnose.job import diagnose
-from servo.diagnose.proving.cases import Case, recording
+from studies.proving.cases import Case, recording
 from servo.diagnose.report import build_report
 from servo.diagnose.signals import butter_ba
 

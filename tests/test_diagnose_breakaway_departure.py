@@ -12,7 +12,7 @@ import pytest
 
 from servo.diagnose import breakaway
 from servo.diagnose.job import diagnose
-from servo.diagnose.proving.cases import Case, recording
+from studies.proving.cases import Case, recording
 from servo.diagnose.report import build_report
 
 

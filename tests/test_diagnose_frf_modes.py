@@ -10,7 +10,7 @@ from scipy import signal
 
 from servo.diagnose import frf_modes as fm
 from servo.diagnose.job import diagnose
-from servo.diagnose.proving.cases import Case, recording
+from studies.proving.cases import Case, recording
 from servo.diagnose.report import build_report, format_summary
 from servo.diagnose.simulate import drive_params
 

@@ -8,7 +8,7 @@ import pytest
 from servo.cli import main
 from servo.diagnose import job
 from servo.diagnose.concealed import Scenario, concealed_recording
-from servo.diagnose.memprobe import measure
+from studies.memprobe import measure
 from servo.errors import ServoError
 
 SAMPLES = 200_000

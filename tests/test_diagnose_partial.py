@@ -10,7 +10,7 @@ import pytest
 from servo.diagnose import partial
 from servo.diagnose.job import diagnose
 from servo.diagnose.model import GATE, Term
-from servo.diagnose.proving.cases import Case, recording
+from studies.proving.cases import Case, recording
 from servo.diagnose.report import build_report, format_summary
 from servo.diagnose.select import Grams, Selector, make_blocks
 from servo.diagnose.terms import VOCABULARY
@@ -130,7 +130,7 @@ def test_a_gated_terms_full_rate_columns_are_zero_before_its_onset():
     gated force the rows hold: nothing before the onset, the ungated force after it."""
     from servo.diagnose.job import Options, prepare
     from servo.diagnose.model import GATE, Model, Term
-    from servo.diagnose.proving.cases import Case, recording
+    from studies.proving.cases import Case, recording
 
     rec, _ = recording(Case("hysteresis_late", 0.5, "pdi", "multisine", 5000.0), 40001)
     d = prepare(rec, Options().settings, Options())

@@ -10,7 +10,7 @@ from servo.diagnose import power_band
 from servo.diagnose.band import CANDIDATES, band_hz, choose
 from servo.diagnose.concealed import concealed_recording
 from servo.diagnose.job import Options, diagnose, prepare
-from servo.diagnose.proving import integrate as ig
+import studies.proving.integrate as ig
 from servo.identify.regressors import IdentificationError
 from servo.io.recording import Recording
 

@@ -1,7 +1,7 @@
 """The proving ground: recordings made with an integrator, friction families,
 controllers and excitations that share no code with the project's simulated drive, and
 the verdict a diagnosis reaches on them (fixed seeds; the full study with its 200+ null
-recordings is ``python -m servo.diagnose.proving.study``, docs/diagnosis.md)."""
+recordings is ``python -m studies.proving.study``, docs/diagnosis.md)."""
 import ast
 import subprocess
 import sys
@@ -11,8 +11,8 @@ import numpy as np
 import pytest
 
 from servo.diagnose.job import diagnose
-from servo.diagnose.proving import integrate as ig
-from servo.diagnose.proving.cases import Case, recording
+import studies.proving.integrate as ig
+from studies.proving.cases import Case, recording
 
 PROVING = Path(__file__).resolve().parents[1] / "servo" / "diagnose" / "proving"
 
@@ -34,7 +34,7 @@ def test_the_proving_ground_shares_no_code_with_the_drive():
 
 def test_the_command_does_not_load_the_proving_ground():
     code = ("import sys, servo.diagnose.job, servo.diagnose.report, servo.cli.diagnose; "
-            "print(any(m.startswith('servo.diagnose.proving') for m in sys.modules))")  # fmt: skip
+            "print(any(m.startswith('studies.proving') for m in sys.modules))")  # fmt: skip
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout.strip()
     assert out == "False"
 
@@ -137,11 +137,11 @@ def test_an_unrelated_position_is_out_of_scope():
 
 
 def test_the_study_command_scores_what_it_ran(tmp_path):
-    """``python -m servo.diagnose.proving.study`` in this process: the runs in the jobs'
+    """``python -m studies.proving.study`` in this process: the runs in the jobs'
     order, the seeds offset as asked, the tables written; an unknown family is refused."""
     import json
 
-    from servo.diagnose.proving import study
+    from studies.proving import study
 
     out = tmp_path / "st"
     assert study.main(["--nulls", "2", "--seeds", "1", "--families", "out_of_scope", "--workers", "0",
@@ -160,7 +160,7 @@ def test_every_familys_twin_is_the_null_recording_of_its_seed():
     the same seed and combination (the same noise, excitation and plant), bit for bit."""
     from dataclasses import replace
 
-    from servo.diagnose.proving.cases import FAMILIES
+    from studies.proving.cases import FAMILIES
 
     for family in FAMILIES:
         if family in ("null", "out_of_scope"):

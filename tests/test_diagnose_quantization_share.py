@@ -66,8 +66,8 @@ def test_a_quantum_of_five_noise_std_is_named_on_the_default_rows():
     data's floor, which holds the quantum's noise), yet the same recording without the
     quantum has a 41 % lower held-out residual: the quantum is named first, the rows
     stay, and its share of the held-out residual matches that twin."""
-    from servo.diagnose.proving.cases import Case, recording
-    from servo.diagnose.proving.twin import twin_effect
+    from studies.proving.cases import Case, recording
+    from studies.proving.twin import twin_effect
 
     case, seed = Case("quantization", 5.0, "pdi", "chirp", 1000.0), 100001
     rec, _ = recording(case, seed)
@@ -92,7 +92,7 @@ def test_a_quantum_the_arm_rests_on_sets_the_floor_it_implies():
     noise estimate (what the Butterworth removes, a robust std) then sees almost none
     of the quantum; the quantum named, the verdict judges the rows against the noise it
     implies, ``q/sqrt(12)`` (it was ``unexplained`` at 5.8 x the rows' estimate's floor)."""
-    from servo.diagnose.proving.cases import Case, recording
+    from studies.proving.cases import Case, recording
 
     rec, _ = recording(Case("quantization", 100.0, "open", "seeks", 5000.0), 130011)
     D = diagnose(rec)

@@ -64,7 +64,7 @@ def test_proving_ground_nulls_under_a_multisine_are_consistent(controller, excit
     the floor) with the crossing fitted on the velocity alone: with the force's
     velocity taken out they are consistent and nothing is named."""
     from servo.diagnose.job import diagnose
-    from servo.diagnose.proving.cases import Case, recording
+    from studies.proving.cases import Case, recording
 
     rec, _ = recording(Case("null", 0.0, controller, excitation, rate), seed)
     D = diagnose(rec)
@@ -78,7 +78,7 @@ def test_the_inertia_the_crossings_use_is_the_plants():
     fitted on the usable rows (sign at the samples): on a proving-ground null it is the
     generator's inertia within 2 %."""
     from servo.diagnose.band import settings_for
-    from servo.diagnose.proving.cases import Case, recording
+    from studies.proving.cases import Case, recording
     from servo.diagnose.signals import make_signals
 
     rec, truth = recording(Case("null", 0.0, "pdi", "chirp", 1000.0), 90023)

@@ -136,7 +136,7 @@ def test_a_long_sensor_lag_is_named_with_its_cutoff_where_a_delay_is_not(tmp_pat
     its cutoff, and the model reaches its noise floor; a delay in its place leaves the
     residual several times the floor."""
     from servo.diagnose.job import diagnose
-    from servo.diagnose.proving.cases import Case, recording
+    from studies.proving.cases import Case, recording
 
     rec, truth = recording(Case("sensor_lowpass", 20.0, "leadlag", "seeks", 1000.0), 70003)
     D = diagnose(rec)

@@ -99,7 +99,7 @@ def test_a_long_lag_on_an_open_loop_chirp_is_named_and_explained():
     at the measured crossing the lag was named but the model stayed at 1.6 x the noise
     floor (``unexplained``, cutoff 49.3 Hz); now it reaches the floor with the cutoff."""
     from servo.diagnose.job import diagnose
-    from servo.diagnose.proving.cases import Case, recording
+    from studies.proving.cases import Case, recording
 
     rec, truth = recording(Case("sensor_lowpass", 20.0, "open", "chirp", 1000.0), 70021)
     D = diagnose(rec)

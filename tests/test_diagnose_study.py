@@ -1,9 +1,9 @@
-"""The detection study (``python -m servo.diagnose.study``) runs on Dask through the
+"""The detection study (``python -m studies.concealed``) runs on Dask through the
 fleet's path (issue 13.6): on a local cluster of two workers it gives the runs of the
 serial loop, in the same order, and the same tables."""
 import json
 
-from servo.diagnose.study import main, run_one, study_jobs, tables
+from studies.concealed import main, run_one, study_jobs, tables
 
 
 def _untimed(runs):

@@ -12,7 +12,7 @@ import pytest
 
 from servo.diagnose.job import diagnose
 from servo.diagnose.locate import state_test
-from servo.diagnose.proving.cases import Case, recording
+from studies.proving.cases import Case, recording
 from servo.diagnose.select import integrated_time
 from servo.diagnose.verdict import estimation_error, force_floor, window_checks, window_rows
 

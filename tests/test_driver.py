@@ -11,7 +11,7 @@ from servo.io.runlog import RunLog
 from servo.runtime.controller import Controller
 from servo.runtime.driver import DriverState
 from servo.runtime.loop import run_closed_loop
-from servo.runtime.scenario import scenario_inputs
+from servo.scenarios import scenario_inputs
 from servo.runtime.simdriver import SimDriver
 
 
@@ -117,7 +117,7 @@ def test_a_simulation_that_diverges_is_a_fault_with_the_drive_safe_and_the_log_k
     from servo.io.runlog import RunLog
     from servo.runtime.controller import Controller
     from servo.runtime.loop import run_closed_loop
-    from servo.runtime.scenario import scenario_inputs
+    from servo.scenarios import scenario_inputs
     from servo.runtime.simdriver import NOISE_BLOCK, SimDriver
 
     cfg = Config().replace(run={"duration_s": 0.1})

@@ -8,7 +8,7 @@ import pytest
 from scipy import signal
 
 from servo.errors import ConfigError
-from servo.runtime.excitation import ExcitationError, chirp, multisine, multisine_lines, prbs, prbs_period
+from servo.scenarios.excitation import ExcitationError, chirp, multisine, multisine_lines, prbs, prbs_period
 
 DT = 1e-4  # 10 kHz
 

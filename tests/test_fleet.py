@@ -17,7 +17,7 @@ from servo.fleet import identify as fleet_identify
 from kernels.compose import LOG_COLUMNS
 from servo.fleet.closedloop import run_scenario
 from servo.run.reduce import COL
-from servo.diagnose.proving.cases import Case, recording
+from studies.proving.cases import Case, recording
 from servo.fleet import diagnose as fleet_diagnose
 from servo.fleet.diagnose import flag, row_of_report
 from servo.fleet.job import run_fleet

@@ -10,11 +10,13 @@ from scipy import signal
 
 from servo.config import Config
 from servo.design import loop
-from servo.hdd import (BenchmarkInputs, PesAccumulator, benchmark, benchmark_drive, generate, linsim, pes_figures,
+from servo.hdd import (PesAccumulator, benchmark, benchmark_drive, generate, linsim, pes_figures,
                        perturbed_drives)  # fmt: skip
-from servo.hdd import designs, evaluate
+from servo.hdd import designs
+from servo.scenarios.hdd_benchmark import BenchmarkInputs
+from studies.hdd import evaluate
 from servo.hdd.plant import modal_ss, plants
-from servo.hdd.plots import pes_plot
+from servo.run.pes_plots import pes_plot
 
 V2 = benchmark(2)
 

@@ -6,10 +6,11 @@ import numpy as np
 import pytest
 
 from servo.config import Config
-from servo.experiments.sim import MemoryLog
+from servo.runtime.closedloop import MemoryLog
 from servo.hdd import linsim
 from servo.hdd.benchmark import benchmark
-from servo.hdd.disturbances import BenchmarkInputs, generate
+from servo.hdd.disturbances import generate
+from servo.scenarios.hdd_benchmark import BenchmarkInputs
 from servo.hdd.drive import benchmark_drive
 from servo.hdd.plant import plants
 from servo.runtime.controller import Controller

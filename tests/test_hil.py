@@ -32,7 +32,7 @@ from servo.io.runlog import RunLog
 from servo.runtime.controller import Controller
 from servo.runtime.driver import DriverState
 from servo.runtime.loop import run_closed_loop
-from servo.runtime.scenario import scenario_inputs
+from servo.scenarios import scenario_inputs
 from servo.runtime.simdriver import SimDriver
 
 # 0.2 s at 50 kHz: 10 000 ticks, across a noise block; every scenario segment in it

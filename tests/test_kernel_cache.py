@@ -1,18 +1,21 @@
 """The kernels' on-disk cache is keyed by their source, so an edit recompiles them all."""
 import shutil
+from pathlib import Path
 
 from kernels import _cache
+from servo.controllers.pi import pi_tick
 
 
 def test_any_kernel_edit_changes_the_cache_directory(tmp_path):
+    folders = (_cache.HERE, Path(pi_tick.py_func.__code__.co_filename).parent)  # kernels/, a controller kind's
     copies = []
-    for i, folder in enumerate(_cache.FOLDERS):  # kernels/ and the built-in controller kinds
+    for i, folder in enumerate(folders):
         (tmp_path / str(i)).mkdir()
         for f in folder.glob("*.py"):
             shutil.copy(f, tmp_path / str(i) / f.name)
         copies.append(tmp_path / str(i))
     before = _cache.source_hash(copies)
-    assert before == _cache.source_hash()
+    assert before == _cache.source_hash(folders)
     dahl = copies[0] / "dahl.py"
     dahl.write_text(dahl.read_text().replace("math.exp(-sigma * xi / Ha)", "math.exp(-sigma * xi / Ha) * 1.0"))
     edited = _cache.source_hash(copies)
@@ -27,10 +30,12 @@ def test_numba_caches_into_the_keyed_directory_and_its_configuration_is_left_alo
     import sys
 
     from kernels.dahl import dahl_update
-    from servo.controllers.pi import pi_tick
 
-    for k in (dahl_update, pi_tick):
-        assert k.stats.cache_path.startswith(str(_cache.cache_dir()))
+    # each kernel under the hash of kernels/ and of the folder that declares it
+    assert dahl_update.stats.cache_path.startswith(str(_cache.cache_dir()))
+    controllers = Path(pi_tick.py_func.__code__.co_filename).parent
+    assert pi_tick.stats.cache_path.startswith(str(_cache.cache_dir(controllers)))
+    assert _cache.cache_dir(controllers) != _cache.cache_dir()
     code = ("from numba.core import config; before = config.CACHE_DIR; import kernels, servo.run.job, "
             "servo.runtime.controller as c, servo.config as s; c.Controller(s.Config()); "
             "assert config.CACHE_DIR == before, config.CACHE_DIR")  # fmt: skip

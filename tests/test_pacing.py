@@ -17,7 +17,7 @@ from servo.runtime.controller import Controller
 from servo.runtime.driver import DriverState
 from servo.runtime.loop import run_closed_loop
 from servo.runtime.pacing import OverrunFault, Pacer, realtime_section
-from servo.runtime.scenario import scenario_inputs
+from servo.scenarios import scenario_inputs
 from servo.runtime.simdriver import SimDriver
 
 

@@ -1,4 +1,4 @@
-"""servo run's excitation scenarios: the signals of servo.runtime.excitation, on both
+"""servo run's excitation scenarios: the signals of servo.scenarios.excitation, on both
 paths, bit for bit; and what they are for, a frequency response of the drive."""
 import numpy as np
 import pytest
@@ -6,13 +6,13 @@ import pytest
 from kernels.compose import LOG_COLUMNS
 from servo.config import Config
 from servo.errors import ConfigError
-from servo.experiments.sim import MemoryLog
+from servo.runtime.closedloop import MemoryLog
 from servo.frf.estimate import WelchSettings, instrumental
 from servo.io.runlog import RunLog
-from servo.runtime import excitation as excite
+from servo.scenarios import excitation as excite
 from servo.runtime.controller import Controller
 from servo.runtime.loop import log_rows, run_closed_loop
-from servo.runtime.scenario import scenario_inputs
+from servo.scenarios import scenario_inputs
 from servo.runtime.simdriver import SimDriver
 
 C = {c: i for i, c in enumerate(LOG_COLUMNS)}

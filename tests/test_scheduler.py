@@ -10,7 +10,7 @@ from servo.io.runlog import RunLog
 from servo.runtime.controller import Controller
 from servo.runtime.driver import Driver, DriverInfo
 from servo.runtime.loop import log_rows, run_closed_loop
-from servo.runtime.scenario import scenario_inputs
+from servo.scenarios import scenario_inputs
 from servo.runtime.scheduler import Scheduler, Task
 from servo.runtime.simdriver import NOISE_BLOCK, SimDriver
 

@@ -139,7 +139,7 @@ def test_identification_plots_return_figures(tmp_path, name):
     from matplotlib.figure import Figure
 
     import servo.identify.plots as plots
-    from servo.identify.job import identify
+    from servo.identify.identification import identify
     from servo.identify.regressors import RobustSettings
     from servo.io.recording import Recording
 

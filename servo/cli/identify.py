@@ -59,7 +59,7 @@ def _trim(text: str) -> tuple[int, int]:
 def handle(args: argparse.Namespace) -> int:
     from servo.io.outdir import staged
     from servo.identify.regressors import RobustSettings, parse_terms
-    from servo.identify.report import format_summary, run_identify
+    from servo.identify.job import format_summary, run_identify
     from servo.io.atomic import write_json
     from servo.io.recording import save_recording_csv
 
@@ -105,7 +105,7 @@ def handle(args: argparse.Namespace) -> int:
     with staged(out) as tmp:  # the folder appears complete, or not at all
         summary = run_identify(rec, tmp, paths, terms, settings, args.force_unit, reference, lag, prov)
         if args.simulate:
-            from servo.identify.report import paper_path_note
+            from servo.identify.job import paper_path_note
 
             save_recording_csv(tmp / "recording.csv", rec)
             summary["files"] = sorted(summary["files"] + ["recording.csv"])

@@ -25,19 +25,19 @@ from __future__ import annotations
 
 import hashlib
 import inspect
-from typing import TYPE_CHECKING, ClassVar
+from typing import ClassVar
 
 import numpy as np
 
 from kernels.compose import Composed, compose
 from servo.errors import first_line
 
-if TYPE_CHECKING:
-    from servo.config import Config
-
 
 class ControllerKind:
-    """Base of a controller kind; subclass it, fill the class attributes, :func:`register`."""
+    """Base of a controller kind; subclass it, fill the class attributes, :func:`register`.
+
+    ``cfg`` below is the run's :class:`servo.config.Config` (not imported here: the config
+    sits above the kinds and gathers their sections)."""
 
     name: ClassVar[str]
     summary: ClassVar[str] = ""
@@ -51,20 +51,20 @@ class ControllerKind:
     log_units: ClassVar[dict[str, str]] = {}
 
     @classmethod
-    def params(cls, section, cfg: "Config") -> np.ndarray:
+    def params(cls, section, cfg) -> np.ndarray:
         """The one-element :attr:`PARAMS` record for ``section`` (an instance of
         :attr:`Section`) in ``cfg``."""
         raise NotImplementedError
 
     @classmethod
-    def response(cls, section, cfg: "Config", f_hz: np.ndarray) -> np.ndarray:
+    def response(cls, section, cfg, f_hz: np.ndarray) -> np.ndarray:
         """The controller's frequency response ``C(j*2*pi*f)`` from the position error (m)
         to ``u_n`` (A), shape of ``f_hz``, as the discrete controller runs at the tick
         rate (``cfg.dt``)."""
         raise NotImplementedError
 
     @classmethod
-    def check(cls, section, cfg: "Config") -> None:
+    def check(cls, section, cfg) -> None:
         """Raise :class:`~servo.errors.ConfigError` if ``section`` does not fit ``cfg``."""
 
     @classmethod
@@ -158,13 +158,11 @@ def _check_log(kind: type[ControllerKind]) -> None:
 
 
 def kind_names() -> tuple[str, ...]:
-    """The registered kinds' names (``[controller] kind`` choices)."""
-    import servo.controllers  # noqa: F401  (registers the built-in kinds)
-
+    """The registered kinds' names (``[controller] kind`` choices).  The built-in kinds are
+    registered by the package (:mod:`servo.controllers`), which Python imports before any
+    of its modules."""
     return tuple(KINDS)
 
 
 def get_kind(name: str) -> type[ControllerKind]:
-    import servo.controllers  # noqa: F401
-
     return KINDS[name]

@@ -9,7 +9,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from servo.config import P
+from servo.fields import P
 from servo.controllers.track import TwoRate
 from servo.errors import ConfigError
 

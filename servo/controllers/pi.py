@@ -16,7 +16,7 @@ from numba import float64, from_dtype, void
 
 from kernels._cache import kernel
 from kernels.holding import holding_pi, holding_pi_bumpless
-from servo.config import P
+from servo.fields import P
 from servo.controllers.base import ControllerKind
 
 PARAMS = np.dtype(

@@ -28,7 +28,7 @@ from numba import float64, from_dtype, void
 
 from kernels._cache import kernel
 from kernels.biquad import MAX_SECTIONS, sos_cascade, sos_cascade_try, sos_commit
-from servo.config import P
+from servo.fields import P
 from servo.controllers.base import ControllerKind
 from servo.errors import ConfigError
 

@@ -8,3 +8,7 @@ rate and its rows), :mod:`~servo.diagnose.terms` (the vocabulary of physics),
 (recordings with a concealed effect on the simulated drive).  ``docs/diagnosis.md``
 explains the method.
 """
+
+# terms in modules of their own register themselves into the vocabulary of
+# servo.diagnose.terms on import; importing any module of the package imports them first
+import servo.diagnose.sensor_lag  # noqa: E402,F401

@@ -26,7 +26,7 @@ from scipy import signal
 
 from servo.config import Config
 from servo.diagnose.terms import VOCABULARY, Effect
-from servo.experiments.sim import simulate
+from servo.runtime.closedloop import simulate
 from servo.io.recording import Recording
 
 RATE_HZ = 50_000.0

@@ -60,7 +60,7 @@ MIN_ROWS_PER_BLOCK = 20
 #: filtered motion, two effective inputs, the filters' temporaries, a second path's
 #: signals after a quantisation finding) and per row (the cached candidate columns and
 #: a chunk of screened variants); measured 310-340 B per sample in all at decimation by 10
-#: (``python -m servo.diagnose.memprobe``), estimated with a margin
+#: (``python -m studies.memprobe``), estimated with a margin
 BYTES_PER_SAMPLE = 160
 BYTES_PER_ROW = 2400
 #: a finding may not raise the held-out output NRMSE by more than this fraction

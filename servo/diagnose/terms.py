@@ -35,7 +35,7 @@ from scipy import signal
 
 from kernels.hysteresis import dahl_trace
 from kernels.screen import biquad_stats, cogging_stats
-from servo.config import MAGNITUDE_MAX
+from servo.fields import MAGNITUDE_MAX
 
 #: every physics name a finding can carry, in the order the docs list them
 NAMES = (
@@ -704,7 +704,7 @@ VOCABULARY = {
 
 def register(cls) -> None:
     """Add a term defined in a module of its own to :data:`VOCABULARY` (that module's
-    one registration line; it is imported at the end of this one)."""
+    one registration line; the package imports it, :mod:`servo.diagnose`)."""
     VOCABULARY[cls.name] = cls()
 
 
@@ -712,6 +712,3 @@ def register(cls) -> None:
 BASELINE_TERMS = {"J": "inertia", "B": "viscous_friction", "Fc": "coulomb_friction", "K": "stiffness", "h0": "offset"}
 
 __all__ = ["BASELINE_TERMS", "NAMES", "VOCABULARY", "Effect", "Physics", "register"]
-
-# terms in modules of their own, registered on import (they import this module's base)
-import servo.diagnose.sensor_lag  # noqa: E402,F401

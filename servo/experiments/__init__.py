@@ -5,6 +5,6 @@
 * :mod:`~servo.experiments.bode` -- swept-sine Bode at several levels (Fig. 7-10).
 
 Each runs the closed loop (PI holding loop, compensator on or off) through
-:func:`servo.experiments.sim.simulate` and returns plain arrays and dataclasses; the
+:func:`servo.runtime.closedloop.simulate` and returns plain arrays and dataclasses; the
 commands in :mod:`servo.cli` write them to disk.
 """

@@ -28,7 +28,7 @@ import numpy as np
 
 from servo.config import Config
 from servo.errors import ConfigError
-from servo.experiments.sim import simulate
+from servo.runtime.closedloop import simulate
 from servo.io.frequency_response import FrequencyResponse
 
 

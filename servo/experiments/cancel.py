@@ -56,12 +56,12 @@ from servo.diagnose.job import Options, diagnose
 from servo.diagnose.report import build_report
 from servo.experiments.bode import SweepSettings, check_holding_loop, sweep
 from servo.experiments.bode_analysis import band_max, linearity
-from servo.experiments.sim import run_in_memory, simulate
+from servo.runtime.closedloop import run_in_memory, simulate
 from servo.io import progress
 from servo.io.atomic import atomic_write, write_json
 from servo.io.recording import Recording
 from servo.run.reduce import RunFigures
-from servo.runtime.scenario import scenario_inputs as run_inputs
+from servo.scenarios import scenario_inputs as run_inputs
 
 
 @dataclass(frozen=True)

@@ -21,7 +21,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from servo.config import Config
-from servo.experiments.sim import simulate
+from servo.runtime.closedloop import simulate
 from servo.identify.least_squares import LSResult, least_squares
 from servo.identify.regressors import paper_regression
 

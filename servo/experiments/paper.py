@@ -16,7 +16,7 @@ from servo.experiments.hysteresis import HysteresisExperiment
 from servo.experiments.hysteresis_report import run_hysteresis_simulated
 from servo.experiments.square_wave import SquareWave, force_lag, nominal, representable, run_square_wave
 from servo.identify.regressors import TERMS, RobustSettings
-from servo.identify.report import paper_path_note, run_identify
+from servo.identify.job import paper_path_note, run_identify
 from servo.io.atomic import atomic_write, write_json
 from servo.io.progress import stage
 from servo.io.recording import save_recording_csv

@@ -30,7 +30,7 @@ import numpy as np
 
 from servo.config import Config
 from servo.experiments.holding import holding_gains
-from servo.experiments.sim import simulate
+from servo.runtime.closedloop import simulate
 from servo.identify.least_squares import least_squares
 from servo.identify.regressors import TERMS, RobustSettings, paper_regression, robust_regression
 from servo.io.recording import Recording

@@ -1,7 +1,7 @@
 """One drive's ``servo run`` scenario on the all-compiled fast path, in memory, and its figures.
 
 The same closed loop as ``servo run --fast``
-(:func:`servo.experiments.sim.run_in_memory`: the simulated drive and the config's
+(:func:`servo.runtime.closedloop.run_in_memory`: the simulated drive and the config's
 controller, all compiled), but the log stays in memory: no journal, no NPZ or CSV per
 drive.  The figures are those of ``servo run``'s summary, from :mod:`servo.run.metrics`: tracking
 error RMS over the run and per scenario segment, overshoot and settling of every
@@ -12,14 +12,14 @@ from __future__ import annotations
 import numpy as np
 
 from servo.config import Config
-from servo.experiments.sim import run_in_memory
+from servo.runtime.closedloop import run_in_memory
 from servo.run.reduce import RunFigures
-from servo.runtime.scenario import scenario_inputs
+from servo.scenarios import scenario_inputs
 
 
 def run_scenario(cfg: Config, compensated: bool) -> np.ndarray:
     """The log rows (rows, len(LOG_COLUMNS)) of the scenario of ``cfg`` on its simulated
-    drive, with or without the compensator (:func:`servo.experiments.sim.run_in_memory`).
+    drive, with or without the compensator (:func:`servo.runtime.closedloop.run_in_memory`).
     A simulation whose state stops being finite raises :class:`~servo.errors.DriverError`."""
     log = run_in_memory(cfg, scenario_inputs(cfg), compensation=compensated)
     return log.data[: log.rows]

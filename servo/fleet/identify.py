@@ -1,6 +1,6 @@
 """``servo fleet identify``: one recording's least squares of eq. (4) as one row.
 
-A thin adapter over :func:`servo.identify.job.identify`: the worker loads the recording
+A thin adapter over :func:`servo.identify.identification.identify`: the worker loads the recording
 (:func:`servo.io.recording.load_recording`, with the source's column mapping and
 scales) and fits it; the row holds each term's estimate and standard deviation (the
 force unit of the recording per metre, second...), the relative error, the condition
@@ -8,7 +8,7 @@ numbers and the rows used.
 """
 from __future__ import annotations
 
-from servo.identify.job import identify
+from servo.identify.identification import identify
 from servo.identify.regressors import RobustSettings
 from servo.io.recording import load_recording, parse_mapping
 

@@ -22,7 +22,7 @@ cluster run equals the table of a serial run row for row.
 
 :func:`map_batches` is that path for any function of a batch of items: the fleet's
 commands (:func:`run`, rows of :mod:`servo.fleet.task`) and the detection study of
-:mod:`servo.diagnose.study` run through it.
+:mod:`studies.concealed` run through it.
 """
 from __future__ import annotations
 

@@ -23,7 +23,7 @@ import numpy as np
 from servo.config import Config
 from servo.diagnose.concealed import EFFECTS, NULL_DRIVE, RATE_HZ, Scenario, scenario_inputs
 from servo.errors import ConfigError
-from servo.experiments.sim import simulate
+from servo.runtime.closedloop import simulate
 from servo.io import progress
 from servo.io.atomic import atomic_write, write_json
 from servo.io.recording import Recording

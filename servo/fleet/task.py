@@ -16,7 +16,7 @@ import json
 from dataclasses import dataclass
 from typing import Any
 
-from servo import __version__
+from servo._version import __version__
 from servo.errors import ServoError
 
 #: command -> module with ``run(payload, settings) -> dict`` (imported by the worker)

@@ -1,4 +1,5 @@
-"""The benchmark's disturbances as arrays for a run of ``n`` ticks, and as run inputs.
+"""The benchmark's disturbances as arrays for a run of ``n`` ticks (as a run's inputs:
+:mod:`servo.scenarios.hdd_benchmark`).
 
 How the benchmark scales its noise (``scl = sqrt(2*Ts)``), as implemented here:
 
@@ -23,7 +24,7 @@ deviations *when sampled at the PES period Ts* (the force disturbance's comment 
 
 (The alternative reading, unit *two-sided* PSD, would make every random level sqrt(2)
 larger; the benchmark's own numbers for its reference design, NRPE 3 sigma 7-10 % of a
-track on version 1, agree with this one: :mod:`servo.hdd.evaluate` reproduces them.)
+track on version 1, agree with this one: :mod:`studies.hdd.evaluate` reproduces them.)
 
 Signs: the benchmark's PES is ``y + flutter + RRO + noise`` and its controller acts on
 ``-PES``.  Here the runout ``flutter + RRO`` is the track's motion seen by the head; a run
@@ -37,7 +38,6 @@ import numpy as np
 from scipy import signal
 
 from servo.hdd.benchmark import Benchmark, benchmark
-from servo.runtime.scenario import ArrayInputs
 
 
 @dataclass(frozen=True)
@@ -111,20 +111,3 @@ def generate(n_ticks: int, version: int = 2, seed: int = 0, fs: float | None = N
     rro = sum(a * np.sin(2 * np.pi * h * b.spindle_hz * t + ph) for h, a, ph in zip(b.rro_harmonics, b.rro_amp, phases))
     return Disturbances(fs, pes_every, np.asarray(rro * Tp, float), flutter, noise, force, float(noise_std),
                         float(force_std), phases)  # fmt: skip
-
-
-class BenchmarkInputs(ArrayInputs):
-    """A run's inputs (:class:`servo.runtime.scenario.Inputs`) from :class:`Disturbances`:
-    reference ``-(RRO + flutter)`` held between PES samples; the force disturbance as the
-    excitation current (``force_as="excitation"``, the default: added to the controller's
-    command, it goes through the input delay and excites the flexible modes, as the
-    benchmark's force disturbance does) or as the drive's disturbance force
-    (``"disturbance"``: on the rigid body only, undelayed).  Sensor noise is the drive's
-    ``position_noise`` (:func:`servo.hdd.drive.benchmark_drive` sets it)."""
-
-    def __init__(self, dist: Disturbances, force_as: str = "excitation"):
-        if force_as not in ("excitation", "disturbance"):
-            raise ValueError(f"force_as = {force_as!r}: 'excitation' or 'disturbance'")
-        kw = {"u_exc" if force_as == "excitation" else "d": dist.force}
-        super().__init__(r=dist.reference(), **kw)
-        self.dist = dist

@@ -19,7 +19,7 @@ from servo.identify.regressors import (
     COLUMN, TERMS, UNITS, IdentificationError, Regression, RobustSettings, lag_force, matlab_decimate,
     paper_regression, parse_terms, regressor, robust_regression, units,
 )  # fmt: skip
-from servo.identify.job import Identification, identify
+from servo.identify.identification import Identification, identify
 
 __all__ = [
     "COLUMN", "TERMS", "UNITS", "DahlFit", "Identification", "IdentificationError", "LSResult", "Regression",

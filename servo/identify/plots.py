@@ -7,7 +7,7 @@ from pathlib import Path
 import numpy as np
 from matplotlib.figure import Figure
 
-from servo.identify.job import Identification
+from servo.identify.identification import Identification
 from servo.io.plotting import finish, subplots
 
 

@@ -23,9 +23,9 @@ def package_version() -> str:
     try:
         return metadata.version("servo-vcm")
     except metadata.PackageNotFoundError:
-        import servo
+        from servo._version import __version__
 
-        return servo.__version__
+        return __version__
 
 
 def library_versions(names=LIBRARIES) -> dict[str, str | None]:

@@ -33,7 +33,7 @@ from pathlib import Path
 
 import numpy as np
 
-from servo.config import MAGNITUDE_MAX
+from servo.fields import MAGNITUDE_MAX
 from servo.errors import RecordingError
 from servo.io.tables import read_table
 

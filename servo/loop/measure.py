@@ -260,10 +260,10 @@ def run_log(cfg: Config, u_exc: np.ndarray, compensation: bool,
     """One closed-loop run with the excitation ``u_exc`` (A per tick): the log columns as
     arrays and what the driver reported about its link.  ``make_driver(cfg, inputs)``
     gives the driver (run tick by tick); None: the simulated drive, all compiled."""
-    from servo.experiments.sim import MemoryLog, simulate
+    from servo.runtime.closedloop import MemoryLog, simulate
     from servo.runtime.controller import Controller
     from servo.runtime.loop import log_rows, run_closed_loop
-    from servo.runtime.scenario import ArrayInputs
+    from servo.scenarios import ArrayInputs
 
     n = len(u_exc)
     rcfg = run_config(cfg, n)

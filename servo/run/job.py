@@ -37,7 +37,7 @@ from servo.runtime.controller import Controller
 from servo.runtime.driver import Driver
 from servo.runtime.loop import LoopResult, log_rows, run_closed_loop
 from servo.runtime.pacing import realtime_section
-from servo.runtime.scenario import Inputs, scenario_inputs
+from servo.scenarios import Inputs, scenario_inputs
 from servo.runtime.simdriver import SimDriver
 
 #: Rows per journal block of a simulated run (~0.8 MB): each block is one write and one fsync.
@@ -92,7 +92,7 @@ def run_simulated(cfg: Config, out_dir: Path, compensated: bool, fast: bool,
     result.link = driver.report()
     figs = figures.result()
     if pes is not None:  # the HDD benchmark's figures, and their plot
-        from servo.hdd.plots import pes_plot
+        from servo.run.pes_plots import pes_plot
 
         got = pes.result()
         figs["pes_tracks"] = got.summary()

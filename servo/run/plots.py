@@ -9,7 +9,7 @@ from matplotlib.figure import Figure
 from kernels.compose import LOG_COLUMNS
 from servo.config import Config
 from servo.io.plotting import finish, subplots
-from servo.runtime.scenario import segments
+from servo.scenarios import segments
 
 COL = {c: i for i, c in enumerate(LOG_COLUMNS)}
 COLORS = {"compensated": "tab:blue", "uncompensated": "tab:orange"}

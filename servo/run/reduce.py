@@ -13,7 +13,7 @@ from kernels.compose import LOG_COLUMNS
 from servo.config import Config
 from servo.errors import ConfigError
 from servo.run.metrics import StepResponse
-from servo.runtime.scenario import segments
+from servo.scenarios import segments
 
 COL = {c: i for i, c in enumerate(LOG_COLUMNS)}
 

@@ -31,7 +31,8 @@ from servo.runtime.controller import Controller
 from servo.runtime.driver import Driver, DriverState
 from servo.runtime.durations import Durations
 from servo.runtime.pacing import Pacer, gc_paused
-from servo.runtime.scenario import BLOCK, Inputs, Window
+from servo.runtime.window import BLOCK, Window
+from servo.scenarios import Inputs
 from servo.runtime.scheduler import Scheduler, Task
 from servo.runtime.simdriver import SimDriver
 

@@ -23,7 +23,8 @@ from kernels.plant import plant_measure, plant_step
 from servo.config import Config
 from servo.errors import DriverError
 from servo.runtime.driver import Driver, DriverInfo
-from servo.runtime.scenario import BLOCK, Inputs, Window
+from servo.runtime.window import BLOCK, Window
+from servo.scenarios import Inputs
 from servo.runtime.simplant import SimPlant, build_plant
 
 NOISE_BLOCK = BLOCK  # ticks; drawing a block takes ~25 us, small enough not to upset a paced tick
@@ -33,7 +34,7 @@ class SimDriver(Driver):
     """Driver for the simulated drive of ``cfg.drive`` at ``cfg.run.sample_rate_hz``.
 
     ``inputs``: the run's inputs, of which the drive applies the disturbance force (A)
-    at each tick (:meth:`~servo.runtime.scenario.Inputs.disturbance`); None: no force.
+    at each tick (:meth:`~servo.scenarios.base.Inputs.disturbance`); None: no force.
     """
 
     def __init__(self, cfg: Config, inputs: Inputs | None = None):

@@ -1,7 +1,8 @@
-"""Closed-loop simulation for experiments: the all-compiled fast path, logged in memory.
+"""The in-memory closed loop: the all-compiled fast path, logged in memory.
 
-Experiments run many short simulations (a Bode sweep runs one per frequency and level);
-they need the log as arrays, not as files.  :class:`MemoryLog` has the interface
+Experiments, loop measurements, fleets and studies run many short simulations (a Bode sweep
+runs one per frequency and level); they need the log as arrays, not as files.
+:class:`MemoryLog` has the interface
 :func:`servo.runtime.loop.run_closed_loop` uses (``data``, ``rows``, ``maybe_flush``,
 ``flush``) and keeps everything in memory.
 """
@@ -13,7 +14,7 @@ from kernels.compose import LOG_COLUMNS
 from servo.config import Config
 from servo.runtime.controller import Controller
 from servo.runtime.loop import log_rows, run_closed_loop
-from servo.runtime.scenario import ArrayInputs
+from servo.scenarios import ArrayInputs
 from servo.runtime.simdriver import SimDriver
 
 

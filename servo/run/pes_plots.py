@@ -1,7 +1,7 @@
-"""Figures of the PES (:class:`~servo.hdd.pes.PesFigures`) and of a benchmark evaluation.
+"""The figure of a run's PES (:class:`~servo.hdd.pes.PesFigures`), ``pes_<label>.png``.
 
-Each function builds a Figure without ``pyplot`` (:mod:`servo.io.plotting`), writes it
-only when given a path, and returns it.
+It builds a Figure without ``pyplot`` (:mod:`servo.io.plotting`), writes it only
+when given a path, and returns it.
 """
 from __future__ import annotations
 
@@ -42,25 +42,5 @@ def pes_plot(fig_data: PesFigures, unit: str = "track", title: str = "", path=No
     a.grid(True, alpha=0.3)
     if title:
         fig.suptitle(title)
-    fig.tight_layout()
-    return finish(fig, path)
-
-
-def evaluation_plot(named: dict, path=None):
-    """RRO p-p and NRRO 3 sigma (% of a track) per perturbed plant for each design
-    (``{name: servo.hdd.evaluate.evaluate(...)}``)."""
-    fig, ax = subplots(2, 1, figsize=(11, 6), sharex=True)
-    for i, (name, ev) in enumerate(named.items()):
-        rows = [r.row() for r in ev["plants"]]
-        x = np.arange(len(rows))
-        for a, key in zip(ax, ("rro_pp", "nrro_3sigma")):
-            y = [100 * r.get(key, np.nan) for r in rows]
-            a.plot(x, y, "o-", ms=3, color=f"C{i}", label=name)
-    ax[0].set_ylabel("RRO p-p (% track)")
-    ax[1].set_ylabel("NRRO 3 sigma (% track)")
-    ax[1].set_xlabel("perturbed plant (benchmark order, K 0, +10, -10 %)")
-    for a in ax:
-        a.grid(True, alpha=0.3)
-        a.legend(fontsize=8)
     fig.tight_layout()
     return finish(fig, path)

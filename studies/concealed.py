@@ -1,7 +1,7 @@
 """The detection study: concealed effects and null recordings, diagnosed blind.
 
-    python -m servo.diagnose.study --seeds 20 --null-seeds 200 --out study
-    python -m servo.diagnose.study ... --scheduler tcp://HOST:PORT     # on an existing Dask cluster
+    python -m studies.concealed --seeds 20 --null-seeds 200 --out study
+    python -m studies.concealed ... --scheduler tcp://HOST:PORT     # on an existing Dask cluster
 
 For each effect of :data:`servo.diagnose.concealed.EFFECTS` and each of its sizes, the
 recordings of ``--seeds`` seeds are diagnosed with the effect's baseline; an effect is
@@ -154,7 +154,7 @@ def main(argv=None) -> int:
     from servo.fleet.runner import Progress, Where, describe
     from servo.io.progress import QUIET, Reporter, reporting
 
-    ap = argparse.ArgumentParser(prog="python -m servo.diagnose.study", description=__doc__.splitlines()[0])
+    ap = argparse.ArgumentParser(prog="python -m studies.concealed", description=__doc__.splitlines()[0])
     ap.add_argument("--seeds", type=int, default=20, help="seeds per effect and size (default 20)")
     ap.add_argument("--null-seeds", type=int, default=200, help="null recordings (default 200)")
     ap.add_argument("--effects", help="comma list of effects (default all)")
@@ -171,7 +171,7 @@ def main(argv=None) -> int:
     where = Where(a.scheduler, a.workers)
     jobs = study_jobs(names, a.seeds, a.null_seeds)
     t0 = time.time()
-    reporter = QUIET if a.quiet else Reporter("servo.diagnose.study")
+    reporter = QUIET if a.quiet else Reporter("studies.concealed")
     with reporting(reporter):
         runs = run_study(jobs, a.out, where, Progress(reporter, len(jobs), "diagnoses"))
     print(tables(runs))

@@ -1,4 +1,4 @@
-"""Peak memory of a diagnosis, measured: ``python -m servo.diagnose.memprobe 100000 1000000``.
+"""Peak memory of a diagnosis, measured: ``python -m studies.memprobe 100000 1000000``.
 
 For each sample count ``N`` a concealed-hysteresis recording (the benchmark's: a Dahl
 pivot of 0.2 mA, long-stroke scenario, ``N/50000`` s at 50 kHz) is built once, saved as
@@ -95,7 +95,7 @@ def measure(path: Path, decimate: int = 10, python: str = sys.executable, env: d
 
 
 def main(argv: list[str] | None = None) -> int:
-    p = argparse.ArgumentParser(prog="python -m servo.diagnose.memprobe", description=__doc__.splitlines()[0])
+    p = argparse.ArgumentParser(prog="python -m studies.memprobe", description=__doc__.splitlines()[0])
     p.add_argument("samples", nargs="+", type=int, help="sample counts, e.g. 100000 250000 500000 1000000")
     p.add_argument("--decimate", type=int, default=10, help="the rows' decimation factor (default 10)")
     p.add_argument("--keep", metavar="DIR", help="keep the recordings in DIR (default: a temporary folder)")

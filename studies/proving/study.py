@@ -1,15 +1,15 @@
 """The proving-ground study: null recordings and effect families, diagnosed blind.
 
-    python -m servo.diagnose.proving.study --nulls 240 --seeds 8 --workers 2 --out proving-study
-    python -m servo.diagnose.proving.study ... --scheduler tcp://HOST:PORT   # on an existing Dask cluster
+    python -m studies.proving.study --nulls 240 --seeds 8 --workers 2 --out proving-study
+    python -m studies.proving.study ... --scheduler tcp://HOST:PORT   # on an existing Dask cluster
 
 Null recordings cycle through every controller, excitation and rate of
-:mod:`servo.diagnose.proving.cases`; each family and size gets ``--seeds`` recordings,
+:mod:`studies.proving.cases`; each family and size gets ``--seeds`` recordings,
 each seed on the next combination.  Per recording: the findings, the verdict and the
 baseline's held-out residual over the noise floor (``base_ratio``).  A family's
 *effect on the held-out error* is measured against the recording's twin, the same case
 and seed without the effect: the share of the baseline's held-out RMS error the twin does
-not have (:mod:`servo.diagnose.proving.twin`); detection is reported over the recordings
+not have (:mod:`studies.proving.twin`); detection is reported over the recordings
 where it is at least 20 %.  The first measure, ``1 - 1/base_ratio`` (the share a model
 reaching the recording's noise floor removes), is kept in a column of its own: it
 counts a null's own misfit as the effect's, and misses a quantum whose noise the floor
@@ -32,7 +32,7 @@ import itertools
 import time
 from pathlib import Path
 
-from servo.diagnose.proving.cases import CONTROLLERS, EXCITATIONS, FAMILIES, RATES, Case, accepted, recording
+from studies.proving.cases import CONTROLLERS, EXCITATIONS, FAMILIES, RATES, Case, accepted, recording
 from servo.io.atomic import atomic_write, write_json
 
 COMBOS = list(itertools.product(CONTROLLERS, EXCITATIONS, RATES))
@@ -70,7 +70,7 @@ def run_one(job: tuple) -> dict:
     seconds = time.perf_counter() - t0  # the diagnosis alone, not its twin below
     v = D.verdict
     if size > 0:  # measured against its twin without the effect (module doc)
-        from servo.diagnose.proving.twin import twin_effect
+        from studies.proving.twin import twin_effect
 
         try:
             out["effect"] = twin_effect(Case(family, size, ctl, exc, rate), seed, rec)
@@ -99,7 +99,7 @@ def failed_batch(jobs: list, why: str) -> list[dict]:
 
 def named_right(r: dict) -> bool:
     """Whether a study record's findings hold a name its family accepts
-    (:func:`servo.diagnose.proving.cases.accepted`)."""
+    (:func:`studies.proving.cases.accepted`)."""
     return any(n in r["findings"] for n in accepted(r["family"], r["size"], r.get("decimate")))
 
 
@@ -125,7 +125,7 @@ def _rate(k, n):
 
 def effect(r: dict) -> float:
     """A study record's effect on the held-out error: against its twin without the effect
-    (:mod:`servo.diagnose.proving.twin`), else (a record made before the twin) the first
+    (:mod:`studies.proving.twin`), else (a record made before the twin) the first
     measure :func:`effect_vs_floor`."""
     return r["effect"] if "effect" in r else effect_vs_floor(r)
 
@@ -193,7 +193,7 @@ def main(argv=None) -> int:
     from servo.fleet.runner import Progress, Where, describe, map_batches
     from servo.io.progress import Reporter, reporting
 
-    ap = argparse.ArgumentParser(prog="python -m servo.diagnose.proving.study", description=__doc__.splitlines()[0])
+    ap = argparse.ArgumentParser(prog="python -m studies.proving.study", description=__doc__.splitlines()[0])
     ap.add_argument("--nulls", type=int, default=240, help="null recordings (default 240)")
     ap.add_argument("--seeds", type=int, default=8, help="recordings per family and size (default 8)")
     ap.add_argument("--families", help="comma list (default all)")
@@ -217,7 +217,7 @@ def main(argv=None) -> int:
         jobs = [(*j, True) for j in jobs]
     where = Where(a.scheduler, a.workers)
     t0 = time.time()
-    with reporting(Reporter("servo.diagnose.proving.study")) as reporter:
+    with reporting(Reporter("studies.proving.study")) as reporter:
         runs = map_batches(run_batch, jobs, where, BATCH, Progress(reporter, len(jobs), "diagnoses"), failed_batch)
     out = Path(a.out)
     out.mkdir(parents=True, exist_ok=True)

@@ -1,7 +1,7 @@
 """Recordings of the proving ground: families, controllers, excitations, rates.
 
 :func:`recording` makes one recording from a :class:`Case` and a seed with the
-independent integrator of :mod:`servo.diagnose.proving.integrate` and returns it with
+independent integrator of :mod:`studies.proving.integrate` and returns it with
 its truth (what a diagnosis should name, the verdict it should reach).
 
 **Scale.**  The plant's time scales follow the sample rate: the motion lives around
@@ -33,7 +33,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy import signal
 
-from servo.diagnose.proving import integrate as ig
+import studies.proving.integrate as ig
 from servo.io.recording import Recording
 
 RATES = (500.0, 1000.0, 5000.0, 20000.0, 50000.0)

@@ -1,5 +1,5 @@
 """The benchmark's evaluation of a :class:`~servo.design.design.Design`, linear and
-independent of the project's runtime: ``python -m servo.hdd.evaluate``.
+independent of the project's runtime: ``python -m studies.hdd.evaluate``.
 
 For every perturbed plant (54 in version 2: 18 mechanical x 3 force constants): the
 exact multirate open loop at the PES rate (:func:`servo.design.loop.open_loop`): closed-loop
@@ -11,7 +11,7 @@ plant, as the benchmark does), the first 10 ms ignored, and its figures
 stationary NRRO 3 sigma the disturbance models imply (Lyapunov), which the simulation
 estimates.
 
-    python -m servo.hdd.evaluate [--version 2] [--revolutions 1000] [--seed 0]
+    python -m studies.hdd.evaluate [--version 2] [--revolutions 1000] [--seed 0]
                                  [--designs reference,own] [--out DIR]
 
 prints the table of ``docs/hdd.md``; ``--out`` (new or empty) also writes
@@ -132,7 +132,7 @@ def table(named: dict) -> str:
 
 
 def main(argv=None) -> int:
-    ap = argparse.ArgumentParser(prog="python -m servo.hdd.evaluate", description=__doc__.splitlines()[0])
+    ap = argparse.ArgumentParser(prog="python -m studies.hdd.evaluate", description=__doc__.splitlines()[0])
     ap.add_argument("--version", type=int, default=2, choices=(1, 2))
     ap.add_argument("--revolutions", type=int, default=None, help="default: the benchmark's 1000")
     ap.add_argument("--seed", type=int, default=0)
@@ -153,11 +153,12 @@ def main(argv=None) -> int:
         results = {n: evaluate(known[n](a.version), a.version, a.revolutions, a.seed) for n in names}
         print(f"NSS HDD benchmark v{a.version}, linear evaluation ({a.revolutions or 1000} revolutions, seed {a.seed}); "
               "figures in % of a track")  # fmt: skip
-        print(table(results))
+        text = table(results)
+        print(text)
         if a.out:
-            from servo.hdd.report import write_report
+            from studies.hdd.report import write_report
 
-            write_report(a.out, results, vars(a))
+            write_report(a.out, results, vars(a), text)
     except (ValueError, OSError) as exc:
         print(f"servo: error: {exc}", file=sys.stderr)
         return 2

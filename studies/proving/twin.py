@@ -2,7 +2,7 @@
 
 The study's first measure of a recording's *effect on the held-out error* holds the
 baseline's held-out residual against the noise floor the recording implies
-(``1 - 1/base_ratio``, :mod:`servo.diagnose.proving.study`).  Two things bend it:
+(``1 - 1/base_ratio``, :mod:`studies.proving.study`).  Two things bend it:
 
 * the floor is estimated from the data (what the Butterworth removes from the
   position), so it holds a sensor quantum's own noise: a quantised recording's baseline
@@ -28,7 +28,7 @@ from dataclasses import replace
 
 import numpy as np
 
-from servo.diagnose.proving.cases import Case, recording
+from studies.proving.cases import Case, recording
 
 
 def heldout_rms(rec, settings=None) -> tuple[float, object]:

@@ -1,0 +1,47 @@
+"""Identification of eq. (4) from a :class:`~servo.io.recording.Recording` in one call."""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from servo.identify.least_squares import LSResult, least_squares
+from servo.identify.regressors import (
+    TERMS, IdentificationError, Regression, RobustSettings, paper_regression, robust_regression,
+)  # fmt: skip
+from servo.io.recording import Recording
+
+PATHS = ("robust", "paper")
+
+
+@dataclass(frozen=True)
+class Identification:
+    """A regression and its least-squares fit."""
+
+    regression: Regression
+    fit: LSResult
+
+    def as_dict(self, force_unit: str = "A") -> dict:
+        r = self.regression
+        return {"path": r.path, "settings": r.settings, "row_dt_s": r.dt, **self.fit.as_dict(force_unit)}
+
+
+def identify(rec: Recording, path: str = "robust", terms=TERMS, settings: RobustSettings | None = None,
+             force_lag_s: float = 0.0) -> Identification:  # fmt: skip
+    """Least squares of eq. (4) on ``rec`` (``t`` s, ``x`` m, ``u`` force, ``v`` m/s).
+
+    ``path``: ``"robust"`` (inverse dynamics, :func:`robust_regression` with
+    ``settings``) or ``"paper"`` (measured velocity, backward-difference acceleration:
+    needs ``rec.v``).  ``force_lag_s``: how late the recorded force acts (see
+    :mod:`servo.identify.regressors`).
+    """
+    if path == "robust":
+        reg = robust_regression(rec.t, rec.x, rec.u, rec.dt, terms, settings, force_lag_s)
+    elif path == "paper":
+        if rec.v is None:
+            raise IdentificationError("the paper's path needs a measured velocity column v; map one with --columns v=NAME or use --path robust")
+        reg = paper_regression(rec.t, rec.x, rec.u, rec.v, rec.dt, terms, force_lag_s)
+    else:
+        raise IdentificationError(f"unknown derivative path {path!r} (choose {' or '.join(PATHS)})")
+    return Identification(reg, least_squares(reg))
+
+
+__all__ = ["PATHS", "Identification", "identify"]

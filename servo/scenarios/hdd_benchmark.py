@@ -1,0 +1,43 @@
+"""The ``hdd_benchmark`` scenario: follow a track with the NSS HDD benchmark's runout and
+force disturbance (:mod:`servo.hdd.disturbances`)."""
+from __future__ import annotations
+
+from servo.errors import ConfigError
+from servo.hdd.disturbances import Disturbances, generate
+from servo.scenarios.base import ArrayInputs, Inputs, ScenarioKind
+
+
+class BenchmarkInputs(ArrayInputs):
+    """A run's inputs (:class:`~servo.scenarios.base.Inputs`) from :class:`Disturbances`:
+    reference ``-(RRO + flutter)`` held between PES samples; the force disturbance as the
+    excitation current (``force_as="excitation"``, the default: added to the controller's
+    command, it goes through the input delay and excites the flexible modes, as the
+    benchmark's force disturbance does) or as the drive's disturbance force
+    (``"disturbance"``: on the rigid body only, undelayed).  Sensor noise is the drive's
+    ``position_noise`` (:func:`servo.hdd.drive.benchmark_drive` sets it)."""
+
+    def __init__(self, dist: Disturbances, force_as: str = "excitation"):
+        if force_as not in ("excitation", "disturbance"):
+            raise ValueError(f"force_as = {force_as!r}: 'excitation' or 'disturbance'")
+        kw = {"u_exc" if force_as == "excitation" else "d": dist.force}
+        super().__init__(r=dist.reference(), **kw)
+        self.dist = dist
+
+
+class HddBenchmark(ScenarioKind):
+    name = "hdd_benchmark"
+    summary = "follow a track with the NSS HDD benchmark's disturbances (docs/hdd.md)"
+
+    @classmethod
+    def inputs(cls, cfg) -> Inputs:
+        try:
+            dist = generate(cfg.n_ticks, cfg.scenario.hdd_version, seed=cfg.run.seed, fs=cfg.run.sample_rate_hz)
+        except ValueError as exc:
+            raise ConfigError(f"config: scenario.kind = hdd_benchmark: {exc}") from None
+        return BenchmarkInputs(dist)
+
+    @classmethod
+    def segments(cls, cfg) -> list[tuple[str, float, float]]:
+        """The first 10 ms the benchmark ignores, then track following."""
+        end = cfg.run.duration_s
+        return [(name, a, b) for name, a, b in (("settling", 0.0, min(0.01, end)), ("track following", 0.01, end)) if a < end]
