@@ -28,12 +28,13 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from kernels.plant import PLANT_PARAMS, PLANT_STATE
+from kernels.plant import PLANT_STATE
 from kernels.predict import mode_trace, multistep
 from servo.diagnose.fit import Fit
 from servo.diagnose.model import Design
 from servo.diagnose.terms import VOCABULARY
-from servo.runtime.simplant import mode_matrices
+from servo.config import DriveConfig
+from servo.runtime.simplant import mode_matrices, plant_params
 
 #: default horizon, in row spacings (decimation factor samples each)
 HORIZON_ROWS = 10
@@ -77,24 +78,25 @@ def drive_params(fit: Fit, design: Design) -> tuple[np.ndarray, dict]:
     if not J > 0:
         raise Unsimulable("the model has no positive inertia J: its output cannot be simulated")
     stroke = 10.0 * float(np.max(np.abs(sig.x))) + 1.0  # stops the motion never reaches
-    rec = np.zeros(1, PLANT_PARAMS)
     Fc = d["Fc"]
     dahl = has_dahl(fit)
     # no Dahl element: a negligible one that never saturates (Dahl length 1 m), since
     # the plant's closed form overflows for a saturated element of vanishing length
     Ha_off = 1e-12 * max(float(np.max(np.abs(sig.u))), TINY)
     kf_scale = stroke / d.get("stroke", stroke)  # the plant's kf fields are the changes at its stroke
-    vals = dict(
-        J=J, B=d["B"], b_asym=d.get("b_asymmetry", 0.0), Fc=Fc, Fs=max(d["Fs"], 0.0) if Fc > 0 else 0.0, fc_asym=0.0,
-        vs=d.get("stribeck_velocity", 1.0), sigma=d["sigma"] if dahl else Ha_off, Ha=d["Ha"] if dahl else Ha_off,
-        alpha=d.get("alpha", 1.0) if dahl else 1.0, K=d["K"], h0=d["h0"],
-        cog_amp=d.get("cogging", 0.0), cog_period=d.get("cogging_period", 1.0), cog_phase=d.get("cogging_phase", 0.0),
-        kf1=d.get("kf_linear", 0.0) * kf_scale, kf2=d.get("kf_quadratic", 0.0) * kf_scale**2, stroke=stroke,
-        u_max=1e300, dt=sig.dt, delay_frac=0.0, delay_whole=0.0, n_sub=2.0, noise_x=0.0, noise_v=0.0,
-        quantum=0.0, has_velocity=0.0,
+    drive = DriveConfig(
+        J=J, B=d["B"], b_asymmetry=d.get("b_asymmetry", 0.0), Fc=Fc, Fs=max(d["Fs"], 0.0) if Fc > 0 else 0.0,
+        fc_asymmetry=0.0, stribeck_velocity=d.get("stribeck_velocity", 1.0), sigma=d["sigma"] if dahl else Ha_off,
+        Ha=d["Ha"] if dahl else Ha_off, alpha=d.get("alpha", 1.0) if dahl else 1.0, K=d["K"], h0=d["h0"],
+        cogging=d.get("cogging", 0.0), cogging_period=d.get("cogging_period", 1.0),
+        cogging_phase=d.get("cogging_phase", 0.0), kf_linear=d.get("kf_linear", 0.0) * kf_scale,
+        kf_quadratic=d.get("kf_quadratic", 0.0) * kf_scale**2,
+        # the modes are stepped apart (mode_trace), the input terms applied to the input beforehand
+        mode_hz=[], mode_zeta=[], mode_gain=[], input_delay_s=0.0, current_limit=1e300, stroke=stroke,
+        position_noise=0.0, velocity_noise=0.0, position_quantum=0.0, sensor_cutoff_hz=0.0,
+        measures_velocity=False, substeps=2,
     )  # fmt: skip
-    for k, v in vals.items():
-        rec[k] = v
+    rec = plant_params(drive, sig.dt)  # the runtime's one mapping of a drive onto the plant's record
     return rec, {"hz": d["mode_hz"], "zeta": d["mode_zeta"], "gain": d["mode_gain"]}
 
 
