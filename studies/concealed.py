@@ -9,7 +9,7 @@ recordings of ``--seeds`` seeds are diagnosed with the effect's baseline; an eff
 least 95 % of the seeds is the detection threshold.  Null recordings (nothing missing)
 give the false-alarm rate: the fraction with any finding, and per locate test the
 fraction where it flagged anything.  Writes ``study.json`` (every run) and
-``study.md`` (the tables of ``docs/diagnosis.md``).
+``study.md`` (the tables of ``docs/studies/2026-11-21-concealed-effects.md``).
 
 The diagnoses run on Dask through the fleet's path (:func:`servo.fleet.runner.map_batches`):
 a local cluster of ``--workers`` processes (default one per CPU; ``--jobs`` is the old

@@ -167,7 +167,7 @@ def test_dwell_counts_a_hold_not_a_pass_through_zero():
 ])  # fmt: skip
 def test_breakaway_proven_where_the_old_test_missed(case, seed, proof):
     """Development recordings (offset 40000 of the proving-ground study) the breakaway
-    test of section 10d missed: found, and proven on events its fit did not use."""
+    test of docs/studies/2026-11-23-karnopp-breakaway.md missed: found, and proven on events its fit did not use."""
     rec, truth = recording(case, seed)
     D = diagnose(rec)
     f = next(f for f in D.findings if f.physics == "stribeck_friction")
@@ -199,7 +199,7 @@ def test_three_events_far_beyond_their_noise_prove_a_breakaway():
     """A development chirp (open loop, 20 kHz, breakaway 2 Fc) whose held-out part never
     rests: the proof is on the training events held out from the fit, three of them, one
     far beyond its local noise.  Counting exceedances gave p 0.059 there; the per-event
-    p-values, combined, prove it (docs/diagnosis.md, 10h)."""
+    p-values, combined, prove it (docs/diagnosis.md, 4b)."""
     rec, truth = recording(Case("karnopp", 1.0, "open", "chirp", 20000.0), 100001)
     D = diagnose(rec)
     f = next(f for f in D.findings if f.physics == "stribeck_friction")

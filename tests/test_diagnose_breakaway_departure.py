@@ -1,6 +1,6 @@
 """The breakaway's peak read at the departure from rest, a force held either way, and the
 split proof where the held-out part holds too few rests (servo/diagnose/breakaway.py,
-docs/diagnosis.md section 10k).
+docs/diagnosis.md section 4b).
 
 Development recordings of the proving ground (offset 40000 of its study) that main's
 test missed with their breakaway changing the held-out error by 27-49 %, and null

@@ -11,7 +11,7 @@ from servo.diagnose.concealed import concealed_recording
 from servo.diagnose.job import Options, diagnose
 from servo.diagnose.report import drive_section, fit_terms
 
-#: effects and sizes the default baseline detects (docs/diagnosis.md, section 10); the
+#: effects and sizes the default baseline detects (docs/studies/2026-11-21-concealed-effects.md); the
 #: first was named by the fitted baseline and missed with the file before the change
 CASES = [("hysteresis", 1e-4), ("stribeck_friction", 2e-4), ("time_delay", 5e-6)]
 

@@ -1,6 +1,5 @@
 """Effects present in part of a recording: a vocabulary term gated in time
-(``servo/diagnose/partial.py``, docs/diagnosis.md "Effects present in part of a
-recording").  Recordings of the independent proving ground on seeds apart from the
+(``servo/diagnose/partial.py``, docs/diagnosis.md section 4a).  Recordings of the independent proving ground on seeds apart from the
 study's (nulls 50000+, families 60000+, development 90000+/100000+)."""
 import json
 

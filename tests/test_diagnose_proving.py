@@ -1,7 +1,7 @@
 """The proving ground: recordings made with an integrator, friction families,
 controllers and excitations that share no code with the project's simulated drive, and
 the verdict a diagnosis reaches on them (fixed seeds; the full study with its 200+ null
-recordings is ``python -m studies.proving.study``, docs/diagnosis.md)."""
+recordings is ``python -m studies.proving.study``, docs/diagnosis.md section 10)."""
 import ast
 import subprocess
 import sys

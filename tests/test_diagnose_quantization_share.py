@@ -1,5 +1,5 @@
 """A sensor quantum named where its noise is a share of the held-out error that matters
-(docs/diagnosis.md, 10g): the held-out lattice, the quantum's floor through the
+(docs/diagnosis.md, 5): the held-out lattice, the quantum's floor through the
 acceleration path, and a proving-ground recording whose quantum no narrower band
 predicts better."""
 import numpy as np

@@ -1,4 +1,4 @@
-"""A reversal's crossing is placed with the recorded force (docs/diagnosis.md 10i).
+"""A reversal's crossing is placed with the recorded force (docs/diagnosis.md 1).
 
 The friction's switch at a reversal is fitted on the filtered velocity; where the
 input changes the acceleration near the reversal, a kinked parabola alone puts the

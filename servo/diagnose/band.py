@@ -41,7 +41,7 @@ from servo.io.recording import Recording
 #: decimation factors tried, the default first
 CANDIDATES = (10, 8, 6, 5, 4, 3)
 #: the rules a decimation is chosen by (``Options.band``, ``--decimate``), the default first:
-#: the power rule is an option (docs/diagnosis.md 10f: on the concealed-effect study it
+#: the power rule is an option (docs/studies/2026-11-24-band-from-input-power.md: on the concealed-effect study it
 #: raised three detection thresholds a size step and the locate tests' flags on nulls)
 RULES = ("reversals", "power")
 #: a decimation is kept when at least this share of its rows is usable

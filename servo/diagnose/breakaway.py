@@ -36,10 +36,10 @@ quantised sensor's step pulse added, :func:`step_pulse`), **and**
 the peak is a breakaway: it comes from rest and points where the arm then moves
 (:func:`_toward`), or it is held inside a rest of :data:`REST_MIN` time scales (the arm
 held against it, whichever way it then leaves: :func:`_held`).  The peak is read near
-the event's last departure from rest (:func:`departures`; docs/diagnosis.md, 10k), where
+the event's last departure from rest (:func:`departures`; docs/diagnosis.md, 4b), where
 a breakaway's held force peaks, and compared with sliding windows of that width, not of
 the whole hold.  Under the null an event exceeds with probability at most
-:data:`P_EXCEED`.  The test no longer counts exceedances (docs/diagnosis.md, 10h): each
+:data:`P_EXCEED`.  The test no longer counts exceedances (docs/diagnosis.md, 4b): each
 event gets a p-value, its peak's excess over ``g*(Fc + Z_FC*std(Fc)) + MARGIN*Fc``
 against the local law of the same window maximum (at least uniform under the null), and
 the training part's ``N`` p-values are combined (their truncated product,
@@ -106,7 +106,7 @@ P_NOISE = 0.01
 #: the :data:`P_NOISE` quantile of the window maximum, with a factor 2 to spare)
 P_EXCEED = 0.02
 #: fewer training events than this: not testable (the combined p-value holds its level for any
-#: number of events; three far beyond their noise prove a breakaway, docs 10h)
+#: number of events; three far beyond their noise prove a breakaway, docs/diagnosis.md 4b)
 MIN_EVENTS = 3
 #: the local noise margin (:func:`noise_max`) is taken over the sliding windows within
 #: this many window widths around each event (about as many independent windows)
@@ -338,7 +338,7 @@ def departures(sig, a: np.ndarray, b: np.ndarray, rest: np.ndarray) -> tuple[np.
     reaches ``Fs``, then slides against ``Fc``), so the event's statistic is read there and
     compared with sliding windows of that width, not of the whole hold (a hold of 1500
     samples among few sliding samples was compared, by the union bound, with noise it
-    could never beat; docs/diagnosis.md, 10k).  An event without a departure (its run of
+    could never beat; docs/studies/2026-11-24-karnopp-departures.md).  An event without a departure (its run of
     rest reaches its end) keeps its whole window."""
     fs = 1.0 / sig.dt
     w = int(np.ceil(WIDEN * fs / sig.settings.cutoff(fs)))

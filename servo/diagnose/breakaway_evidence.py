@@ -1,5 +1,5 @@
 """Per-event evidence of a breakaway: each event's p-value against its local noise, and
-their combination over events (docs/diagnosis.md, section 10h).
+their combination over events (docs/diagnosis.md, section 4b).
 
 The breakaway test (:mod:`servo.diagnose.breakaway`) compares each event's peak held
 force with the sliding level's switch through the filter plus a noise margin.  Counting
@@ -28,7 +28,7 @@ correlated (AR(1), 0.6) misfit of Student-t samples an independent review measur
 ``P(p <= 1e-3)`` at 0.05 % for 30 degrees of freedom, 0.2 % for 8 and 0.6 % for 4 (and
 ``P(p <= 3e-4)`` 0.45 % for 4): heavy-tailed misfits get too many small p-values there;
 the deterministic margins of the bound (``x`` is the excess over them) are what keep
-the proving ground's and the project drive's nulls clean (docs/diagnosis.md, 10h).
+the proving ground's and the project drive's nulls clean (docs/studies/2026-11-24-karnopp-per-event-evidence.md).
 Where the arm slides too little for 20 windows of the event's width, the **union
 bound** on the single samples of the whole sliding part: ``p = min(1, L*(1 + #{|e| >=
 x})/(1 + n))``, ``L`` the window's width, ``n`` the sliding samples (the maximum of ``L``
@@ -49,7 +49,7 @@ beyond their noise prove a breakaway, and so do twenty each a little beyond (eac
 ``p <= TAU``), while events at rest that hold nothing (``p`` near 1, most of a
 recording's) do not dilute the few that do, as they do Fisher's ``-2 sum ln p``
 (with 7 of 22 events at ``p = 0.01`` and the rest at 1, Fisher's p-value is 0.024, the
-truncated product's 8e-5; docs/diagnosis.md, section 10h).
+truncated product's 8e-5; docs/studies/2026-11-24-karnopp-per-event-evidence.md).
 """
 from __future__ import annotations
 

@@ -533,7 +533,7 @@ def _frf_modes(design: Design, fits: list, errs: list, nr: list, preds: list, st
 #: BLAS threads while a diagnosis runs: its products are a few columns wide, where
 #: OpenBLAS's threads cost more than they give and, spinning while they wait, slow down
 #: beside other processes (the 1 000 000-sample benchmark: 5.3 s on one thread against
-#: 7.2 s on two with another job on the machine; docs/diagnosis.md, section 12)
+#: 7.2 s on two with another job on the machine; docs/studies/2026-11-23-diagnose-speed.md)
 BLAS_THREADS = 1
 
 

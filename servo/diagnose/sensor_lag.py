@@ -46,7 +46,8 @@ data choose.  A shorter lag *is* a delay to the rows (the two differ by less tha
 the lag's mean delay, and naming that is right.  (Without that floor the two tied on
 0.1-sample delays of the proving ground, ``delta_ic`` -276.0 against -276.1, and the
 lag took two of them.)  The proving ground scores it by the same rule
-(``docs/diagnosis.md``, section 10b).
+(``docs/studies/2026-11-23-sensor-lowpass-named.md``; the term: ``docs/diagnosis.md``,
+section 3).
 
 **The simulated drive** has the field ``sensor_cutoff_hz`` (:mod:`kernels.plant`: the
 same filter on the noiseless measured position, before noise and quantisation), so the

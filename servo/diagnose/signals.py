@@ -333,8 +333,8 @@ def reversal_times(vf: np.ndarray, settings, fs: float, fast: float, force: np.n
     of the filtered velocity before the kinked and the smooth motion are fitted: the
     input changes the acceleration near a reversal too (a multisine, an open loop's
     feedforward), and a kinked parabola alone then put the kink up to 1.3 samples
-    from the friction's switch, where the force balance put it (docs/diagnosis.md
-    section 10i); the rows kept at those fast reversals carried up to 30 x their noise
+    from the friction's switch, where the force balance put it
+    (docs/studies/2026-11-24-reversal-crossings.md); the rows kept at those fast reversals carried up to 30 x their noise
     floor, and the verdict was ``unexplained`` on nulls.  With the force, the kinked
     motion's acceleration may also change linearly in time (the viscous force across
     a reversal whose speed changes fast: a chirp's fast end, where without it the

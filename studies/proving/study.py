@@ -20,7 +20,8 @@ made by the worker from its ``(family, size, seed)``; the runs come back in the 
 order.
 
 The first scored seeds were nulls 50000+ and families 60000+ (offset 0); fresh
-seeds were scored since on offsets 20000, 25000 and 65000 (docs/diagnosis.md, 10a).
+seeds were scored since on offsets 20000, 25000 and 65000
+(docs/studies/2026-11-23-proving-ground-scores.md; the latest in docs/diagnosis.md, 10).
 A change to the diagnosis is developed on other seeds (``--seed-offset 40000``, 45000,
 52000; 70000 has been a second look) and scored once on unused ones, its levels fixed
 first.

@@ -9,11 +9,11 @@ baseline's held-out residual against the noise floor the recording implies
   sits near "its" floor whatever the quantum, and the measure says the quantum changes
   nothing.  It does: on development seeds (offsets 40000 and 45000, 12 per size) the same
   recording without the quantum has a held-out RMS residual 38-46 % lower at a quantum
-  of 5 noise std, 61-69 % at 10, 86-90 % at 30 and 94-98 % at 100 (docs/diagnosis.md, 10g);
+  of 5 noise std, 61-69 % at 10, 86-90 % at 30 and 94-98 % at 100 (docs/studies/2026-11-24-quantisation-share.md);
 * a null recording's own misfit (a few-sample stick at a reversal, docs section 1)
   counts as the effect's: of five recordings of a mode far above the rows' band that
   read ">= 20 %" by it on the fresh seeds, three (multisine loops) change the held-out
-  error by 0.1-0.2 % against their twins (docs/diagnosis.md, 10a).
+  error by 0.1-0.2 % against their twins (docs/studies/2026-11-23-proving-ground-scores.md).
 
 :func:`twin_effect` measures what the effect itself does: the baseline of eq. (3)
 fitted on the training part of the default rows (the decimation the diagnosis chooses
