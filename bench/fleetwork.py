@@ -17,7 +17,7 @@ import os
 import time
 from functools import partial
 
-#: what varies across the fleet (the ``servo fleet simulate --vary`` specs of bench/README.md)
+#: what varies across the fleet (the ``servo fleet simulate --vary`` specs of docs/fleet.md, "Measured")
 VARY = {"drive.Ha": "lognormal(1e-3, 20%)", "drive.sigma": "normal(320, 10%)", "drive.B": "normal(2e-3, 10%)"}
 #: the keys :func:`timed_batch` adds to a row
 TIMING = ("_wall_s", "_cpu_s", "_pid")

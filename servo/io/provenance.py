@@ -1,6 +1,6 @@
 """Provenance: what a result was computed with, for the ``summary.json`` of every job.
 
-The README's "same numbers on every rerun" holds for one config, one input, one set of
+docs/run.md's "same on every rerun" holds for one config, one input, one set of
 library versions and one CPU (Numba compiles for the host); :func:`provenance` records
 exactly those, so a summary says what it can be compared with.
 """
