@@ -10,11 +10,12 @@ what the source lacks) and runs, in memory on the all-compiled path
   disturbance; :class:`servo.run.reduce.RunFigures`) with no compensator, eq. 9's
   (``--paper``) and the augmented one: each step's overshoot and settling, the error RMS
   of the disturbance segment;
-* **Fig. 8** (:mod:`servo.experiments.bode`, :data:`SWEEP`): the stepped-sine response of
-  the compensated plant at several levels, and its spread across the levels at which the
-  arm moves under both compensators (the median gain within :data:`MOVING_DB` of
-  ``1/(J w^2)``: a static term acts only while the arm moves; at a level where it sticks
-  both spreads measure the sticking, not the cancellation).
+* **Fig. 8** (:data:`SWEEP`): the stepped-sine response of the compensated plant, the
+  plant the controller sees ``P = X/U_n`` (:func:`servo.loop.measure.measure`), at
+  several levels, and its spread across the levels at which the arm moves under both
+  compensators (the median gain within :data:`MOVING_DB` of ``1/(J w^2)``: a static term
+  acts only while the arm moves; at a level where it sticks both spreads measure the
+  sticking, not the cancellation).
 
 **Worse** (:func:`worse`), figure by figure, beyond the tolerances of
 :class:`Tolerances`: a step that settles later (by more than 20 % and 1 ms) or never
@@ -39,7 +40,7 @@ import numpy as np
 from servo.compensate.model import SourceModel
 from servo.compensate.propose import Proposal, apply
 from servo.config import Config, ScenarioConfig
-from servo.experiments.bode import SweepSettings, sweep
+from servo.loop.measure import LoopSettings, measure
 from servo.experiments.sim import run_in_memory
 from servo.io import progress
 from servo.run.reduce import RunFigures
@@ -47,8 +48,8 @@ from servo.runtime.scenario import scenario_inputs
 
 #: Fig. 8 of the check: four levels of the paper's figure, six frequencies below the
 #: default drive's first mode (3 kHz / 3), four periods each
-SWEEP = SweepSettings(levels=(0.2e-3, 1e-3, 4e-3, 16e-3), f_min=20.0, f_max=800.0, n_freq=6, periods=4,
-                      settle_periods=3, settle_s=0.02)  # fmt: skip
+SWEEP = LoopSettings(levels=(0.2e-3, 1e-3, 4e-3, 16e-3), f_min=20.0, f_max=800.0, n_freq=6, periods=4,
+                     settle_periods=3, settle_s=0.02)  # fmt: skip
 #: a level counts in the spread when its median gain lies within this of 1/(J w^2) (dB)
 MOVING_DB = 20.0
 
@@ -84,22 +85,23 @@ def run_figures(cfg: Config, compensation: bool) -> dict:
     return fig.result()
 
 
-def fig8(cfg: Config, s: SweepSettings = SWEEP) -> list:
-    """The compensated plant's stepped-sine sweeps of ``cfg``, one per level."""
-    return [sweep(cfg, level, s, True) for level in s.levels]
+def fig8(cfg: Config, s: LoopSettings = SWEEP) -> tuple[np.ndarray, np.ndarray]:
+    """The compensated plant ``P = X/U_n`` of ``cfg`` (m/A): frequencies (Hz, (n,)) and
+    its magnitude in dB per level, shape ``(levels, n)``."""
+    runs = [measure(cfg, s, level, True) for level in s.check(cfg).levels]
+    return runs[0].f, np.array([20 * np.log10(np.abs(r.value("P"))) for r in runs])
 
 
-def spreads(a: list, b: list, J: float) -> tuple[float | None, float | None, list]:
-    """The Fig. 8 spreads (max over frequency of max - min over levels, dB) of the sweeps
-    ``a`` and ``b`` over the levels at which the arm moves under both (module doc), and
-    those levels (A); None when fewer than two do."""
-    f = a[0].f
+def spreads(f: np.ndarray, a: np.ndarray, b: np.ndarray, levels, J: float) -> tuple[float | None, float | None, list]:
+    """The Fig. 8 spreads (max over frequency of max - min over levels, dB) of the
+    magnitudes ``a`` and ``b`` (dB, (levels, n) at ``f`` Hz) over the levels at which the
+    arm moves under both (module doc), and those levels (A); None when fewer than two do."""
     di = -20 * np.log10(J * (2 * np.pi * f) ** 2)
-    moving = [i for i in range(len(a)) if all(np.median(s[i].mag_db - di) > -MOVING_DB for s in (a, b))]
+    moving = [i for i in range(len(levels)) if all(np.median(m[i] - di) > -MOVING_DB for m in (a, b))]
     if len(moving) < 2:
         return None, None, []
-    spread = lambda sw: float(np.max(np.ptp([sw[i].mag_db for i in moving], axis=0)))  # noqa: E731
-    return spread(a), spread(b), [a[i].level for i in moving]
+    spread = lambda m: float(np.max(np.ptp(m[moving], axis=0)))  # noqa: E731
+    return spread(a), spread(b), [float(levels[i]) for i in moving]
 
 
 def _step_name(step: dict) -> str:
@@ -178,9 +180,8 @@ def choose(model: SourceModel, base: Config, eq9: Proposal, augmented: Proposal 
     chosen, why, against, levels = next(iter(cands)), [], [], []
     if augmented is not None:
         progress.stage("checking on the model: Fig. 8 with each compensator")
-        sw = {name: fig8(apply(cfg, p)) for name, p in cands.items()}
-        figs["augmented"]["spread_db"], figs["eq. 9"]["spread_db"], levels = spreads(
-            sw["augmented"], sw["eq. 9"], cfg.drive.J)  # fmt: skip
+        (f, ma), (_, me) = (fig8(apply(cfg, p)) for p in (augmented, eq9))
+        figs["augmented"]["spread_db"], figs["eq. 9"]["spread_db"], levels = spreads(f, ma, me, SWEEP.levels, cfg.drive.J)
         a_steps, a_others = worse(figs["augmented"], figs["eq. 9"], tol)
         e_steps, e_others = worse(figs["eq. 9"], figs["augmented"], tol)
         why, against = a_steps + a_others, e_steps + e_others
