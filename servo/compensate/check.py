@@ -37,9 +37,10 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from servo.compensate.model import SourceModel
+from servo.compensate.model import CompensateError, SourceModel
 from servo.compensate.propose import Proposal, apply
 from servo.config import Config, ScenarioConfig
+from servo.errors import ConfigError, ServoError, first_line
 from servo.loop.measure import LoopSettings, measure
 from servo.experiments.sim import run_in_memory
 from servo.io import progress
@@ -165,23 +166,41 @@ def same(a: Proposal, b: Proposal) -> bool:
         np.allclose(a.section[k], b.section[k], rtol=1e-9, atol=0.0) for k in a.section)  # fmt: skip
 
 
+def _on_model(what: str, fn, *args):
+    """``fn(*args)``, a run on the model: a fault of that run is one line naming it."""
+    try:
+        return fn(*args)
+    except ServoError as exc:
+        raise CompensateError(f"the check on the model failed, {what}: {first_line(exc)} (--no-check skips it)") from None
+
+
 def choose(model: SourceModel, base: Config, eq9: Proposal, augmented: Proposal | None = None,
            tol: Tolerances = Tolerances(), label: str = "eq. 9") -> Check:  # fmt: skip
     """Run the check (module doc) of the proposals of ``model`` on ``base``: eq. 9's and,
     unless None (``--paper``, or nothing beyond eq. 9: :func:`same`), the augmented one;
-    ``label``: the name of ``eq9`` when it is the only one."""
+    ``label``: the name of ``eq9`` when it is the only one.  Fig. 8 is left out (its
+    spreads None) where the base config cannot run its sweep (a rate too low for 800 Hz,
+    a current limit under 16 mA)."""
     cfg = model_config(model, base)
     progress.stage("checking on the model: the closed loop with no compensator")
-    figs = {"none": {"run": run_figures(cfg, False), "spread_db": None}}
+    figs = {"none": {"run": _on_model("with no compensator", run_figures, cfg, False), "spread_db": None}}
     cands = {label: eq9} if augmented is None else {"eq. 9": eq9, "augmented": augmented}
     for name, p in cands.items():
         progress.stage(f"checking on the model: the closed loop with {name}'s compensator")
-        figs[name] = {"run": run_figures(apply(cfg, p), True), "spread_db": None}
+        figs[name] = {"run": _on_model(f"with {name}'s compensator", run_figures, apply(cfg, p), True), "spread_db": None}
     chosen, why, against, levels = next(iter(cands)), [], [], []
     if augmented is not None:
         progress.stage("checking on the model: Fig. 8 with each compensator")
-        (f, ma), (_, me) = (fig8(apply(cfg, p)) for p in (augmented, eq9))
-        figs["augmented"]["spread_db"], figs["eq. 9"]["spread_db"], levels = spreads(f, ma, me, SWEEP.levels, cfg.drive.J)
+        try:
+            SWEEP.check(cfg)
+        except ConfigError:
+            sweeps = None
+        else:
+            sweeps = [_on_model(f"Fig. 8 with {n}'s compensator", fig8, apply(cfg, p)) for n, p in cands.items()]
+        if sweeps is not None:
+            (f, me), (_, ma) = sweeps
+            figs["augmented"]["spread_db"], figs["eq. 9"]["spread_db"], levels = spreads(f, ma, me, SWEEP.levels,
+                                                                                         cfg.drive.J)  # fmt: skip
         a_steps, a_others = worse(figs["augmented"], figs["eq. 9"], tol)
         e_steps, e_others = worse(figs["eq. 9"], figs["augmented"], tol)
         why, against = a_steps + a_others, e_steps + e_others
