@@ -4,7 +4,7 @@ alone and than no compensator?
 The model (:class:`~servo.compensate.model.SourceModel`) is a drive: the check puts it in
 the base config's place (its controller, rate and scenario; the base's drive supplies
 what the source lacks) and runs, in memory on the all-compiled path
-(:func:`servo.experiments.sim.run_in_memory`, the bits ``servo run`` logs):
+(:func:`servo.runtime.closedloop.run_in_memory`, the bits ``servo run`` logs):
 
 * **the closed loop** (``servo run``'s scenario: the reference steps, then the force
   disturbance; :class:`servo.run.reduce.RunFigures`) with no compensator, eq. 9's
@@ -41,11 +41,11 @@ from servo.compensate.model import CompensateError, SourceModel
 from servo.compensate.propose import Proposal, apply
 from servo.config import Config, ScenarioConfig
 from servo.errors import ConfigError, ServoError, first_line
-from servo.loop.measure import LoopSettings, measure
-from servo.experiments.sim import run_in_memory
 from servo.io import progress
+from servo.loop.measure import LoopSettings, measure
 from servo.run.reduce import RunFigures
-from servo.runtime.scenario import scenario_inputs
+from servo.runtime.closedloop import run_in_memory
+from servo.scenarios import scenario_inputs
 
 #: Fig. 8 of the check: four levels of the paper's figure, six frequencies below the
 #: default drive's first mode (3 kHz / 3), four periods each
