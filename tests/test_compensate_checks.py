@@ -270,6 +270,7 @@ def test_the_synthetic_round_trip_is_refused_with_the_figures_servo_run_reports(
     assert runs["uncompensated"]["steps"] == figs["none"]["run"]["steps"]
 
 
+@pytest.mark.slow  # 11 s at load 12 on 2 cores: three runs and eight Fig. 8 sweeps
 def test_a_refused_check_is_a_clean_line_in_process(tmp_path):
     """The same drive as a config (its exact model): the refusal is the check's, not the
     diagnosis's noise."""
