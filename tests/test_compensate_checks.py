@@ -71,6 +71,18 @@ def test_a_fixed_term_is_kept_as_given(tmp_path):
     assert compensate(_write(tmp_path, doc), Config()).section.get("coulomb") == 1.5e-5
 
 
+def test_an_identifications_sizes_are_tested_too(tmp_path):
+    """An identify summary's eq. 3 parameters with their standard deviations: a
+    viscous friction of 0.3 +- 1 mA*s/m is left out, the Coulomb level (the Dahl
+    asymptote here) kept."""
+    doc = {"force_unit": "A", "fits": {"robust": {
+        "params": {"J": 1e-3, "B": 3e-4, "Fc": 8e-4, "K": 0.07, "h0": 2e-3},
+        "std": {"J": 1e-6, "B": 1e-3, "Fc": 1e-5, "K": 1e-3, "h0": 1e-5}}}}  # fmt: skip
+    p = compensate(_write(tmp_path, doc, "summary.json"), Config())
+    assert p.section["B"] == 0.0 and [t.physics for t in p.left_out] == ["viscous_friction"]
+    assert p.section["Ha"] == p.section["Fc"] == 8e-4 and p.section["K"] == 0.07
+
+
 @pytest.fixture(scope="module")
 def dahl_report(tmp_path_factory):
     """The diagnosis of a Dahl pivot other than the nominal one (sigma 416 A/m, Ha 1.5 mA;
