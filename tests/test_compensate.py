@@ -174,19 +174,20 @@ def test_the_section_loads_as_a_config(tmp_path, asym_report):
     assert load_config(f) == apply(base, p)
 
 
-def test_a_model_in_newton_needs_the_force_constant(tmp_path, asym_report):
+def test_a_model_in_newton_is_written_in_newton_or_converted(tmp_path, asym_report):
+    """A model in N: without a force constant the section stays in N (the loop that runs
+    it commands N); with one, in A.  No line about the base config's head for another
+    axis's model (tests/test_compensate_checks.py checks the printed units)."""
     path, _ = asym_report
     doc = json.loads(path.read_text())
     doc["recording"]["force_unit"] = "N"
     n = tmp_path / "n.json"
     n.write_text(json.dumps(doc))
-    with pytest.raises(ValueError, match="force-constant"):
-        compensate(n, Config())
+    assert compensate(n, Config()).unit == "N"
     a, b = compensate(path, Config()), compensate(n, Config(), force_constant=2.0)
-    assert b.section["B"] == pytest.approx(a.section["B"] / 2) and b.section["b_asymmetry"] == a.section["b_asymmetry"]
-    # the loop whose |P*S| is printed is the base config's: said so for a model from another axis
-    assert "of the designed loop" in format_summary(a)
-    assert "not the recorded axis" in format_summary(b) and "of the designed loop" not in format_summary(b)
+    assert b.unit == "A" and b.section["B"] == pytest.approx(a.section["B"] / 2)
+    assert b.section["b_asymmetry"] == a.section["b_asymmetry"]
+    assert "of the designed loop" in format_summary(a) and "head" not in format_summary(b)
 
 
 @pytest.mark.parametrize("text,needle", [
@@ -202,22 +203,22 @@ def test_bad_sources_are_one_line(tmp_path, text, needle):
     with pytest.raises(CompensateError) as e:
         read_model(p, Config())
     assert needle in str(e.value)
-    r = servo("compensate", str(p), "--out", str(tmp_path / "c.toml"))
+    r = servo("compensate", str(p), "--out", str(tmp_path / "c"))
     assert r.returncode == 2 and r.stderr.count("\n") == 1 and needle in r.stderr, r.stderr
-    assert not (tmp_path / "c.toml").exists()
+    assert not (tmp_path / "c").exists()
 
 
 def test_the_command_writes_the_section_and_says_what_it_cannot_cancel(tmp_path):
     cfg = Config().replace(drive={"input_delay_s": 2e-5, "b_asymmetry": 0.2})
     src = _config_file(tmp_path, cfg)
-    out = tmp_path / "c.toml"
-    r = servo("compensate", str(src), "--out", str(out))
+    out = tmp_path / "c"
+    r = servo("compensate", str(src), "--no-check", "--quiet", "--out", str(out))
     assert r.returncode == 0, r.stderr
     assert "cancel asymmetric viscous friction: b_asymmetry 0.2" in r.stdout
     assert "cannot cancel time_delay: an input delay cannot be cancelled" in r.stdout
     assert "cannot cancel resonance" in r.stdout and "authority: |u_c| <=" in r.stdout
-    assert load_config(out).compensator.b_asymmetry == 0.2
-    r = servo("compensate", str(src), "--out", str(out), "--authority", "-1")
+    assert load_config(out / "compensator.toml").compensator.b_asymmetry == 0.2
+    r = servo("compensate", str(src), "--out", str(tmp_path / "c2"), "--authority", "-1")
     assert r.returncode == 2 and "--authority" in r.stderr
 
 

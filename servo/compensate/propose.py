@@ -49,7 +49,9 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from servo.compensate.model import NOT_CANCELLABLE, SourceModel
+from servo.compensate.model import NOT_CANCELLABLE, CompensateError, SourceModel
+from servo.compensate.plausible import implausible
+from servo.compensate.significance import significant
 from servo.config import Config, from_dict, to_dict
 
 #: The authority is this times the largest force (or kf change) the model itself makes.
@@ -80,7 +82,10 @@ class Proposal:
     :class:`servo.config.CompensatorConfig`); ``cancelled``/``not_cancelled``: per term;
     ``authority``: how it is bounded (``authority_a``, ``largest_force_a``,
     ``kf_authority``, ``kf_model``, ``gain_up_db``/``gain_down_db`` (the loop's gain margins), ``worst_um_per_ma``: the head's
-    largest response (um) to 1 mA of wrong force at any frequency, None if not computed)."""
+    largest response (um) to 1 mA of wrong force at any frequency, None if not computed;
+    the ``_a`` figures are in ``unit``); ``unit``: the force unit of the section (the
+    command's: "A", or the model's own when it was not converted); ``left_out``: the terms
+    not distinguishable from zero (:class:`~servo.compensate.significance.LeftOut`)."""
 
     source: str
     paper: bool
@@ -88,6 +93,8 @@ class Proposal:
     cancelled: list
     not_cancelled: list
     authority: dict
+    unit: str = "A"
+    left_out: list = field(default_factory=list)
 
 
 def _f(d: dict, k: str, default: float = 0.0) -> float:
@@ -189,18 +196,30 @@ def kf_bound(up: float | None, down: float | None) -> float:
 
 
 def propose(model: SourceModel, base: Config, paper: bool = False, force_constant: float | None = None,
-            authority: float | None = None) -> Proposal:  # fmt: skip
+            authority: float | None = None, significant_only: bool = True) -> Proposal:  # fmt: skip
     """The compensator section for ``model`` on the config ``base`` (its controller, its
     current limit, its drive's stroke).  ``force_constant`` (N/A) converts a model in N
-    to A; ``authority`` (A) overrides the computed bound on ``|u_c|``."""
+    to A; without it the section is in the model's own unit (:attr:`Proposal.unit`: the
+    loop that runs it commands that unit).  ``authority`` (the section's unit) overrides
+    the computed bound on ``|u_c|``.  ``significant_only``: leave out the terms not
+    distinguishable from zero (:mod:`servo.compensate.significance`).  Raises
+    :class:`~servo.compensate.model.CompensateError` for a model beyond the plant's
+    physical range (:mod:`servo.compensate.plausible`)."""
+    left_out = []
+    if significant_only:
+        model, left_out = significant(model)
     d = dict(model.drive)
-    if model.force_unit != "A":
-        if not force_constant or not force_constant > 0:
-            raise ValueError(f"the model's forces are in {model.force_unit}: give --force-constant "
-                             f"({model.force_unit}/A) to write a compensator in A")  # fmt: skip
+    unit = model.force_unit
+    if model.force_unit != "A" and force_constant is not None:
+        if not force_constant > 0 or not math.isfinite(force_constant):
+            raise ValueError(f"--force-constant {force_constant!r}: expected a positive number of {unit}/A")
         for k in ("B", "K", "h0", "Ha", "Fc", "Fs", "cogging", "sigma", "J"):
             if k in d:
                 d[k] = float(d[k]) / force_constant
+        unit = "A"
+    bad = implausible(d, base, unit, model.speed_max)
+    if bad:
+        raise CompensateError(f"{model.source}: not a model of a drive this config can run: {'; '.join(bad)}")
     terms = mirror(d, paper, base.compensator.Ha / base.compensator.sigma)
     section: dict = {}
     for t in terms:
@@ -214,20 +233,23 @@ def propose(model: SourceModel, base: Config, paper: bool = False, force_constan
     auth = U_FRACTION * u_lim if largest is None else min(U_FRACTION * u_lim, MARGIN * largest)
     auth = authority if authority is not None else auth
     section["authority"] = float(auth)
+    # the designed loop is the base config's: the recorded axis's only for a model in A
+    loop_is_source = model.force_unit == "A"
     info: dict = dict(authority_a=float(auth), largest_force_a=largest, speed_m_s=speed, position_m=position,
                       current_limit_a=u_lim, kf_model=None, kf_authority=None, gain_up_db=None, gain_down_db=None,
-                      worst_um_per_ma=None)  # fmt: skip
-    up, down, worst = loop_margins(base.replace(compensator={k: v for k, v in section.items()}))
-    info.update(gain_up_db=up, gain_down_db=down)
-    info["worst_um_per_ma"] = worst * 1e6 * 1e-3 if worst is not None else None
-    info["loop_is_source"] = model.force_unit == "A"  # else: the base's loop, not the recorded axis's
+                      worst_um_per_ma=None, loop_is_source=loop_is_source)  # fmt: skip
+    up = down = None
+    if loop_is_source:
+        up, down, worst = loop_margins(base.replace(compensator={k: v for k, v in section.items()}))
+        info.update(gain_up_db=up, gain_down_db=down)
+        info["worst_um_per_ma"] = worst * 1e6 * 1e-3 if worst is not None else None
     if "kf_linear" in section:
         a_model = kf_change(section)
         a = float(max(min(MARGIN * a_model, kf_bound(up, down)), 1e-3))
         section["kf_authority"] = a
         info.update(kf_model=a_model, kf_authority=a)
     from_dict({"compensator": section})  # every value within its declared range, or ConfigError
-    return Proposal(model.source, paper, section, terms, not_cancelled, info)
+    return Proposal(model.source, paper, section, terms, not_cancelled, info, unit, left_out)
 
 
 def apply(base: Config, p: Proposal) -> Config:
