@@ -99,6 +99,40 @@ def build_test_library(cfg: Config, workdir: Path, cc: str | None = None) -> Pat
     return _build(cfg, workdir, PORTABLE + ("hal_test.c",), ("-fPIC", "-shared"), "libservo_fw_test.so", cc)
 
 
+ARM_CC = "arm-none-eabi-gcc"
+MPS2 = PORTABLE + ("main_mps2.c",)
+MPS2_FLAGS = ("-mcpu=cortex-m7", "-mfpu=fpv5-d16", "-mfloat-abi=hard", "-mthumb", "-nostartfiles", "-T",
+              str(ROOT / "mps2.ld"), "--specs=nano.specs", "--specs=nosys.specs")  # fmt: skip
+"""Cortex-M7 with its double-precision FPU (FPv5-D16), newlib's string and math functions only."""
+
+
+def build_mps2(cfg: Config, workdir: Path) -> Path:
+    """The firmware for QEMU's ``mps2-an500`` (Cortex-M7), cross-compiled with Debian's
+    ``arm-none-eabi-gcc``; returns the ELF file."""
+    if shutil.which(ARM_CC) is None:
+        raise RuntimeError(f"no {ARM_CC} on the PATH (Debian: apt-get install gcc-arm-none-eabi libnewlib-arm-none-eabi)")
+    return _build(cfg, workdir, MPS2, MPS2_FLAGS, "servo_fw_mps2.elf", ARM_CC)
+
+
+@contextmanager
+def serve_qemu(elf: Path, timeout: float = 30.0, icount: bool = False):
+    """``qemu-system-arm -M mps2-an500`` running ``elf`` with its UART on a fresh
+    pseudo-terminal; yields ``(process, port path)``.  ``icount``: one instruction per
+    virtual nanosecond (``-icount shift=0``), so the board's timer counts instructions."""
+    cmd = ["qemu-system-arm", "-M", "mps2-an500", "-display", "none", "-monitor", "none", "-serial", "pty",
+           "-kernel", str(elf)] + (["-icount", "shift=0"] if icount else [])  # fmt: skip
+    proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.STDOUT)
+    proc.pending = b""
+    try:
+        line = read_line(proc, timeout) or ""
+        m = re.search(r"redirected to (/dev/pts/\d+)", line)
+        if not m:
+            raise RuntimeError(f"qemu did not start: {line!r}")
+        yield proc, m.group(1)
+    finally:
+        _end(proc)
+
+
 def _build(cfg: Config, workdir: Path, sources: tuple[str, ...], flags: tuple[str, ...], name: str,
            cc: str | None) -> Path:  # fmt: skip
     cc = cc or find_cc()
@@ -115,7 +149,7 @@ def _build(cfg: Config, workdir: Path, sources: tuple[str, ...], flags: tuple[st
     src = Path(workdir) / f"{tag}-drive_data.c"
     src.write_text(drive)
     tmp = Path(workdir) / f"{tag}-{name}.tmp"
-    cmd = [cc, *CFLAGS, *flags, "-I", str(ROOT), *(str(ROOT / s) for s in sources), str(src), "-o", str(tmp), "-lm"]
+    cmd = [cc, *CFLAGS, "-I", str(ROOT), *(str(ROOT / s) for s in sources), str(src), *flags, "-o", str(tmp), "-lm"]
     r = subprocess.run(cmd, capture_output=True, text=True)
     if r.returncode:
         raise RuntimeError(f"firmware build failed: {' '.join(cmd)}\n{r.stderr}")
@@ -136,15 +170,20 @@ def serve_host(exe: Path, *args: str, timeout: float = 10.0):
             raise RuntimeError(f"the firmware did not start: {line!r}")
         yield proc, m.group(1)
     finally:
-        if proc.poll() is None:
-            proc.terminate()
-            try:
-                proc.wait(5)
-            except subprocess.TimeoutExpired:
-                proc.kill()
-                proc.wait()
-        proc.stdout.close()
-        proc.stderr.close()
+        _end(proc)
+
+
+def _end(proc) -> None:
+    if proc.poll() is None:
+        proc.terminate()
+        try:
+            proc.wait(5)
+        except subprocess.TimeoutExpired:
+            proc.kill()
+            proc.wait()
+    for f in (proc.stdout, proc.stderr):
+        if f is not None:
+            f.close()
 
 
 def read_line(proc, timeout: float) -> str | None:

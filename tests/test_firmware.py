@@ -16,6 +16,7 @@ import ctypes
 import math
 import os
 import re
+import shutil
 import signal
 import subprocess
 import sys
@@ -27,7 +28,8 @@ import pytest
 
 from hil import protocol as P
 from hil.board import Board
-from hil.firmware import build_host, build_test_library, comparable, find_cc, read_line, serve_host
+from hil.firmware import (build_host, build_mps2, build_test_library, comparable, find_cc, read_line, serve_host,
+                          serve_qemu)
 from hil.framing import FrameDecoder, encode_frame
 from hil.serialdriver import SerialDriver
 from kernels.compose import LOG_COLUMNS
@@ -425,3 +427,61 @@ def test_a_second_host_is_refused_and_a_vanished_host_is_caught_by_the_watchdog(
         assert r.returncode == -signal.SIGKILL, r.stderr
         line = _zero_current_line(proc)
     assert "FAULT 1" in line and "no command for" in line
+
+
+# ------------------------------------------------------------------- a real instruction set
+
+
+needs_arm = pytest.mark.skipif(shutil.which("arm-none-eabi-gcc") is None or shutil.which("qemu-system-arm") is None,
+                               reason="no arm-none-eabi-gcc or qemu-system-arm (.ci/run installs them)")  # fmt: skip
+
+
+@pytest.fixture(scope="module")
+def mps2_build(fw_dir):
+    return build_mps2(CFG, fw_dir)
+
+
+@pytest.mark.slow
+@needs_arm
+def test_servo_run_port_on_the_emulated_cortex_m7_gives_the_simulators_logs(mps2_build, tmp_path):
+    """The firmware cross-compiled for the MPS2 AN500 (Cortex-M7, double-precision FPU,
+    newlib's libm) under QEMU, its UART on a pty: ``servo run --port`` records the same
+    logs as the simulated drive, bit for bit (about 15 s per 1000 ticks: QEMU's UART)."""
+    cfg = CFG.replace(link={"watchdog_s": 5.0, "timeout_s": 5.0, "ready_timeout_s": 10.0})
+    cfg_file = tmp_path / "cfg.toml"
+    cfg_file.write_text(to_toml(cfg))
+    from servo.cli import main
+
+    with serve_qemu(mps2_build) as (proc, url):
+        assert main(["run", "--config", str(cfg_file), "--port", url, "--out", str(tmp_path / "fw"), "--quiet"]) == 0
+    assert main(["run", "--config", str(cfg_file), "--out", str(tmp_path / "sim"), "--quiet"]) == 0
+    summary = (tmp_path / "fw" / "summary.json").read_text()
+    assert "servo firmware (mps2-an500)" in summary
+    for label in ("compensated", "uncompensated"):
+        fw, sim = np.load(tmp_path / "fw" / f"log_{label}.npz"), np.load(tmp_path / "sim" / f"log_{label}.npz")
+        for col in LOG_COLUMNS:
+            assert np.array_equal(fw[col], sim[col], equal_nan=True), (label, col)
+
+
+@pytest.mark.slow
+@needs_arm
+@pytest.mark.parametrize("kind", ["track", "nss"])
+def test_the_other_controller_kinds_on_the_emulated_cortex_m7(mps2_build, kind, tmp_path):
+    cfg = CFG.replace(controller={"kind": kind}, link={"watchdog_s": 5.0, "timeout_s": 5.0, "command_latency_ticks": 1,
+                                                       "batch": 2})  # fmt: skip
+    with serve_qemu(mps2_build) as (proc, url):
+        hil = run_log(cfg, SerialDriver(cfg, url), tmp_path, "fw")
+    sim = run_log(cfg, SimDriver(cfg, scenario_inputs(cfg)), tmp_path, "sim")
+    assert np.array_equal(hil, sim, equal_nan=True)
+
+
+@pytest.mark.slow
+@needs_arm
+def test_the_emulated_board_falls_to_zero_current_when_its_host_goes_silent(mps2_build, tmp_path):
+    """No log line on the target: the board's STATS after its FAULT say it tripped."""
+    cfg = FAULT_CFG.replace(link={"watchdog_s": 0.5, "timeout_s": 5.0, "ready_timeout_s": 10.0})
+    with serve_qemu(mps2_build) as (proc, url):
+        drv = SerialDriver(cfg, f"faulty://{url}?silent_tx=30")
+        with pytest.raises(DriverError, match=r"board fault, watchdog at tick \d+: no command for"):
+            run_log(cfg, drv, tmp_path, "log")
+    assert drv.board_fault is not None and drv.board_fault.code == P.FAULT_WATCHDOG
