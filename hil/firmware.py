@@ -31,7 +31,7 @@ from kernels.plant import PLANT_PARAMS, PLANT_STATE
 from servo.config import Config
 
 ROOT = Path(__file__).resolve().parent.parent / "firmware"
-PORTABLE = ("cobs.c", "crc32.c", "board.c", "dahl.c", "plant.c", "hal_sim.c")
+PORTABLE = ("cobs.c", "crc32.c", "board.c", "dahl.c", "plant.c", "controller.c", "hal_sim.c")
 """The portable sources (everything but a target's main and its stream/clock half of the HAL)."""
 HOST = PORTABLE + ("main_host.c",)
 CFLAGS = ("-std=c99", "-O2", "-ffp-contract=off", "-Wall", "-Wextra", "-Werror")
@@ -133,12 +133,70 @@ def serve_qemu(elf: Path, timeout: float = 30.0, icount: bool = False):
         _end(proc)
 
 
+KINDS = ("pi", "track", "nss")
+"""The controller kinds the firmware's kernels run (firmware/controller.c)."""
+
+
+def records_source(cfg: Config) -> str:
+    """C arrays of each kind's four records (stage state and parameters, the kind's state
+    and parameters) after a bumpless start at rest with the drive's holding current."""
+    from servo.runtime.controller import Controller
+    from servo.runtime.simplant import build_plant
+
+    u_hold = build_plant(cfg.drive, cfg.dt).u_hold
+    out = []
+    for kind in KINDS:
+        ctl = Controller(cfg.replace(controller={"kind": kind}))
+        ctl.start(0.0, 0.0, u_hold)
+        for tag, rec in zip(("SS", "SP", "CS", "CP"), ctl.records()):
+            vals = ", ".join(map(_c, rec.view(np.float64)))
+            out.append(f"const double FW_{kind.upper()}_{tag}[] = {{{vals}}};")
+    return "\n".join(out) + "\n"
+
+
+def build_mps2_bench(cfg: Config, workdir: Path) -> Path:
+    """``firmware/bench_mps2.c`` for QEMU's ``mps2-an500``: instructions per tick of each
+    kind's controller, of the simulated drive and of one tick's frames."""
+    if shutil.which(ARM_CC) is None:
+        raise RuntimeError(f"no {ARM_CC} on the PATH")
+    sources = tuple(s for s in PORTABLE if s not in ("board.c", "hal_sim.c")) + ("bench_mps2.c",)
+    return _build(cfg, workdir, sources, MPS2_FLAGS, "servo_fw_bench.elf", ARM_CC, records_source(cfg))
+
+
+def instructions_per_tick(cfg: Config, workdir: Path, timeout: float = 120.0) -> dict[str, dict[str, int]]:
+    """Run :func:`build_mps2_bench`'s program under QEMU with ``-icount shift=0``;
+    ``{kind: {"controller": n, "plant": n, "frames": n}}``, instructions per tick."""
+    elf = build_mps2_bench(cfg, workdir)
+    out: dict[str, dict[str, int]] = {}
+    with serve_qemu(elf, icount=True) as (proc, url):
+        fd = os.open(url, os.O_RDWR | os.O_NOCTTY)
+        try:
+            import tty
+
+            tty.setraw(fd)
+            os.write(fd, b"g")  # the program waits for it
+            buf, end = b"", time.monotonic() + timeout
+            while b"done" not in buf and time.monotonic() < end:
+                ready, _, _ = select.select([fd], [], [], 1.0)
+                if ready:
+                    buf += os.read(fd, 4096)
+        finally:
+            os.close(fd)
+    for line in buf.decode().splitlines():
+        f = line.split()
+        if len(f) == 7:
+            out[f[0]] = {f[1]: int(f[2]), f[3]: int(f[4]), f[5]: int(f[6])}
+    if set(out) != set(KINDS):
+        raise RuntimeError(f"the bench program on QEMU gave {buf!r}")
+    return out
+
+
 def _build(cfg: Config, workdir: Path, sources: tuple[str, ...], flags: tuple[str, ...], name: str,
-           cc: str | None) -> Path:  # fmt: skip
+           cc: str | None, extra: str = "") -> Path:  # fmt: skip
     cc = cc or find_cc()
     if cc is None:
         raise RuntimeError("no C compiler on the PATH (set $CC)")
-    drive = drive_source(cfg)
+    drive = drive_source(cfg) + extra
     h = hashlib.sha256(drive.encode() + " ".join(CFLAGS + flags + sources).encode())
     for f in sorted(ROOT.glob("*.[ch]")):
         h.update(f.name.encode() + f.read_bytes())

@@ -28,7 +28,7 @@ import pytest
 
 from hil import protocol as P
 from hil.board import Board
-from hil.firmware import (build_host, build_mps2, build_test_library, comparable, find_cc, read_line, serve_host,
+from hil.firmware import (ROOT, build_host, build_mps2, build_test_library, comparable, find_cc, read_line, serve_host,
                           serve_qemu)
 from hil.framing import FrameDecoder, encode_frame
 from hil.serialdriver import SerialDriver
@@ -39,7 +39,7 @@ from servo.errors import DriverError
 from servo.io.runlog import RunLog
 from servo.runtime.controller import Controller
 from servo.runtime.loop import run_closed_loop
-from servo.runtime.scenario import scenario_inputs
+from servo.scenarios import scenario_inputs
 from servo.runtime.simdriver import SimDriver
 from servo.runtime.simplant import build_plant
 from tests.test_board import LIMITS
@@ -132,6 +132,43 @@ def test_the_simulated_drive_is_the_numba_plant_bit_for_bit(fw_dir):
         plant_step(p.state, p.params, p.q, p.mab, p.ubuf, u[k], d[k])
     assert np.ptp(want[0::2]) > 1e-3  # it went from stop to stop
     assert np.array_equal(got, want)
+
+
+def test_the_controller_records_header_is_the_dtypes():
+    from bench.cref import CONTROLLER_RECORDS, records_header
+
+    text = (ROOT / "records.h").read_text()
+    assert records_header(CONTROLLER_RECORDS) in text  # regenerate it with bench/cref.py if a dtype changed
+
+
+@pytest.mark.parametrize("kind", ["pi", "track", "nss"])
+@pytest.mark.parametrize("terms", ["plain", "every_term"])
+def test_every_controller_kind_is_the_numba_kernels_bit_for_bit(lib, kind, terms):
+    """``firmware/controller.c`` against the composed Numba kernels of each kind, on the
+    same inputs, from the same bumpless start: the same commands and the same records
+    after 3000 samples."""
+    cfg = CFG.replace(controller={"kind": kind})
+    if terms == "every_term":
+        cfg = cfg.replace(compensator={"kf_linear": 0.05, "kf_quadratic": -0.1, "coulomb": 1e-3, "b_asymmetry": 0.1,
+                                       "periodic_amplitudes": [1e-4, 5e-5], "periodic_phases": [0.3, 1.0],
+                                       "authority": 0.5})  # fmt: skip
+    py, c = Controller(cfg), Controller(cfg)
+    py.start(1e-7, 0.0, 2e-3)
+    c.buf[:] = py.buf
+    tick = lib.fw_pi_tick if kind == "pi" else lib.fw_track_tick
+    tick.restype = ctypes.c_double
+    tick.argtypes = [ctypes.c_void_p] * 4 + [ctypes.c_double] * 4
+    ptrs = [a.ctypes.data for a in c.records()]
+    rng = np.random.default_rng(3)
+    x = np.cumsum(2e-8 * rng.standard_normal(3000))
+    v = np.where(rng.random(3000) < 0.2, np.nan, 1e-3 * rng.standard_normal(3000))
+    r = np.where(np.arange(3000) > 1000, 1e-6, 0.0)
+    u_exc = 1e-4 * rng.standard_normal(3000)
+    for k in range(3000):
+        want = py.tick(x[k], v[k], r[k], u_exc[k])
+        got = tick(*ptrs, x[k], v[k], r[k], u_exc[k])
+        assert got == want or (math.isnan(got) and math.isnan(want)), (k, got, want)
+    assert py.buf.tobytes() == c.buf.tobytes()
 
 
 # ------------------------------------------------------------------- the state machine
