@@ -85,10 +85,10 @@ int main(int argc, char **argv)
     uint64_t period = (uint64_t)(1e9 / FW_SAMPLE_RATE_HZ + 0.5), next = 0;
     while (!stop) {
         if (realtime && bd.state == BOARD_ACTIVE) {
-            if (next == 0 || bd.k == 0)
-                next = next ? next : now_ns();
-            while (now_ns() < next)
-                ;
+            if (next == 0)
+                next = now_ns();
+            struct timespec at = {(time_t)(next / 1000000000u), (long)(next % 1000000000u)};
+            clock_nanosleep(CLOCK_MONOTONIC, TIMER_ABSTIME, &at, NULL); /* the tick's deadline */
             board_poll(&bd);
             board_tick(&bd);
             next += period;

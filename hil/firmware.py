@@ -66,7 +66,7 @@ def drive_source(cfg: Config) -> str:
     params = ", ".join(_c(p.params[0][f]) for f in PLANT_PARAMS.names)
     state = ", ".join(_c(p.state[0][f]) for f in PLANT_STATE.names)
     q = ", ".join("{" + ", ".join(map(_c, row)) + "}" for row in p.q) or "{0}"
-    mab = ", ".join("{" + ", ".join("{" + ", ".join(map(_c, m)) + "}" for m in mode) + "}" for mode in p.mab) or "{{{0}}}"
+    mab = ", ".join("{" + ", ".join("{" + ", ".join(map(_c, m)) + "}" for m in mode) + "}" for mode in p.mab) or "{{0}}"
     gain = ", ".join(map(_c, p.gain)) or "0"
     ubuf = ", ".join(map(_c, p.ubuf))
     return (

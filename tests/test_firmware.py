@@ -444,6 +444,22 @@ def test_a_link_fault_leaves_the_firmware_at_zero_current(host_build, fault, lin
     assert 100 <= rows <= 105  # every tick before the fault is on disk
 
 
+def test_a_host_too_slow_for_the_real_time_firmware_is_a_deadline_fault(fw_dir, tmp_path):
+    """The host build paced on the clock (``--realtime``, 2 kHz): a host that stalls 30 ms
+    misses its deadline; the board holds, then faults, at zero current."""
+    cfg = comparable(Config().replace(run={"duration_s": 1.0, "sample_rate_hz": 2000.0},
+                                      drive={"mode_hz": [], "mode_zeta": [], "mode_gain": []},
+                                      link={"command_latency_ticks": 2, "watchdog_s": 1.0, "timeout_s": 0.5}))  # fmt: skip
+    with serve_host(build_host(cfg, fw_dir), "--realtime") as (proc, url):
+        drv = SerialDriver(cfg, f"faulty://{url}?pause_tx=400&pause_ms=30")  # the host stalls 30 ms at tick 396
+        with pytest.raises(DriverError, match=r"board fault, deadline missed at tick \d+: the command of tick \d+ "
+                           r"was not there at tick \d+: host too slow"):  # fmt: skip
+            run_log(cfg, drv, tmp_path, "log")
+        line = _zero_current_line(proc)
+    assert "FAULT 2" in line and drv.board_stats["missed_deadlines"] >= 1 and drv.board_stats["faults"] == 1
+    assert not drv.board_info.caps & P.CAP_LOCKSTEP
+
+
 def test_a_second_host_is_refused_and_a_vanished_host_is_caught_by_the_watchdog(host_build, tmp_path):
     cfg = FAULT_CFG.replace(link={"watchdog_s": 0.2})
     with serve_host(host_build) as (proc, url):
