@@ -25,6 +25,8 @@ import zlib
 
 import numpy as np
 import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
 
 from hil import protocol as P
 from hil.board import Board
@@ -249,6 +251,40 @@ def test_a_config_beyond_the_documented_limits_is_refused(lib, change, needle):
     assert stats.counters["faults"] == 1
 
 
+_u = lambda n: st.integers(0, 2**n - 1)  # noqa: E731
+_around = lambda n, limit: _u(n) | st.integers(0, 2 * limit) | st.integers(limit - 2, limit + 2)  # noqa: E731
+_CONFIGS = st.builds(P.ConfigMsg, st.sampled_from([2, 2, 2, 1, 3]), _around(8, 32), st.integers(0, 1100),
+                     _around(32, P.MAX_WATCHDOG_US), _around(16, 1000), st.sampled_from([RATE, RATE, 40_000.0, math.nan]),
+                     _u(16) | st.integers(P.MAX_READY_TIMEOUT_MS - 2, P.MAX_READY_TIMEOUT_MS + 2))  # fmt: skip
+
+
+@settings(max_examples=300, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+@given(msg=_CONFIGS, lockstep=st.booleans())
+def test_any_config_gets_the_python_boards_decision(lib, msg, lockstep):
+    """Hostile CONFIGs: the C board accepts exactly those the Python board accepts, and
+    holds current only then."""
+    decisions = []
+    for host in (Host(board=Board(CFG, lockstep=lockstep)), _fresh(lib, int(lockstep))):
+        host.send(lambda s: P.hello(s, 1))
+        host.send(lambda s: P.config(s, msg))
+        kinds = [type(m).__name__ for m in host.recv()]
+        decisions.append(kinds)
+    assert decisions[0] == decisions[1], (msg, decisions)
+    assert (lib.fwt_state() == READY) == ("Ready" in decisions[1])
+    assert lib.fwt_applied() == 0.0 or lib.fwt_state() == READY
+
+
+@settings(max_examples=200, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+@given(noise=st.lists(st.binary(max_size=80), max_size=12))
+def test_noise_into_a_running_board_ends_at_zero_current_or_changes_nothing(lib, noise):
+    host = _running(lib)
+    for chunk in noise:
+        host.raw(chunk)
+    state = lib.fwt_state()
+    assert state in (ACTIVE, FAULTED)
+    assert (lib.fwt_applied() == 0.0) == (state == FAULTED)
+
+
 def test_the_ready_timeout_and_the_watchdog_end_in_zero_current(lib):
     host = _fresh(lib)
     host.configure(watchdog_ms=5, ready_ms=300)
@@ -460,6 +496,7 @@ def test_a_host_too_slow_for_the_real_time_firmware_is_a_deadline_fault(fw_dir, 
     assert not drv.board_info.caps & P.CAP_LOCKSTEP
 
 
+@pytest.mark.slow  # a second Python process: its imports alone take seconds
 def test_a_second_host_is_refused_and_a_vanished_host_is_caught_by_the_watchdog(host_build, tmp_path):
     cfg = FAULT_CFG.replace(link={"watchdog_s": 0.2})
     with serve_host(host_build) as (proc, url):
