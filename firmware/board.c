@@ -4,11 +4,12 @@
 #include <string.h>
 
 #include "cobs.h"
+#include "controller.h"
 #include "crc32.h"
 #include "hal.h"
 
-enum { HELLO = 0x01, CONFIG = 0x02, START = 0x03, COMMANDS = 0x04, STOP = 0x05 };
-enum { INFO = 0x81, READY = 0x82, SAMPLES = 0x84, FAULT = 0x85, STATS = 0x86 };
+enum { HELLO = 0x01, CONFIG = 0x02, START = 0x03, COMMANDS = 0x04, STOP = 0x05, LOOP = 0x06, REFS = 0x07 };
+enum { INFO = 0x81, READY = 0x82, SAMPLES = 0x84, FAULT = 0x85, STATS = 0x86, LOG = 0x87 };
 #define STATUS_HELD 0x01
 #define MAX_TEXT 200
 #define BODY_MAX 1024
@@ -205,8 +206,56 @@ static int due(const board *bd, uint32_t k, double *u)
     return 0;
 }
 
+static uint32_t log_cols(const board *bd) { return bd->loop_kind == 2 ? 13u : 12u; }
+
+/* Loop on the board, tick k with its reference r (m) and excitation u_exc (A): sample,
+ * the controller kind, the current, one log row (kernels/compose.py's log_row). */
+static void loop_tick(board *bd, uint32_t k, double r, double u_exc)
+{
+    double x, v, u;
+    stage_state *c = &bd->loop.r.ss;
+    hal_read_position(&x, &v);
+    if (bd->loop_kind == 1)
+        u = fw_pi_tick(c, &bd->loop.r.sp, &bd->loop.r.k.pi.c, &bd->loop.r.k.pi.p, x, v, r, u_exc);
+    else
+        u = fw_track_tick(c, &bd->loop.r.sp, &bd->loop.r.k.tr.c, &bd->loop.r.k.tr.p, x, v, r, u_exc);
+    bd->applied = hal_write_current(u);
+    if (bd->batch_n == 0)
+        bd->batch_tick0 = k;
+    double row[BOARD_LOG_MAX] = {(double)k, (double)k * bd->loop.r.sp.dt, c->x_prev + c->e, x, c->v, c->u, c->u_n,
+                                 c->u_c, u_exc, c->H_dahl, c->regime, c->e, bd->loop.r.k.tr.c.pes};
+    static double rows[BOARD_MAX_BATCH][BOARD_LOG_MAX];
+    memcpy(rows[bd->batch_n], row, sizeof row);
+    if (++bd->batch_n == bd->b) {
+        static uint8_t body[12 + 8 * BOARD_MAX_BATCH * BOARD_LOG_MAX + 4];
+        uint32_t nc = log_cols(bd);
+        header(bd, body, LOG);
+        put32(body + 4, bd->batch_tick0);
+        body[8] = (uint8_t)bd->b;
+        body[9] = (uint8_t)nc;
+        put16(body + 10, 0);
+        for (uint32_t i = 0; i < bd->b; i++)
+            for (uint32_t j = 0; j < nc; j++)
+                putf64(body + 12 + 8 * (i * nc + j), rows[i][j]);
+        send(bd, body, 12 + 8 * bd->b * nc);
+        bd->sent = k + 1;
+        bd->batch_n = 0;
+    }
+}
+
 static void advance(board *bd)
 {
+    if (bd->loop_kind) {
+        while (bd->state == BOARD_ACTIVE) {
+            uint32_t i = bd->k % BOARD_RING;
+            if (!(bd->valid[i] && bd->ring_tick[i] == bd->k))
+                return;
+            loop_tick(bd, bd->k, bd->ring_val[i], bd->ring_exc[i]);
+            bd->k++;
+            bd->stats[ST_TICKS]++;
+        }
+        return;
+    }
     while (bd->state == BOARD_ACTIVE) {
         if (!bd->sampled) {
             sample(bd, bd->k);
@@ -338,6 +387,9 @@ static void on_config(board *bd, const uint8_t *c, uint32_t now)
     bd->watchdog_us = get32(c + 8);
     bd->late_limit = get16(c + 12);
     bd->ready_us = (uint32_t)get16(c + 14) * 1000u;
+    bd->loop_kind = 0;
+    bd->loop_total = bd->loop_got = 0;
+    bd->refs_next = 0;
     double u_hold = hal_prepare();
     bd->u_start = bd->u_last = bd->applied = u_hold;
     double x, v;
@@ -355,6 +407,11 @@ static void on_config(board *bd, const uint8_t *c, uint32_t now)
 
 static void on_start(board *bd, uint32_t now)
 {
+    if (bd->loop_kind && bd->loop_got != bd->loop_total) {
+        text t = {{0}, 0};
+        fault(bd, FAULT_PROTOCOL, "", t_str(&t, "START before the controller's records were all sent"));
+        return;
+    }
     bd->state = BOARD_ACTIVE;
     bd->last_cmd_us = now;
     memset(bd->valid, 0, sizeof bd->valid);
@@ -402,6 +459,52 @@ static void on_commands(board *bd, const uint8_t *body, uint32_t n, uint32_t now
         advance(bd);
 }
 
+/* LOOP (READY): the controller's records, in pieces: kind, byte offset, total, bytes. */
+static void on_loop(board *bd, const uint8_t *body, size_t n)
+{
+    uint32_t kind = body[4], off = get16(body + 6), total = get16(body + 8), len = (uint32_t)n - 12;
+    uint32_t want = kind == 1 ? sizeof(stage_state) + sizeof(stage_params) + sizeof(pi_state) + sizeof(pi_params)
+                              : sizeof(stage_state) + sizeof(stage_params) + sizeof(track_state) + sizeof(track_params);
+    text t = {{0}, 0};
+    if (!bd->info.lockstep || (kind != 1 && kind != 2) || total != want || off != bd->loop_got || off + len > total ||
+        12u + 8u * bd->b * (kind == 2 ? 13u : 12u) > BODY_MAX) {
+        t_u32(t_str(t_u32(t_str(t_u32(t_str(&t, "LOOP kind "), kind), ", records of "), total), " bytes at "), off);
+        fault(bd, FAULT_CONFIG, "", t_str(&t, ": not a controller this board runs, a batch too large for its log rows, "
+                                              "or a real-time board (the loop on the board runs in lockstep only)"));
+        return;
+    }
+    bd->loop_kind = (uint8_t)kind;
+    bd->loop_total = total;
+    memcpy(bd->loop.bytes + off, body + 12, len); /* the host's buf: the four records back to back */
+    bd->loop_got = off + len;
+}
+
+/* REFS (ACTIVE, loop on the board): r (m) and u_exc (A) of ticks tick0 .. tick0+n-1. */
+static void on_refs(board *bd, const uint8_t *body, uint32_t n, uint32_t now)
+{
+    text t = {{0}, 0};
+    if (get32(body + 4) != bd->refs_next) {
+        t_u32(t_str(t_u32(t_str(&t, "references for tick "), get32(body + 4)), ", expected tick "), bd->refs_next);
+        fault(bd, FAULT_COMMAND, "", &t);
+        return;
+    }
+    for (uint32_t j = 0; j < n; j++) {
+        double r = getf64(body + 12 + 16 * j), e = getf64(body + 20 + 16 * j);
+        if (!isfinite(r) || !isfinite(e)) {
+            fault(bd, FAULT_COMMAND, "", t_str(&t, "a non-finite reference or excitation"));
+            return;
+        }
+        uint32_t tk = bd->refs_next + j, i = tk % BOARD_RING;
+        bd->ring_tick[i] = tk;
+        bd->ring_val[i] = r;
+        bd->ring_exc[i] = e;
+        bd->valid[i] = 1;
+    }
+    bd->refs_next += n;
+    bd->last_cmd_us = now;
+    advance(bd);
+}
+
 static void on_stop(board *bd)
 {
     enum board_state was = bd->state;
@@ -429,6 +532,12 @@ static size_t expected_len(const uint8_t *body, size_t n)
         if (n < 12 || body[8] < 1 || body[8] > BOARD_MAX_BATCH)
             return (size_t)-1;
         return 12 + 8u * body[8];
+    case LOOP:
+        return n >= 13 && n <= BODY_MAX ? n : (size_t)-1;
+    case REFS:
+        if (n < 12 || body[8] < 1 || body[8] > BOARD_MAX_BATCH)
+            return (size_t)-1;
+        return 12 + 16u * body[8];
     default: return 0;
     }
 }
@@ -480,8 +589,12 @@ static void on_frame(board *bd, const uint8_t *body, size_t n, uint32_t now)
         return;
     }
     bd->rx_seq = (uint16_t)(seq + 1);
-    if (kind == COMMANDS && bd->state == BOARD_ACTIVE)
+    if (kind == COMMANDS && bd->state == BOARD_ACTIVE && !bd->loop_kind)
         on_commands(bd, body, body[8], now);
+    else if (kind == REFS && bd->state == BOARD_ACTIVE && bd->loop_kind)
+        on_refs(bd, body, body[8], now);
+    else if (kind == LOOP && bd->state == BOARD_READY)
+        on_loop(bd, body, n);
     else if (kind == CONFIG && (bd->state == BOARD_HELLO || bd->state == BOARD_READY))
         on_config(bd, body, now);
     else if (kind == START && bd->state == BOARD_READY)

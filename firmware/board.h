@@ -13,6 +13,10 @@
  * 1..60 000 ms, late limit no longer than the watchdog, the board's sample rate) is
  * refused with FAULT 6.
  *
+ * The loop on the board (docs/protocol.md section 9, lockstep): after READY the host
+ * sends the controller's records (LOOP), then each tick's reference (REFS); the board
+ * runs the kind's kernels (controller.c) and streams log rows (LOG).
+ *
  * No heap, no floating-point exceptions, no library beyond <string.h> and <math.h>
  * (isfinite).  One `board` is about 40 KB (the command ring and the output buffer).
  */
@@ -22,6 +26,8 @@
 #include <stddef.h>
 #include <stdint.h>
 
+#include "records.h"
+
 #define BOARD_VERSION 2          /* protocol version spoken (min = max) */
 #define BOARD_MAX_BATCH 32       /* b, samples per frame */
 #define BOARD_MAX_LATENCY 1000   /* d, ticks */
@@ -30,6 +36,8 @@
 #define BOARD_RING 2048          /* command ring, ticks; > MAX_LATENCY + 2 * MAX_BATCH */
 #define BOARD_RX_MAX 1034        /* longest encoded frame, bytes */
 #define BOARD_TX_BUF 16384       /* bytes of unsent output before an OVERFLOW fault */
+#define BOARD_LOOP_BYTES 2048    /* the controller's four records, at most */
+#define BOARD_LOG_MAX 13         /* log columns: the 12 common ones and one of the kind's */
 
 enum board_state { BOARD_IDLE, BOARD_HELLO, BOARD_READY, BOARD_ACTIVE, BOARD_FAULTED };
 
@@ -85,8 +93,19 @@ typedef struct {
     double u_start, u_last, applied;
     uint32_t ring_tick[BOARD_RING];
     double ring_val[BOARD_RING];
+    double ring_exc[BOARD_RING]; /* loop on the board: u_exc; ring_val holds r */
     uint8_t valid[BOARD_RING];
     uint16_t last_fault;
+    /* loop on the board (LOOP before START): the controller's records, the host's
+     * reference and excitation per tick */
+    uint8_t loop_kind;          /* 0: host in the loop; 1: pi; 2: two-rate cascade (track, nss) */
+    uint32_t loop_total, loop_got;
+    union {
+        uint8_t bytes[BOARD_LOOP_BYTES];
+        struct { stage_state ss; stage_params sp; union { struct { pi_state c; pi_params p; } pi;
+                                                         struct { track_state c; track_params p; } tr; } k; } r;
+    } loop;
+    uint32_t refs_next;         /* tick of the next reference expected */
 } board;
 
 /* Power-up: zero current, IDLE. */
