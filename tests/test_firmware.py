@@ -597,3 +597,20 @@ def test_the_emulated_board_falls_to_zero_current_when_its_host_goes_silent(mps2
         with pytest.raises(DriverError, match=r"board fault, watchdog at tick \d+: no command for"):
             run_log(cfg, drv, tmp_path, "log")
     assert drv.board_fault is not None and drv.board_fault.code == P.FAULT_WATCHDOG
+
+
+@pytest.mark.slow
+@needs_arm
+def test_the_loop_on_the_emulated_cortex_m7_logs_the_simulated_drives_run(mps2_build, tmp_path):
+    from hil.onboard import run_on_board
+
+    cfg = CFG.replace(controller={"kind": "nss"}, link={"watchdog_s": 5.0, "timeout_s": 5.0, "batch": 4,
+                                                        "command_latency_ticks": 3})  # fmt: skip
+    inputs = scenario_inputs(cfg)
+    ticks = np.arange(cfg.n_ticks)
+    controller = Controller(cfg)
+    with serve_qemu(mps2_build) as (proc, url), RunLog(tmp_path, "board", controller.log_columns) as log:
+        run_on_board(cfg, url, controller, inputs.reference(ticks), inputs.excitation(ticks), log)
+    sim_cfg = cfg.replace(link={"command_latency_ticks": 0, "batch": 1})
+    sim = run_log(sim_cfg, SimDriver(sim_cfg, scenario_inputs(sim_cfg)), tmp_path, "sim")
+    assert np.array_equal(log.recorded(), sim, equal_nan=True)
