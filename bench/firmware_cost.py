@@ -41,7 +41,7 @@ def code_size(workdir: Path) -> dict[str, int]:
 
 
 def image_size(workdir: Path) -> tuple[int, int]:
-    """``(text + data, bss)`` bytes of the linked host-in-the-loop image (newlib included)."""
+    """``(text + data, bss)`` bytes of the linked board image, both modes (newlib included)."""
     elf = build_mps2(comparable(Config()), workdir)
     f = subprocess.run([f"{ARM_CC[:-3]}size", str(elf)], capture_output=True, text=True, check=True).stdout
     text, data, bss = map(int, f.splitlines()[1].split()[:3])
@@ -56,7 +56,7 @@ def main() -> None:
     print("| source | bytes (.text + .data) |\n|---|---|")
     for src, n in sizes.items():
         print(f"| `{src}` | {n} |")
-    print(f"| linked image (host in the loop, newlib's libm and string functions) | {image} (+ {bss} RAM) |")
+    print(f"| linked image (both modes, newlib's libm and string functions) | {image} (+ {bss} RAM) |")
     print("\n| kind | controller | frames (b = 1) | board total | simulated drive | of the budget (4000) |")
     print("|---|---|---|---|---|---|")
     for kind, r in ipt.items():

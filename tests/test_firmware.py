@@ -431,6 +431,7 @@ def test_every_controller_kind_through_the_firmware_is_the_simulated_drives_run(
     assert np.ptp(sim[:, LOG_COLUMNS.index("x")]) > 1e-6  # the steps happened
 
 
+@pytest.mark.slow  # two runs of servo run in-process, 10-15 s on a loaded machine
 def test_servo_run_port_against_the_firmware_gives_the_simulators_logs(host_build, tmp_path):
     cfg = CFG.replace(link={"watchdog_s": 2.0, "timeout_s": 2.0})
     cfg_file = tmp_path / "cfg.toml"
