@@ -43,7 +43,7 @@ def one_rate(rate: float, d: int, b: int, seconds: float, cpus: tuple[int, int] 
     cfg = Config().replace(
         run={"sample_rate_hz": rate, "duration_s": seconds},
         drive={"mode_hz": [], "mode_zeta": [], "mode_gain": []},
-        link={"command_latency_ticks": d, "batch": b, "late_limit_ticks": 65535, "watchdog_s": 2.0, "timeout_s": 2.0},
+        link={"command_latency_ticks": d, "batch": b, "late_limit_ticks": min(65535, int(2.0 * rate)), "watchdog_s": 2.0, "timeout_s": 2.0},
     )
     with tempfile.TemporaryDirectory() as tmp:
         f = Path(tmp) / "cfg.toml"

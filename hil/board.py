@@ -15,10 +15,15 @@ The safe state (zero current) holds in every state but two, and those two are bo
 
 * IDLE, HELLO, FAULTED: zero current.
 * READY: the holding current the drive starts with (reported in READY, so that the
-  controller takes over bumplessly), for at most ``max(ready_timeout_s, watchdog)``
-  without a frame from the host; then a WATCHDOG fault.  STOP and a closed connection
-  end it at once.
+  controller takes over bumplessly), for at most the ready timeout of the CONFIG without
+  a frame from the host; then a WATCHDOG fault.  STOP and a closed connection end it at
+  once.
 * ACTIVE: the host's commands, for at most the watchdog time without a COMMANDS frame.
+
+The board protects itself from its host: a CONFIG whose watchdog, ready timeout or late
+limit is beyond the documented limits (:data:`~hil.protocol.MAX_WATCHDOG_US`,
+:data:`~hil.protocol.MAX_READY_TIMEOUT_MS`, a late limit longer than the watchdog) is
+refused with FAULT 6, whoever sent it.
 
 While a session is READY or ACTIVE a HELLO is refused (ignored, counted in
 :attr:`Board.refused_hellos`, logged): the board belongs to the host that configured it
@@ -55,9 +60,6 @@ RING = 2048
 """Command ring size (ticks); > MAX_LATENCY + 2*MAX_BATCH."""
 OUT_LIMIT = 1 << 18
 """Bytes of unsent output beyond which the host is taken as not reading (OVERFLOW)."""
-READY_TIMEOUT_S = 2.0
-"""Longest time (s) a READY board holds its drive without hearing from the host (or the
-session's watchdog, if longer): the host prepares its run between READY and START."""
 
 
 class Board:
@@ -68,7 +70,7 @@ class Board:
     """
 
     def __init__(self, cfg: Config, lockstep: bool = True, name: str = "servo emulator",
-                 log: Callable[[str], None] | None = None, ready_timeout_s: float = READY_TIMEOUT_S):  # fmt: skip
+                 log: Callable[[str], None] | None = None):  # fmt: skip
         self.cfg = cfg
         self.lockstep = lockstep
         self.name = name
@@ -91,7 +93,6 @@ class Board:
         self.sim: SimDriver | None = None
         self.last_fault: P.Fault | None = None
         self.refused_hellos = 0
-        self._ready_timeout_ns = int(ready_timeout_s * 1e9)
         self._ready_ns = 0  # when READY was sent, or the host's last frame since
         self.tx_seq = 0
         self.rx_seq = 0
@@ -148,7 +149,7 @@ class Board:
         if self.state == ACTIVE:
             return self._last_cmd_ns + self._watchdog_ns
         if self.state == READY:
-            return self._ready_ns + max(self._ready_timeout_ns, self._watchdog_ns)
+            return self._ready_ns + self._ready_timeout_ns
         return None
 
     def check_watchdog(self, now_ns: int) -> None:
@@ -239,6 +240,7 @@ class Board:
         self._b = 1
         self._late_limit = 0
         self._watchdog_ns = 0
+        self._ready_timeout_ns = 0
         self._last_cmd_ns = 0
         self._u_start = 0.0
         self._u_last = 0.0
@@ -354,8 +356,13 @@ class Board:
         if not self.lockstep and m.latency < m.batch:
             return (f"latency {m.latency} ticks < batch {m.batch}: in real time the first command of a frame "
                     "could never arrive in time")  # fmt: skip
-        if m.watchdog_us < 1:
-            return "watchdog of 0 us"
+        if not 1 <= m.watchdog_us <= P.MAX_WATCHDOG_US:
+            return f"watchdog {m.watchdog_us} us outside 1..{P.MAX_WATCHDOG_US} us"
+        if not 1 <= m.ready_timeout_ms <= P.MAX_READY_TIMEOUT_MS:
+            return f"ready timeout {m.ready_timeout_ms} ms outside 1..{P.MAX_READY_TIMEOUT_MS} ms"
+        if m.late_limit * 1_000_000 > m.watchdog_us * self.rate:
+            return (f"late limit {m.late_limit} ticks ({m.late_limit / self.rate * 1e3:g} ms) is longer than the "
+                    f"watchdog ({m.watchdog_us / 1e3:g} ms)")  # fmt: skip
         if not math.isclose(m.sample_rate_hz, self.rate, rel_tol=1e-12):
             return f"the host expects {m.sample_rate_hz:g} Hz, the board samples at {self.rate:g} Hz"
         return None
@@ -376,6 +383,7 @@ class Board:
         self._cmd_struct = P.commands_struct(m.batch)
         self._cmd_size = self._cmd_struct.size
         self._watchdog_ns = m.watchdog_us * 1000
+        self._ready_timeout_ns = m.ready_timeout_ms * 1_000_000
         self._u_start = self._u_last = sim.plant.u_hold
         x, v = sim.read()
         self.state = READY

@@ -1,10 +1,10 @@
-"""The messages of the serial link, protocol version 1 (``docs/protocol.md`` is the spec).
+"""The messages of the serial link, protocol version 2 (``docs/protocol.md`` is the spec).
 
 Every body (what :mod:`hil.framing` stuffs and checksums) starts with a 4-byte header,
 then a fixed, type-specific payload; all fields little-endian, floats IEEE-754 binary64::
 
     offset  type  field
-    0       u8    version   protocol version of this frame (1)
+    0       u8    version   protocol version of this frame (2)
     1       u8    type      message type; host->board 0x01..0x7F, board->host 0x81..0xFF
     2       u16   seq       frame sequence number, per direction, +1 per frame (mod 2^16)
     4       ...   payload
@@ -21,13 +21,21 @@ from functools import lru_cache
 from struct import Struct
 from typing import NamedTuple
 
-VERSION = 1
-VERSION_MIN = 1
-VERSION_MAX = 1
+VERSION = 2
+"""Version 2: CONFIG carries the ready timeout (version 1: a reserved field)."""
+VERSION_MIN = 2
+VERSION_MAX = 2
 MAX_BATCH = 32
 """Samples per SAMPLES frame (and commands per COMMANDS frame), at most."""
 MAX_LATENCY = 1000
 """Command latency, ticks, at most."""
+MAX_WATCHDOG_US = 60_000_000
+"""Watchdog (us) a board accepts at most: 60 s.  A board may hold its drive energised for
+no host longer than this."""
+MAX_READY_TIMEOUT_MS = 60_000
+"""Ready timeout (ms) a board accepts at most: 60 s."""
+DEFAULT_READY_TIMEOUT_MS = 2_000
+"""The ready timeout (ms) of ``link.ready_timeout_s``'s default: 2 s."""
 MAX_TEXT = 200
 """Bytes of UTF-8 text in a FAULT message (INFO name: 32)."""
 TICK_MOD = 1 << 32
@@ -83,7 +91,7 @@ STATS_FIELDS = (
 HEADER = Struct("<BBH")
 _HELLO = Struct("<BBHIBBH")  # header, nonce u32, v_min u8, v_max u8, reserved u16
 _INFO = Struct("<BBHIBBHddHH")  # header, nonce, v_min, v_max, caps, rate, current limit, max batch, max latency
-_CONFIG = Struct("<BBHBBHIHHd")  # header, version, batch, latency, watchdog_us, late_limit, reserved, rate
+_CONFIG = Struct("<BBHBBHIHHd")  # header, version, batch, latency, watchdog_us, late_limit, ready_timeout_ms, rate
 _READY = Struct("<BBHBBHIHHdddd")  # CONFIG fields echoed, then x, v, i of tick 0
 _CMD_HEAD = Struct("<BBHIBBH")  # header, tick0 u32, count u8, reserved u8, reserved u16
 _SMP_HEAD = Struct("<BBHIBBH")  # header, tick0 u32, count u8, status u8, missed u16
@@ -121,6 +129,7 @@ class ConfigMsg(NamedTuple):
     watchdog_us: int
     late_limit: int
     sample_rate_hz: float
+    ready_timeout_ms: int = DEFAULT_READY_TIMEOUT_MS
 
 
 class Ready(NamedTuple):
@@ -181,14 +190,14 @@ def info(seq: int, m: Info) -> bytes:
 
 
 def config(seq: int, m: ConfigMsg) -> bytes:
-    return _CONFIG.pack(VERSION, CONFIG, seq, m.version, m.batch, m.latency, m.watchdog_us, m.late_limit, 0,
-                        m.sample_rate_hz)  # fmt: skip
+    return _CONFIG.pack(VERSION, CONFIG, seq, m.version, m.batch, m.latency, m.watchdog_us, m.late_limit,
+                        m.ready_timeout_ms, m.sample_rate_hz)  # fmt: skip
 
 
 def ready(seq: int, m: Ready) -> bytes:
     c = m.config
-    return _READY.pack(VERSION, READY, seq, c.version, c.batch, c.latency, c.watchdog_us, c.late_limit, 0,
-                       c.sample_rate_hz, m.x, m.v, m.i)  # fmt: skip
+    return _READY.pack(VERSION, READY, seq, c.version, c.batch, c.latency, c.watchdog_us, c.late_limit,
+                       c.ready_timeout_ms, c.sample_rate_hz, m.x, m.v, m.i)  # fmt: skip
 
 
 def start(seq: int) -> bytes:
@@ -289,10 +298,10 @@ def parse(body: bytes):
         return kind, seq, Info(*v[3:], name=_decode_text(body[_INFO.size:]))
     if kind == CONFIG:
         v = _exact(body, _CONFIG, "CONFIG")
-        return kind, seq, ConfigMsg(v[3], v[4], v[5], v[6], v[7], v[9])
+        return kind, seq, ConfigMsg(v[3], v[4], v[5], v[6], v[7], v[9], v[8])
     if kind == READY:
         v = _exact(body, _READY, "READY")
-        return kind, seq, Ready(ConfigMsg(v[3], v[4], v[5], v[6], v[7], v[9]), v[10], v[11], v[12])
+        return kind, seq, Ready(ConfigMsg(v[3], v[4], v[5], v[6], v[7], v[9], v[8]), v[10], v[11], v[12])
     if kind == START:
         _exact(body, _EMPTY, "START")
         return kind, seq, Start()

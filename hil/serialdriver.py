@@ -112,7 +112,7 @@ class SerialDriver(Driver):
                               f"{info.max_latency} ticks (link.batch = {self.b}, "
                               f"link.command_latency_ticks = {self.d})")  # fmt: skip
         cfg_msg = P.ConfigMsg(self.version, self.b, self.d, max(1, int(round(link.watchdog_s * 1e6))),
-                              link.late_limit_ticks, rate)  # fmt: skip
+                              link.late_limit_ticks, rate, max(1, int(round(link.ready_timeout_s * 1e3))))  # fmt: skip
         self._send(P.config(self._tx_seq, cfg_msg))
         kind, msg = self._next_message(time.perf_counter_ns() + int(self._handshake_s * 1e9), "READY")
         if kind != P.READY or msg.config != cfg_msg:
@@ -380,9 +380,15 @@ class Sessions:
     then gets it for its first run and a fresh session for each later one.  Use as a
     context manager: the first session is closed on leaving, whatever happened.
 
-    ``make_driver(cfg, inputs)`` has the signature the jobs' ``make_driver`` takes."""
+    ``make_driver(cfg, inputs)`` has the signature the jobs' ``make_driver`` takes.
+    Every kernel the runs call is compiled first
+    (:func:`~servo.runtime.loop.compile_kernels`), before the board is put in READY: a
+    board holds its drive for the ready timeout only (``link.ready_timeout_s``)."""
 
     def __init__(self, cfg: Config, url: str):
+        from servo.runtime.loop import compile_kernels
+
+        compile_kernels(cfg)
         self.url = url
         self.first = SerialDriver(cfg, url)
         self.first.configure()

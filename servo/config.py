@@ -90,6 +90,8 @@ class LinkConfig:
                          0.0, 60.0, lo_open=True)
     watchdog_s: float = P(0.05, "s", "serial link: the board falls to zero current when no command has come for "
                           "this long", 1e-6, 60.0)
+    ready_timeout_s: float = P(2.0, "s", "serial link: the board falls to zero current when the host has not "
+                               "started the run (nor said anything) this long after READY", 1e-3, 60.0)
     late_limit_ticks: int = P(0, "ticks", "serial link, real-time board: consecutive ticks it may hold the previous "
                               "current when a command is late; one more is a fault", 0, 65535)
     baudrate: int = P(921600, "bit/s", "serial link: line rate of a real UART (pty, socket:// and USB CDC ignore it)",
@@ -327,6 +329,11 @@ def _check_consistency(cfg: Config) -> None:
     if cfg.link.command_latency_ticks < cfg.link.batch - 1:
         raise ConfigError("config: link.command_latency_ticks must be >= link.batch - 1 (a frame's last sample "
                           "needs the commands of the frame before)")
+    link = cfg.link
+    if link.late_limit_ticks * 1e6 > max(1, round(link.watchdog_s * 1e6)) * cfg.run.sample_rate_hz:
+        raise ConfigError(f"config: link.late_limit_ticks = {link.late_limit_ticks} ticks "
+                          f"({link.late_limit_ticks / cfg.run.sample_rate_hz:g} s) must not be longer than "
+                          f"link.watchdog_s = {link.watchdog_s:g} s: a board refuses a late limit beyond its watchdog")  # fmt: skip
     if abs(d.initial_position) >= d.stroke:
         raise ConfigError("config: drive.initial_position must lie inside +-drive.stroke")
     from servo.controllers import KINDS

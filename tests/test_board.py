@@ -35,7 +35,7 @@ class Host:
 
     def start(self, d=0, b=1, watchdog_ms=5, late=0, rate=None, now=0):
         self.send(lambda s: P.hello(s, 42), now)
-        self.send(lambda s: P.config(s, P.ConfigMsg(1, b, d, watchdog_ms * 1000, late, rate or self.board.rate)), now)
+        self.send(lambda s: P.config(s, P.ConfigMsg(P.VERSION, b, d, watchdog_ms * 1000, late, rate or self.board.rate)), now)
         msgs = self.recv()
         assert [type(m) for m in msgs] == [P.Info, P.Ready], msgs
         self.send(P.start, now)
@@ -135,7 +135,7 @@ def test_config_outside_what_the_board_accepts_is_refused(lockstep, change, need
     host = Host(board)
     host.send(lambda s: P.hello(s, 1))
     d, b, rate = change.get("d", 0), change.get("b", 1), change.get("rate", board.rate)
-    host.send(lambda s: P.config(s, P.ConfigMsg(1, b, d, 1000, 0, rate)))
+    host.send(lambda s: P.config(s, P.ConfigMsg(P.VERSION, b, d, 1000, 0, rate)))
     fault = host.recv()[1]
     assert fault.code == P.FAULT_CONFIG and needle in fault.text
     assert board.state == FAULTED
@@ -181,7 +181,7 @@ def test_every_board_side_fault_ends_in_the_safe_state(inject, code, counter):
     elif inject == "malformed":
         host.send(lambda s: P.commands(s, 1, (0.01,))[:-1])
     elif inject == "wrong state":
-        host.send(lambda s: P.config(s, P.ConfigMsg(1, 1, 0, 1000, 0, board.rate)))
+        host.send(lambda s: P.config(s, P.ConfigMsg(P.VERSION, 1, 0, 1000, 0, board.rate)))
     assert board.state == FAULTED and board.applied_current == 0.0
     fault, stats = host.recv()[-2:]
     assert fault.code == code, fault
@@ -199,7 +199,7 @@ def test_stop_answers_stats_and_a_new_config_starts_the_drive_afresh():
     assert board.state == HELLO and board.applied_current == 0.0
     (stats,) = host.recv()
     assert stats.counters["ticks"] == 5 and stats.counters["rx_frames"] == 3 + 5 + 1
-    host.send(lambda s: P.config(s, P.ConfigMsg(1, 1, 0, 1000, 0, board.rate)))
+    host.send(lambda s: P.config(s, P.ConfigMsg(P.VERSION, 1, 0, 1000, 0, board.rate)))
     host.send(P.start)
     again = samples(host.recv())
     assert board.state == ACTIVE and again[0].values == host.first.values  # same initial state and noise
@@ -227,17 +227,17 @@ def test_bytes_outside_a_session_are_ignored_and_a_hello_is_refused_while_a_sess
     assert other.recv()[0].nonce == 9
 
 
-def _ready(watchdog_ms=5, ready_timeout_s=0.5):
-    board = Board(CFG, ready_timeout_s=ready_timeout_s)
+def _ready(watchdog_ms=5, ready_timeout_ms=500):
+    board = Board(CFG)
     host = Host(board)
     host.send(lambda s: P.hello(s, 1))
-    host.send(lambda s: P.config(s, P.ConfigMsg(1, 1, 0, watchdog_ms * 1000, 0, board.rate)))
+    host.send(lambda s: P.config(s, P.ConfigMsg(P.VERSION, 1, 0, watchdog_ms * 1000, 0, board.rate, ready_timeout_ms)))
     assert board.state == READY and host.recv()[-1].i == board.applied_current
     return board, host
 
 
 def test_a_ready_board_holds_its_drive_only_until_the_ready_timeout():
-    board, host = _ready(watchdog_ms=5, ready_timeout_s=0.5)
+    board, host = _ready(watchdog_ms=5, ready_timeout_ms=500)
     u_hold = board.applied_current
     assert u_hold != 0.0  # READY holds the drive with the holding current (bumpless start)
     assert board.watchdog_due_ns() == 500 * MS
@@ -250,12 +250,60 @@ def test_a_ready_board_holds_its_drive_only_until_the_ready_timeout():
     assert stats.counters["watchdog_trips"] == 1
 
 
-def test_the_ready_timeout_is_at_least_the_sessions_watchdog_and_restarts_on_any_host_frame():
-    board, host = _ready(watchdog_ms=2000, ready_timeout_s=0.5)
-    assert board.watchdog_due_ns() == 2000 * MS
-    board, host = _ready(watchdog_ms=5, ready_timeout_s=0.5)
-    host.send(lambda s: P.config(s, P.ConfigMsg(1, 1, 0, 5000, 0, board.rate)), now=400 * MS)  # reconfigured
-    assert board.state == READY and board.watchdog_due_ns() == 900 * MS
+def test_the_ready_timeout_is_the_configs_and_restarts_on_any_host_frame():
+    """Issue 28: the ready timeout is a CONFIG value (it was the board's fixed 2 s, which
+    a host's first kernel compile outlasted); neither the watchdog nor a board default
+    lengthens it."""
+    board, host = _ready(watchdog_ms=2000, ready_timeout_ms=500)
+    assert board.watchdog_due_ns() == 500 * MS
+    board, host = _ready(watchdog_ms=5, ready_timeout_ms=5000)
+    board.check_watchdog(4999 * MS)
+    assert board.state == READY  # a longer timeout than the old fixed 2 s, when the host asks for it
+    board.check_watchdog(5000 * MS + 1)
+    assert board.state == FAULTED and board.applied_current == 0.0
+    board, host = _ready(watchdog_ms=5, ready_timeout_ms=500)
+    host.send(lambda s: P.config(s, P.ConfigMsg(P.VERSION, 1, 0, 5000, 0, board.rate, 500)), now=400 * MS)
+    assert board.state == READY and board.watchdog_due_ns() == 900 * MS  # reconfigured: counted from then
+
+
+LIMITS = [  # (field changes, what the refusal names)
+    ({"watchdog_us": P.MAX_WATCHDOG_US + 1}, "watchdog 60000001 us outside 1..60000000 us"),
+    ({"watchdog_us": 2**32 - 1}, "watchdog 4294967295 us outside"),  # the red team's 71 minutes
+    ({"watchdog_us": 0}, "watchdog 0 us outside"),
+    ({"ready_timeout_ms": 0}, "ready timeout 0 ms outside 1..60000 ms"),
+    ({"ready_timeout_ms": P.MAX_READY_TIMEOUT_MS + 1}, "ready timeout 60001 ms outside"),
+    ({"ready_timeout_ms": 65535}, "ready timeout 65535 ms outside"),
+    ({"late_limit": 101, "watchdog_us": 5000}, "late limit 101 ticks (5.05 ms) is longer than the watchdog (5 ms)"),
+    ({"late_limit": 65535, "watchdog_us": 1000}, "late limit 65535 ticks"),
+]
+
+
+@pytest.mark.parametrize("change,needle", LIMITS, ids=[next(iter(c)) + str(i) for i, (c, _) in enumerate(LIMITS)])
+def test_the_board_refuses_a_config_beyond_its_documented_limits(change, needle):
+    """Issue 28: another host gets no cap from ``servo``'s config checks, so the board caps
+    every CONFIG value itself: beyond a limit of docs/protocol.md it answers FAULT 6 and
+    stays at zero current (it took a 71-minute watchdog and held 1 A for a silent host)."""
+    board = Board(CFG, lockstep=False)
+    host = Host(board)
+    host.send(lambda s: P.hello(s, 1))
+    msg = P.ConfigMsg(P.VERSION, 1, 1, 5000, 0, board.rate)._replace(**change)
+    host.send(lambda s: P.config(s, msg))
+    info, fault, stats = host.recv()
+    assert fault.code == P.FAULT_CONFIG and needle in fault.text, fault.text
+    assert board.state == FAULTED and board.applied_current == 0.0 and board.watchdog_due_ns() is None
+
+
+def test_the_limits_themselves_are_accepted():
+    board = Board(CFG, lockstep=False)
+    host = Host(board)
+    host.send(lambda s: P.hello(s, 1))
+    rate = int(board.rate)
+    msg = P.ConfigMsg(P.VERSION, 1, 1, P.MAX_WATCHDOG_US, 65535, board.rate, P.MAX_READY_TIMEOUT_MS)
+    host.send(lambda s: P.config(s, msg))
+    assert board.state == READY and board.watchdog_due_ns() == P.MAX_READY_TIMEOUT_MS * MS
+    host.send(P.stop)
+    host.send(lambda s: P.config(s, msg._replace(watchdog_us=1000, late_limit=rate // 1000)))  # exactly the watchdog
+    assert board.state == READY
 
 
 @pytest.mark.parametrize("how", ["stop", "disconnect"])
@@ -278,7 +326,7 @@ def test_safe_state_in_every_board_state():
     assert board.state == IDLE and board.applied_current == 0.0 and board.watchdog_due_ns() is None
     host.send(lambda s: P.hello(s, 1))
     assert board.state == HELLO and board.applied_current == 0.0 and board.watchdog_due_ns() is None
-    host.send(lambda s: P.config(s, P.ConfigMsg(1, 1, 0, 1000, 0, board.rate)))
+    host.send(lambda s: P.config(s, P.ConfigMsg(P.VERSION, 1, 0, 1000, 0, board.rate)))
     assert board.state == READY and board.watchdog_due_ns() is not None
     host.send(P.start)
     assert board.state == ACTIVE and board.watchdog_due_ns() is not None
@@ -297,7 +345,7 @@ def test_ready_state_needs_start_before_commands():
     board = Board(CFG)
     host = Host(board)
     host.send(lambda s: P.hello(s, 1))
-    host.send(lambda s: P.config(s, P.ConfigMsg(1, 1, 0, 1000, 0, board.rate)))
+    host.send(lambda s: P.config(s, P.ConfigMsg(P.VERSION, 1, 0, 1000, 0, board.rate)))
     assert board.state == READY
     host.command(0, 0.1)
     assert board.state == FAULTED and host.recv()[-2].code == P.FAULT_PROTOCOL

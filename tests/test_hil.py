@@ -266,10 +266,10 @@ def test_the_handshake_checks_versions_and_sample_rate(tmp_path):
             super()._on_hello(seq, msg)
             self.out.clear()
             self.tx_seq = 0
-            self._send(P.info(0, P.Info(msg.nonce, 2, 3, self.caps, self.rate, 1.0, 32, 1000, "future")))
+            self._send(P.info(0, P.Info(msg.nonce, 3, 4, self.caps, self.rate, 1.0, 32, 1000, "future")))
 
     with start_in_thread(FutureBoard(FAULT_CFG)) as url:
-        with pytest.raises(DriverError, match=r"speaks protocol versions 2..3, this host 1..1"):
+        with pytest.raises(DriverError, match=r"speaks protocol versions 3..4, this host 2..2"):
             SerialDriver(FAULT_CFG, url).configure()
     board = Board(FAULT_CFG)
     with start_in_thread(board) as url:
@@ -440,3 +440,31 @@ def test_an_emulator_interrupted_mid_session_says_which_session(lockstep_emulato
         line = _wait_session_line(emu, "stopped after", timeout=10)
         drv.close()
     assert "stopped after 1 session(s), session 1 interrupted in state active; drive at zero current" in line
+
+
+def test_a_slow_first_kernel_compile_happens_before_the_board_is_put_in_ready(tmp_path, monkeypatch, cli):
+    """Issue 28: ``servo run --port`` put the board in READY, then compiled the controller
+    kernels; a first compile after an install outlasted the board's ready timeout (exit
+    3).  The host now compiles before its HELLO.  A compile is simulated here by a first
+    warm-up call that takes 1.5 s, against a 1 s ready timeout (what remains between
+    READY and START is ~50 ms of CPU: the margin is for a loaded machine)."""
+    calls = []
+    warm_up = Controller.warm_up
+
+    def slow_first(self):
+        if not calls:
+            time.sleep(1.5)
+        calls.append(time.monotonic())
+        warm_up(self)
+
+    monkeypatch.setattr(Controller, "warm_up", slow_first)
+    cfg = Config().replace(run={"duration_s": 0.002},
+                           link={"watchdog_s": 2.0, "timeout_s": 2.0, "ready_timeout_s": 1.0})  # fmt: skip
+    cfg_file = tmp_path / "cfg.toml"
+    cfg_file.write_text(to_toml(cfg))
+    board = Board(cfg)
+    with start_in_thread(board) as url:
+        code, cap = cli("run", "--config", str(cfg_file), "--port", url, "--quiet", "--out", str(tmp_path / "o"))
+    assert code == 0, cap.err
+    assert board.last_fault is None and board.sessions_ended == 2  # compensated and uncompensated, no fault
+    assert (tmp_path / "o" / "log_compensated.npz").exists()

@@ -21,7 +21,7 @@ text = st.text(max_size=60)
 
 
 def messages():
-    cfg = st.builds(P.ConfigMsg, u8, u8, u16, u32, u16, f64)
+    cfg = st.builds(P.ConfigMsg, u8, u8, u16, u32, u16, f64, u16)
     return st.one_of(
         st.builds(P.Hello, u32, u8, u8),
         st.builds(P.Info, u32, u8, u8, u16, f64, f64, u16, u16, st.text(max_size=10)),
@@ -97,11 +97,11 @@ def test_errors_are_counted_by_kind():
 @pytest.mark.parametrize(
     "body,needle",
     [
-        (b"\x01\x84\x00", "shorter than its header"),
+        (b"\x02\x84\x00", "shorter than its header"),
         (P.samples(0, 0, 0, 0, (1.0, 2.0, 3.0))[:-1], "SAMPLES frame of"),
-        (b"\x01\x84\x00\x00" + struct.pack("<IBBH", 0, 0, 0, 0), "with 0 samples"),
-        (b"\x02\x84\x00\x00", "protocol version 2"),
-        (b"\x01\x7f\x00\x00", "unknown message type 0x7f"),
+        (b"\x02\x84\x00\x00" + struct.pack("<IBBH", 0, 0, 0, 0), "with 0 samples"),
+        (b"\x01\x84\x00\x00", "protocol version 1"),
+        (b"\x02\x7f\x00\x00", "unknown message type 0x7f"),
         (P.stop(0) + b"\x00", "STOP frame of 5 bytes"),
     ],
 )

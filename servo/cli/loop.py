@@ -78,6 +78,7 @@ def _on_port(cfg, out: Path, s, args: argparse.Namespace, prov: dict) -> dict:
     from servo.loop.job import run_loop
     from servo.runtime.pacing import realtime_section
 
-    with Sessions(cfg, args.port) as ports, realtime_section(), staged(out) as tmp:  # no GC pauses while the board waits
+    # no GC pauses while the board waits; the collection that pauses it before the board is put in READY
+    with realtime_section(), Sessions(cfg, args.port) as ports, staged(out) as tmp:
         return run_loop(cfg, tmp, s, args.compensator, make_driver=ports.make_driver, where=ports.where(cfg),
                         provenance=prov)

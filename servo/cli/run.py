@@ -113,6 +113,7 @@ def _run_on_port(cfg, out: Path, args: argparse.Namespace, formats: tuple[str, .
 
     if args.fast or (args.fast is None and cfg.run.fast_path):
         raise UsageError("servo run: --port runs tick by tick through the link; drop --fast (run.fast_path)")
-    with Sessions(cfg, args.port) as ports, realtime_section(), staged(out, keep_partial=True) as tmp:
+    # the collection that pauses the garbage collector comes before the board is put in READY
+    with realtime_section(), Sessions(cfg, args.port) as ports, staged(out, keep_partial=True) as tmp:
         return run_job(cfg, tmp, compensation=args.compensation, fast=False, make_driver=ports.make_driver,
                        where=ports.where(cfg), log_formats=formats, provenance=prov)  # no GC pauses while the board waits

@@ -111,6 +111,14 @@ def run_closed_loop(
         return LoopResult(cfg.n_ticks, fast, stats, durations, time.perf_counter() - t0, started=t0)
 
 
+def compile_kernels(cfg: Config) -> None:
+    """Compile (or load from the cache) every kernel a run of ``cfg`` calls on the host:
+    the controller kind's composed kernels, its log row and the estimator, on scratch
+    copies.  Call it before a board session opens: a first compile after an install or
+    a kernel change takes seconds, longer than a board waits between READY and START."""
+    _warm_up(Controller(cfg), None)
+
+
 def _warm_up(controller, log: RunLog) -> None:
     """First calls of the controller (and its log row) and the estimator, on scratch copies."""
     controller.warm_up()

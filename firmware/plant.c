@@ -1,0 +1,160 @@
+#include "plant.h"
+
+#include <math.h>
+
+#include "dahl.h"
+
+#define PI 3.141592653589793 /* == math.pi */
+
+/* Python's max(a, b) / min(a, b): b if it compares greater (less), else a. */
+static double py_max(double a, double b) { return b > a ? b : a; }
+static double py_min(double a, double b) { return b < a ? b : a; }
+
+static double force_constant(double x, const plant_params *p)
+{
+    double r = x / p->stroke;
+    return 1.0 + p->kf1 * r + p->kf2 * r * r;
+}
+
+static double drive_force(double x, double u, double d, const plant_params *p)
+{
+    double f = force_constant(x, p) * u + d - p->K * x - p->h0;
+    if (p->cog_amp != 0.0)
+        f -= p->cog_amp * sin(2.0 * PI * x / p->cog_period + p->cog_phase);
+    return f;
+}
+
+static double sliding_friction(double v, double s, const plant_params *p)
+{
+    double f = p->B * (1.0 + s * p->b_asym) * v;
+    if (p->Fs > 0.0) {
+        double fc = p->Fc * (1.0 + s * p->fc_asym);
+        double fs = p->Fs * (1.0 + s * p->fc_asym);
+        double w = v / p->vs;
+        f += s * (fc + (fs - fc) * exp(-(w * w))); /* Numba: w**2 == w*w exactly */
+    }
+    return f;
+}
+
+static double breakaway(double s, const plant_params *p) { return p->Fs * (1.0 + s * p->fc_asym); }
+
+static double acceleration(double x, double v, double s, double x0, double H0, double u, double d,
+                           const plant_params *p)
+{
+    double H = dahl_flow(H0, x - x0, s, p->sigma, p->Ha, p->alpha);
+    return (drive_force(x, u, d, p) - sliding_friction(v, s, p) - H) / p->J;
+}
+
+static void rigid_substep(plant_state *st, const plant_params *p, double u, double d, double h)
+{
+    double x0 = st->x, v0 = st->v, H0 = st->H;
+    double s;
+    if (v0 > 0.0) {
+        s = 1.0;
+    } else if (v0 < 0.0) {
+        s = -1.0;
+    } else {
+        double f = drive_force(x0, u, d, p) - H0;
+        if (f == 0.0)
+            return;
+        s = f > 0.0 ? 1.0 : -1.0;
+        if (fabs(f) <= breakaway(s, p))
+            return;
+    }
+    double k1x = v0;
+    double k1v = acceleration(x0, v0, s, x0, H0, u, d, p);
+    double k2x = v0 + 0.5 * h * k1v;
+    double k2v = acceleration(x0 + 0.5 * h * k1x, k2x, s, x0, H0, u, d, p);
+    double k3x = v0 + 0.5 * h * k2v;
+    double k3v = acceleration(x0 + 0.5 * h * k2x, k3x, s, x0, H0, u, d, p);
+    double k4x = v0 + h * k3v;
+    double k4v = acceleration(x0 + h * k3x, k4x, s, x0, H0, u, d, p);
+    double x1 = x0 + h / 6.0 * (k1x + 2.0 * k2x + 2.0 * k3x + k4x);
+    double v1 = v0 + h / 6.0 * (k1v + 2.0 * k2v + 2.0 * k3v + k4v);
+    if (x1 > p->stroke) {
+        x1 = p->stroke;
+        v1 = py_min(v1, 0.0);
+    } else if (x1 < -p->stroke) {
+        x1 = -p->stroke;
+        v1 = py_max(v1, 0.0);
+    }
+    double H1 = dahl_flow(H0, x1 - x0, s, p->sigma, p->Ha, p->alpha);
+    if (s * v1 < 0.0 && p->Fs > 0.0) {
+        double f = drive_force(x1, u, d, p) - H1;
+        if (fabs(f) <= breakaway(f > 0.0 ? 1.0 : -1.0, p))
+            v1 = 0.0;
+    }
+    st->x = x1;
+    st->v = v1;
+    st->H = H1;
+}
+
+static void modes_advance(plant *pl, int part, double u)
+{
+    for (int i = 0; i < pl->n_modes; i++) {
+        const double *m = pl->mab[i][part];
+        double q0 = pl->q[i][0], q1 = pl->q[i][1];
+        pl->q[i][0] = m[0] * q0 + m[1] * q1 + m[4] * u;
+        pl->q[i][1] = m[2] * q0 + m[3] * q1 + m[5] * u;
+    }
+}
+
+static void rigid_advance(plant_state *st, const plant_params *p, double u, double d, double h)
+{
+    long n = (long)p->n_sub;
+    double hs = h / (double)n;
+    for (long i = 0; i < n; i++)
+        rigid_substep(st, p, u, d, hs);
+}
+
+/* kernels/delay.py shift_in: push u, return the value pushed out. */
+static double shift_in(double *buf, int n, double u)
+{
+    if (n == 0)
+        return u;
+    double out = buf[n - 1];
+    for (int i = n - 1; i > 0; i--)
+        buf[i] = buf[i - 1];
+    buf[0] = u;
+    return out;
+}
+
+void plant_step(plant *pl, double u_cmd, double d)
+{
+    const plant_params *p = &pl->p;
+    double u = py_min(py_max(u_cmd, -p->u_max), p->u_max);
+    shift_in(pl->ubuf, pl->n_ubuf, u);
+    int m = (int)p->delay_whole;
+    double u_late = pl->ubuf[m];
+    double u_early = pl->ubuf[m + 1];
+    if (p->delay_frac > 0.0) {
+        rigid_advance(&pl->st, p, u_early, d, p->delay_frac);
+        modes_advance(pl, 0, u_early);
+    }
+    rigid_advance(&pl->st, p, u_late, d, p->dt - p->delay_frac);
+    modes_advance(pl, 1, u_late);
+}
+
+void plant_measure(plant *pl, double nx, double nv, double *x, double *v)
+{
+    const plant_params *p = &pl->p;
+    plant_state *st = &pl->st;
+    double y = st->x, yd = st->v;
+    for (int i = 0; i < pl->n_modes; i++) {
+        y += pl->gain[i] * pl->q[i][0];
+        yd += pl->gain[i] * pl->q[i][1];
+    }
+    if (p->sensor_a > 0.0) {
+        st->y_lp += p->sensor_a * (y - st->y_lp);
+        y = st->y_lp;
+    }
+    y += p->noise_x * nx;
+    if (p->quantum > 0.0)
+        y = floor(y / p->quantum + 0.5) * p->quantum;
+    if (p->has_velocity != 0.0)
+        yd += p->noise_v * nv;
+    else
+        yd = NAN;
+    *x = y;
+    *v = yd;
+}
