@@ -64,7 +64,7 @@ def test_controller_tick_of_every_kind(benchmark, cfg, record, kind):
     recorded against the controller tick's budget, and that budget asserted in a form
     the host's load cancels from: against the PI kind's tick timed in adjacent pairs, at
     most :data:`KIND_OVER_PI_TICK_MAX`.  (The figure alone failed its 200 ns budget at
-    229 ns at load 13, where the ratio holds: docs/realtime.md.)"""
+    229 ns at load 13, where the ratio holds: :data:`bench.budgets.KIND_OVER_PI_TICK_MAX`.)"""
     ctl = w.controller(cfg.replace(controller={"kind": kind}))
     xin, n = w.controller_inputs(cfg), 100_000
     loop = {"track": loops.loop_track_tick, "nss": loops.loop_nss_tick}[kind]
