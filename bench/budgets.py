@@ -90,8 +90,18 @@ EVERY_TERM_OVER_PAPER_MAX = 4.0
 #: cancel).  A guard against a gross regression (a term falling out of compiled code
 #: costs 10x), not a measure of the terms' cost: that is the controller tick's ratios.
 TICK_PATH_EVERY_TERM_OVER_PAPER_MAX = 2.0
+#: The track and NSS controllers' tick over the PI kind's, timed in adjacent pairs: at
+#: most this.  1.40 (track, 36-37 ns over 26-27) and 1.31 (NSS) at load 12 on the 2
+#: cores, where their figures alone had failed the 200 ns budget (229 ns at load 13).
+KIND_OVER_PI_TICK_MAX = 2.0
 #: Python/Numba time ratio of the controller tick: at least this (compiling must pay).
 PYTHON_OVER_NUMBA_MIN = 20.0
 #: Cold start (process start to first tick of ``servo run``) at most this multiple of the
 #: time the interpreter takes to import numba, numpy, scipy.linalg and matplotlib.
 STARTUP_OVER_DEPENDENCIES_MAX = 3.0
+#: Cold start of ``servo run`` at most this multiple of ``import numpy, numba`` timed just
+#: before it.  Medians of 3: 2.6 at load 13, 2.9 at load 17 (6.1-6.6 s over 2.1-2.5 s),
+#: 3.1 at load 7 (2.3 s over 0.7-0.8 s; the ratio rises as the load falls, so it is not
+#: yet measured idle); the code that imported scipy.signal and matplotlib before the
+#: first tick: 5.4 at load 13, 4.8 at load 7.  The bound: ~1.45x the worst seen.
+STARTUP_OVER_IMPORT_FLOOR_MAX = 4.5

@@ -15,7 +15,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from bench.budgets import BUDGETS, STARTUP_OVER_DEPENDENCIES_MAX
+from bench.budgets import BUDGETS, STARTUP_OVER_DEPENDENCIES_MAX, STARTUP_OVER_IMPORT_FLOOR_MAX
 
 PROCESSES = 3
 ROOT = Path(__file__).resolve().parents[1]
@@ -39,12 +39,19 @@ def probes():
 
 @pytest.fixture(scope="module")
 def servo_runs(tmp_path_factory):
+    """Summaries of fresh ``servo run`` processes, each with ``import_floor_s``: the import
+    of numpy and numba timed in a fresh interpreter just before it (the floor no command
+    that runs compiled kernels can go below)."""
     out = []
     for i in range(PROCESSES):
+        t0 = time.perf_counter()
+        r = _run(["-c", "import numpy, numba"])
+        floor = time.perf_counter() - t0
+        assert r.returncode == 0, r.stderr
         d = tmp_path_factory.mktemp(f"run{i}")
         r = _run(["-m", "servo", "run", "--duration", "0.02", "--compensation", "on", "--out", str(d)])
         assert r.returncode == 0, r.stderr
-        out.append(json.loads((d / "summary.json").read_text()))
+        out.append({**json.loads((d / "summary.json").read_text()), "import_floor_s": floor})
     return out
 
 
@@ -95,3 +102,21 @@ def test_cold_start_of_servo_run(servo_runs, probes, record):
     assert startup_s <= STARTUP_OVER_DEPENDENCIES_MAX * deps_s, (
         f"servo run takes {startup_s:.2f} s from process start to its first tick, more than "
         f"{STARTUP_OVER_DEPENDENCIES_MAX:g}x the {deps_s:.2f} s its dependencies take to import")
+
+
+def test_cold_start_over_the_import_floor(servo_runs, record):
+    """Process start to the first tick of ``servo run`` against ``import numpy, numba``
+    timed just before each run: what the command adds to the floor (its own imports, the
+    cached kernels, configure).  scipy.signal, matplotlib, dask and pyarrow are imported
+    where they are used, not before the first tick (``tests/test_startup_imports.py``)."""
+    startup = [s["startup_s"] for s in servo_runs]
+    if any(s is None for s in startup):
+        pytest.skip("process start time unavailable (no /proc): cold start not measured")
+    ratios = [s["startup_s"] / s["import_floor_s"] for s in servo_runs]
+    ratio = float(np.median(ratios))
+    record.ratio("cold_start_over_import_floor", ratio, f"<= {STARTUP_OVER_IMPORT_FLOOR_MAX:g}",
+                 startup_s=float(np.median(startup)),
+                 import_floor_s=float(np.median([s["import_floor_s"] for s in servo_runs])))  # fmt: skip
+    assert ratio <= STARTUP_OVER_IMPORT_FLOOR_MAX, (
+        f"servo run takes {ratio:.2f}x the import of numpy and numba from process start to its first tick "
+        f"(bound {STARTUP_OVER_IMPORT_FLOOR_MAX:g})")

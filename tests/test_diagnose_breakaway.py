@@ -97,7 +97,7 @@ def test_a_breakaway_comes_from_rest_toward_the_motion():
     """The peak held force counts only at or after a sample at rest, pointing where the
     arm moves when it leaves that rest."""
     v = np.r_[np.full(10, 1.0), np.zeros(5), np.full(10, -1.0)]
-    rest = v == 0
+    rest = breakaway.rest_neighbours(v == 0)
     f = np.zeros(v.size)
     f[12] = -2.0  # held at rest, pushing toward the coming motion: a breakaway
     assert breakaway._toward(f, v, rest, 0, 12)
@@ -109,6 +109,25 @@ def test_a_breakaway_comes_from_rest_toward_the_motion():
     f[:] = 0.0
     f[17] = -2.0  # just after the departure, in its direction (the filtered transient)
     assert breakaway._toward(f, v, rest, 0, 17)
+    f[:] = 0.0
+    f[12] = -2.0  # an event starting after the rest: no rest at or before its peak within it
+    assert not breakaway._toward(f, v, rest, 13, 12 + 5)
+    hold = breakaway.rest_neighbours(np.r_[np.zeros(5, bool), np.ones(5, bool)])
+    assert not breakaway._toward(np.full(10, 1.0), np.zeros(10), hold, 0, 8)  # the rest never ends
+
+
+def test_rest_neighbours_are_the_scans_they_replace():
+    """The latest rest at or before each sample and the first motion at or after it, as
+    the per-event scans found them, on random marks of every density."""
+    rng = np.random.default_rng(3)
+    for density in (0.0, 0.1, 0.5, 0.9, 1.0):
+        rest = rng.random(300) < density
+        last, first_move = breakaway.rest_neighbours(rest)
+        for i in range(rest.size):
+            before = np.flatnonzero(rest[: i + 1])
+            after = np.flatnonzero(~rest[i:])
+            assert last[i] == (before[-1] if before.size else -1)
+            assert first_move[i] == (i + after[0] if after.size else rest.size)
 
 
 @pytest.mark.parametrize("family,size,ctl,exc,rate", [

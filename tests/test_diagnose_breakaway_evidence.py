@@ -133,3 +133,41 @@ def test_where_the_arm_slides_little_the_union_bound_keeps_the_level(dof):
         assert np.mean(p <= a) <= a + 3 * np.sqrt(a * (1 - a) / p.size), a
     comb = np.array([be.combine(q[:3]) for q in ps])
     assert np.mean(comb < 0.05) <= 0.05 + 3 * np.sqrt(0.05 * 0.95 / comb.size)
+
+
+def _pvalues_by_scan(abs_e, outside, centres, excess, L, local_windows):
+    """Each event's p-value as the per-event scan of its neighbourhood computed it."""
+    from scipy.ndimage import maximum_filter1d
+
+    m = maximum_filter1d(np.where(outside, abs_e, np.inf), size=L, mode="constant", cval=np.inf)
+    pos = np.flatnonzero(np.isfinite(m))
+    need = int(min(local_windows * L, pos.size))
+    p = np.ones(centres.size)
+    for j, c in enumerate(centres):
+        loc = m[pos[be.nearest(pos, c, need)]]
+        n_eff = loc.size / L
+        emp = float(np.count_nonzero(loc >= excess[j])) / loc.size
+        if emp > 0:
+            p[j] = min(1.0, (1.0 + n_eff * emp) / (1.0 + n_eff))
+        else:
+            blocks = loc[::L]
+            p[j] = max(be.P_FLOOR, min(be.gumbel_sf(float(excess[j]), blocks), 1.0 / (1.0 + n_eff)))
+    return p
+
+
+@pytest.mark.parametrize("local_windows", [3, 100])
+def test_events_sharing_a_neighbourhood_get_the_scans_pvalues(local_windows):
+    """Events that share their neighbourhood (every one of them where the recording is
+    shorter than it: 100 windows; a few near the ends: 3) count its maxima once, sorted,
+    and get the p-values the per-event scan gave, to the bit (excesses tied with a
+    maximum included)."""
+    abs_e, outside, centres, peak = _null_events(5, n_ev=60)
+    L = int(be.window_lengths(np.array([W]))[0])
+    m_values = np.sort(abs_e[outside])
+    excess = peak.copy()
+    excess[::7] = m_values[-3]  # exactly a sample's value: ">=" counts it
+    excess[::11] = m_values[-1] + 1.0  # beyond every maximum: the Gumbel tail
+    got = be.event_pvalues(abs_e, outside, np.full(centres.size, W), centres, excess, np.ones(centres.size, bool),
+                           local_windows)  # fmt: skip
+    want = _pvalues_by_scan(abs_e, outside, centres, excess, L, local_windows)
+    assert got.tobytes() == want.tobytes()

@@ -27,3 +27,24 @@ def test_residual_time_labels_only_the_held_out_part(tmp_path):
     t_split = D.sig.t_rows[np.flatnonzero(D.design.train_rows)[-1]]
     assert x0 == t_split and x1 > x0 and x0 > t[0] + 0.5 * (t[-1] - t[0])
     assert [tx.get_text().strip() for tx in ax.texts] == ["held out"]
+
+
+def test_a_long_series_is_drawn_as_its_envelope():
+    """Past 2*buckets samples the line is each bucket's minimum and maximum (a gap where
+    the whole bucket is NaN), so a figure draws the same number of points at any length."""
+    from servo.diagnose.plots import envelope
+
+    rng = np.random.default_rng(1)
+    t = np.arange(100_000) * 1e-4
+    y = rng.standard_normal(t.size)
+    y[5000:5100] = np.nan  # one whole bucket (of 100 samples)
+    y[777] = 9.0
+    te, ye = envelope(t, y, buckets=1000)
+    assert te.size == ye.size == 2000
+    lo, hi = ye[0::2], ye[1::2]
+    for b in (0, 15, 99, 999):
+        seg = y[100 * b : 100 * (b + 1)]
+        assert lo[b] == np.nanmin(seg) and hi[b] == np.nanmax(seg) and te[2 * b] == t[100 * b]
+    assert hi[7] == 9.0 and np.isnan(lo[50]) and np.isnan(hi[50])
+    short_t, short_y = envelope(t[:1500], y[:1500], buckets=1000)
+    assert np.array_equal(short_t, t[:1500]) and np.array_equal(short_y, y[:1500])  # short: every sample

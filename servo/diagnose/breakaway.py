@@ -160,8 +160,12 @@ def noise_max(abs_e: np.ndarray, outside: np.ndarray, widths: np.ndarray, sigma:
             continue
         pos = np.flatnonzero(ok)
         need = int(min(LOCAL_WINDOWS * L, pos.size))
+        done: dict = {}  # per neighbourhood: events share one near the ends, or all of them in a short recording
         for j in sel:
-            out[j] = max(float(np.quantile(m[pos[nearest(pos, centres[j], need)]], 1.0 - P_NOISE)), Z_NOISE * sigma)
+            sl = nearest(pos, centres[j], need)
+            if (sl.start, sl.stop) not in done:
+                done[sl.start, sl.stop] = max(float(np.quantile(m[pos[sl]], 1.0 - P_NOISE)), Z_NOISE * sigma)
+            out[j] = done[sl.start, sl.stop]
     return out
 
 
@@ -370,19 +374,33 @@ def still_runs(still: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return np.flatnonzero(d == 1), np.flatnonzero(d == -1)
 
 
-def _toward(f: np.ndarray, v: np.ndarray, rest: np.ndarray, s: int, i: int) -> bool:
+def rest_neighbours(rest: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """``(last, first_move)`` ((n,) int each) of the rest marks ``rest`` ((n,) bool,
+    :func:`marks`): ``last[i]`` the latest sample at or before ``i`` at rest (-1: none),
+    ``first_move[k]`` the first sample at or after ``k`` not at rest (``n``: none).  Two
+    running extrema, so that every event's :func:`_toward` is a lookup rather than a scan
+    of the rest of the recording."""
+    n = rest.size
+    idx = np.arange(n)
+    last = np.maximum.accumulate(np.where(rest, idx, -1))
+    first_move = np.minimum.accumulate(np.where(rest, n, idx)[::-1])[::-1]
+    return last, first_move
+
+
+def _toward(f: np.ndarray, v: np.ndarray, near: tuple[np.ndarray, np.ndarray], s: int, i: int) -> bool:
     """Whether the peak held force ``f[i]`` of the event starting at ``s`` is a breakaway:
     it comes at or after a sample at rest, and points where the arm moves when it leaves
-    the last rest before it.  A force that peaks while the arm still approaches a
-    reversal (a lag or a hysteresis the model has wrong) is not one."""
-    prev = np.flatnonzero(rest[s : i + 1])
-    if prev.size == 0:
+    the last rest before it (``near``: :func:`rest_neighbours` of the rest marks).  A
+    force that peaks while the arm still approaches a reversal (a lag or a hysteresis the
+    model has wrong) is not one."""
+    last, first_move = near
+    r = int(last[i])
+    if r < s:
         return False
-    r = s + int(prev[-1])
-    nxt = np.flatnonzero(~rest[r:])
-    if nxt.size == 0:
+    k = int(first_move[r])
+    if k >= f.size:
         return False
-    return bool(np.sign(f[i]) == np.sign(v[r + int(nxt[0])]))
+    return bool(np.sign(f[i]) == np.sign(v[k]))
 
 
 @lru_cache(maxsize=16)
@@ -478,11 +496,12 @@ def test(design, fit, step: float = 0.0) -> Result:
     peak, toward = np.zeros(a.size), np.zeros(a.size, bool)
     runs = still_runs(np.abs(sig.vf) <= sig.v_threshold)
     hold = REST_MIN * fs / sig.settings.cutoff(fs)
+    near = rest_neighbours(rest)
     for j, (s, s_, e_) in enumerate(zip(a, da, db)):
         i = s_ + int(np.argmax(np.abs(f[s_:e_])))
         peak[j] = abs(f[i])
         # a peak held inside a rest counts whichever way the arm then moves (_held)
-        toward[j] = _toward(f, sig.vf, rest, s, i) or _held(runs, i, hold)
+        toward[j] = _toward(f, sig.vf, near, s, i) or _held(runs, i, hold)
     still = dwell(sig, a, b, runs) >= hold
     last = int(np.flatnonzero(design.train_samples)[-1])
     train = b <= last
@@ -513,5 +532,5 @@ def test(design, fit, step: float = 0.0) -> Result:
 
 
 __all__ = ["Events", "MIN_EVENTS", "Result", "applicable", "events", "filter_l1", "held_force", "marks", "noise_max", "sliding_sign", "step_pulse", "dwell",
-           "departures", "still_runs",
+           "departures", "rest_neighbours", "still_runs",
            "test"]

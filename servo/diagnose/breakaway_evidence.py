@@ -53,6 +53,8 @@ truncated product's 8e-5; docs/studies/2026-11-24-karnopp-per-event-evidence.md)
 """
 from __future__ import annotations
 
+from collections import Counter
+
 import numpy as np
 from scipy import special, stats
 from scipy.ndimage import maximum_filter1d
@@ -120,11 +122,25 @@ def event_pvalues(abs_e: np.ndarray, outside: np.ndarray, widths: np.ndarray, ce
                 p[j] = max(union_bound(float(excess[j]), zo, int(L)), P_FLOOR)
             continue
         need = int(min(local_windows * L, pos.size))
-        for j in sel:
-            loc = m[pos[nearest(pos, centres[j], need)]]
+        hoods = [nearest(pos, centres[j], need) for j in sel]
+        # events that share a neighbourhood (near the ends; every event of a recording
+        # shorter than the neighbourhood) count their maxima in it sorted once
+        shared = Counter((h.start, h.stop) for h in hoods)
+        kept: dict = {}
+        for j, h in zip(sel, hoods):
+            key = (h.start, h.stop)
             x = float(excess[j])
+            if shared[key] > 1:
+                if key not in kept:
+                    loc = m[pos[h]]
+                    kept[key] = loc, np.sort(loc)
+                loc, ordered = kept[key]
+                above = loc.size - int(np.searchsorted(ordered, x, side="left"))
+            else:
+                loc = m[pos[h]]
+                above = int(np.count_nonzero(loc >= x))
             n_eff = loc.size / L  # about as many independent windows
-            emp = float(np.count_nonzero(loc >= x)) / loc.size
+            emp = float(above) / loc.size
             if emp > 0:
                 p[j] = min(1.0, (1.0 + n_eff * emp) / (1.0 + n_eff))
             else:  # beyond every window of the neighbourhood: the Gumbel tail, within (P_FLOOR, 1/(1 + n_eff))

@@ -184,12 +184,15 @@ class RunLog:
         if self.rows >= self.block_rows:
             self._hand_over()
 
-    def flush(self) -> None:
-        """Hand over what is recorded and wait until the journal holds it, synced.
-        Raises :class:`JournalError` (once) if the journal could not be written."""
+    def flush(self, wait: bool = True) -> None:
+        """Hand over what is recorded and wait until the journal holds it, synced
+        (``wait=False``: do not wait; the writer journals it while the caller goes on, and
+        :meth:`close` waits).  Raises :class:`JournalError` (once) if the journal could not
+        be written."""
         if self.rows:
             self._hand_over()
-        self._writer.todo.join()
+        if wait:
+            self._writer.todo.join()
         self._check()
 
     def _hand_over(self) -> None:

@@ -28,7 +28,6 @@ from servo.io import progress
 from servo.io.atomic import atomic_write, write_json
 from servo.io.resources import check_disk
 from servo.io.runlog import FORMATS, RunLog
-from servo.run import plots
 from servo.run.metrics import tick_timing
 from servo.run.reduce import PesReport, PlotRows, RunFigures
 from servo.run.realtime import REALTIME_LOG_BLOCK, RealtimeOptions, check_realtime, grant_line, lateness_line, make_pacer, plot_lateness, report
@@ -159,6 +158,8 @@ def run_job(cfg: Config, out_dir: Path, compensation: str = "compare", fast: boo
             startup = None if age is None else age - (time.perf_counter() - results[label].started)
         runs[label] = summarise(cfg, figures, results[label])
     progress.stage("plots")
+    from servo.run import plots  # matplotlib: after the runs, not before the first tick
+
     plots.plot_run(cfg, plot_logs, results, out_dir)
     if realtime is not None:
         plot_lateness(cfg, {k: r.lateness for k, r in results.items()}, out_dir / "lateness.png")

@@ -30,7 +30,7 @@ class MemoryLog:
     def maybe_flush(self) -> None:
         pass
 
-    def flush(self) -> None:
+    def flush(self, wait: bool = True) -> None:
         pass
 
     def as_dict(self) -> dict[str, np.ndarray]:

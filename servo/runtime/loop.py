@@ -107,7 +107,7 @@ def run_closed_loop(
             driver.deactivate()
             if pacer is not None:
                 pacer.finish()
-            log.flush()
+            log.flush(wait=False)  # the last rows to the journal's writer; closing the log waits for the disk
         return LoopResult(cfg.n_ticks, fast, stats, durations, time.perf_counter() - t0, started=t0)
 
 

@@ -23,7 +23,6 @@ Which to choose:
 from __future__ import annotations
 
 import numpy as np
-from scipy import signal
 
 from servo.errors import ConfigError
 
@@ -56,6 +55,8 @@ def chirp(n: int, dt: float, f0: float, f1: float, amplitude: float = 1.0, metho
     _nyquist_check(dt, f0, f1)
     t = np.arange(n) * dt
     t1 = max(t[-1], dt)
+    from scipy import signal  # imported where used: a run without a chirp or a PRBS starts without it
+
     return amplitude * signal.chirp(t, f0=f0, t1=t1, f1=f1, method=method)
 
 
@@ -113,6 +114,8 @@ def prbs(n: int, dt: float, amplitude: float = 1.0, nbits: int = 10, hold: int =
         raise ExcitationError(f"hold must be a positive whole number of samples, got {hold!r}")
     if int(nbits) != nbits or not 2 <= nbits <= 32:
         raise ExcitationError(f"nbits must be a whole number in [2, 32], got {nbits!r}")
+    from scipy import signal
+
     bits = signal.max_len_seq(int(nbits), state=state)[0]
     one = np.repeat(np.where(bits > 0, amplitude, -amplitude), int(hold)).astype(float)
     return np.resize(one, n)

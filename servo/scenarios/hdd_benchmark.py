@@ -2,13 +2,17 @@
 force disturbance (:mod:`servo.hdd.disturbances`)."""
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 from servo.errors import ConfigError
-from servo.hdd.disturbances import Disturbances, generate
 from servo.scenarios.base import ArrayInputs, Inputs, ScenarioKind
+
+if TYPE_CHECKING:
+    from servo.hdd.disturbances import Disturbances
 
 
 class BenchmarkInputs(ArrayInputs):
-    """A run's inputs (:class:`~servo.scenarios.base.Inputs`) from :class:`Disturbances`:
+    """A run's inputs (:class:`~servo.scenarios.base.Inputs`) from :class:`~servo.hdd.disturbances.Disturbances`:
     reference ``-(RRO + flutter)`` held between PES samples; the force disturbance as the
     excitation current (``force_as="excitation"``, the default: added to the controller's
     command, it goes through the input delay and excites the flexible modes, as the
@@ -30,6 +34,8 @@ class HddBenchmark(ScenarioKind):
 
     @classmethod
     def inputs(cls, cfg) -> Inputs:
+        from servo.hdd.disturbances import generate  # scipy.signal: imported when the kind is run, not registered
+
         try:
             dist = generate(cfg.n_ticks, cfg.scenario.hdd_version, seed=cfg.run.seed, fs=cfg.run.sample_rate_hz)
         except ValueError as exc:

@@ -3,7 +3,6 @@ force disturbance, and the excitation current of ``scenario.excitation``."""
 from __future__ import annotations
 
 import numpy as np
-from scipy import signal
 
 from servo.errors import ConfigError
 from servo.scenarios import excitation as excite
@@ -53,8 +52,10 @@ class ScenarioInputs(Inputs):
             return np.zeros(ticks.shape)
         k = ticks - self.exc_start
         if self.kind == "chirp":
+            from scipy.signal import chirp  # scipy.signal is 0.7 s of a run's start: only a chirp needs it
+
             s = self.s
-            u = s.excitation_amplitude * signal.chirp(k * self.dt, f0=s.excitation_f_min, t1=self.sweep_s,
+            u = s.excitation_amplitude * chirp(k * self.dt, f0=s.excitation_f_min, t1=self.sweep_s,
                                                       f1=s.excitation_f_max, method="logarithmic")  # fmt: skip
         else:
             u = self.period[np.maximum(k, 0) % self.period.shape[0]]

@@ -1,0 +1,93 @@
+"""Benchmark: a diagnosis grows linearly with the recording.
+
+One recording of the null drive (:func:`servo.diagnose.concealed.concealed_recording`)
+is simulated once at :data:`SIZES`'s largest length; the diagnosis runs on its first
+1e5, 1e6 and 3e6 samples (prefixes of one recording: the same motion and the same
+statistics, only more of them).  A stage that scans the rest of the recording for
+every event (what the breakaway test's ``_toward`` did before 2026-11-26: 0.36 s at
+1e6 samples, 3.2 s at 3e6) makes the time grow faster than the samples.
+
+What is asserted is an exponent measured in a form a busy neighbour does not break:
+each diagnosis's seconds over a reference workload on the same prefix timed just before
+and after it (four columns decimated by a zero-phase Chebyshev filter, linear in the
+samples), so that a load that comes and goes between sizes cancels; the exponent is
+``1 +`` the least-squares slope of ``log(seconds/reference)`` against ``log(samples)``.
+It must not exceed :data:`EXPONENT_MAX`.  Run with ``python -m pytest
+bench/test_diagnose_scaling.py -s``.  It took 3.5 min at load 12-18 on the 2 cores (the
+simulation of 3e6 samples, then diagnoses of 3, 38 and 127 s); not yet timed idle.  It
+is in the slow tier.
+
+At these lengths it does not catch the quadratic ``_toward`` it was written after: that
+stage was ~12 % of the time at 3e6 samples, and the fixed costs at 1e5 pull the fitted
+exponent below 1 (0.95 measured); it guards against a stage that grows faster than that.
+"""
+import time
+
+import numpy as np
+import pytest
+from scipy import signal
+
+from servo.diagnose.concealed import Scenario, concealed_recording
+from servo.diagnose.job import diagnose
+from servo.io.recording import Recording
+
+SIZES = (100_000, 1_000_000, 3_000_000)
+EXPONENT_MAX = 1.1
+"""The exponent of the issue's goal: a diagnosis linear in the samples, within 10 %."""
+
+
+@pytest.fixture(scope="module")
+def recording():
+    rec, _ = concealed_recording(None, 0.0, seed=3, scenario=Scenario(duration_s=SIZES[-1] / 50_000))
+    assert rec.n == SIZES[-1]
+    return rec
+
+
+def _prefix(rec: Recording, n: int) -> Recording:
+    return Recording(rec.t[:n], rec.u[:n], rec.x[:n], None, source=f"{rec.source}[:{n}]")
+
+
+#: the reference's filter, designed once: ``scipy.signal.decimate`` designs it on every call
+#: (25 ms of fixed cost, which made the reference grow 4.3x from 1e5 to 1e6 samples)
+REFERENCE_SOS = signal.cheby1(8, 0.05, 0.8 / 10, output="sos")
+
+
+def _reference_s(rec: Recording) -> float:
+    """Seconds of four full-rate columns through a zero-phase Chebyshev filter and
+    decimated by 10 (the rows' operation, linear in the samples)."""
+    t0 = time.perf_counter()
+    for c in (rec.u, rec.x, rec.u, rec.x):
+        signal.sosfiltfilt(REFERENCE_SOS, np.asarray(c, float))[::10].copy()
+    return time.perf_counter() - t0
+
+
+def exponent(samples, seconds, reference) -> float:
+    """``1 +`` the least-squares slope of ``log(seconds/reference)`` on ``log(samples)``."""
+    return 1.0 + float(np.polyfit(np.log(samples), np.log(np.asarray(seconds) / np.asarray(reference)), 1)[0])
+
+
+def test_exponent_of_a_linear_and_a_quadratic_cost():
+    """The exponent reads 1 for a cost proportional to the samples, 2 for the square."""
+    n = np.array(SIZES, float)
+    assert exponent(n, 3e-6 * n, 1e-7 * n) == pytest.approx(1.0)
+    assert exponent(n, 1e-12 * n**2, 1e-7 * n) == pytest.approx(2.0)
+
+
+@pytest.mark.slow
+def test_diagnosis_is_linear_in_the_samples(recording, record):
+    diagnose(_prefix(recording, 20_000))  # the first call's one-time costs (filter designs, kernels) out of the way
+    seconds, reference = [], []
+    for n in SIZES:
+        rec = _prefix(recording, n)
+        before = _reference_s(rec)
+        t0 = time.perf_counter()
+        diagnose(rec)
+        seconds.append(time.perf_counter() - t0)
+        reference.append(0.5 * (before + _reference_s(rec)))
+    k = exponent(SIZES, seconds, reference)
+    record.check("diagnose_exponent", exponent=k, exponent_max=EXPONENT_MAX, samples=list(SIZES), seconds=seconds,
+                 reference_s=reference)  # fmt: skip
+    print("\ndiagnose: " + ", ".join(f"{n:.0e} samples {s:.2f} s (reference {r:.3f} s)"
+                                     for n, s, r in zip(SIZES, seconds, reference))
+          + f"; exponent {k:.3f} (bound {EXPONENT_MAX:g})")  # fmt: skip
+    assert k <= EXPONENT_MAX, f"the diagnosis grows as samples^{k:.2f}"
