@@ -329,9 +329,48 @@ def _check_consistency(cfg: Config) -> None:
                           "needs the commands of the frame before)")
     if abs(d.initial_position) >= d.stroke:
         raise ConfigError("config: drive.initial_position must lie inside +-drive.stroke")
+    _check_physics(cfg)
     from servo.controllers import KINDS
 
     KINDS[cfg.controller.kind].check(cfg.controller.section, cfg)  # only the kind that runs
+
+
+def _check_physics(cfg: Config) -> None:
+    """Values each within its range whose combination makes a run's result meaningless:
+    refused with the reason (docs/config.md, "Checks across fields")."""
+    d, s = cfg.drive, cfg.scenario
+    nyquist = cfg.run.sample_rate_hz / 2
+    if d.position_quantum >= d.stroke:
+        raise ConfigError(f"config: drive.position_quantum = {d.position_quantum:g} m is not below drive.stroke = "
+                          f"{d.stroke:g} m: every measured position would be one of a few levels")  # fmt: skip
+    stiffness = abs(d.K) + d.sigma  # the rigid body's spring at a turnaround: bias plus pre-sliding
+    f_n = math.sqrt(stiffness / d.J) / (2 * math.pi)
+    if f_n >= nyquist:
+        raise ConfigError(f"config: drive.J = {d.J:g} A*s^2/m with drive.K = {d.K:g} and drive.sigma = {d.sigma:g} A/m "
+                          f"puts the arm's natural frequency at {f_n:.3g} Hz, at or above Nyquist ({nyquist:g} Hz): "
+                          "no run at run.sample_rate_hz can resolve it")  # fmt: skip
+    if s.kind == "steps" and s.disturbance_amplitude > 0 and s.disturbance_hz >= nyquist:
+        raise ConfigError(f"config: scenario.disturbance_hz = {s.disturbance_hz:g} is at or above Nyquist ({nyquist:g} Hz): "
+                          "sampled at this rate it vanishes or aliases")  # fmt: skip
+    if s.kind != "steps" or s.excitation == "none":
+        return
+    used = ("excitation_f_max",) if s.excitation == "prbs" else ("excitation_f_min", "excitation_f_max")
+    for key in used:
+        f = getattr(s, key)
+        if f >= nyquist:
+            raise ConfigError(f"config: scenario.{key} = {f:g} is at or above Nyquist ({nyquist:g} Hz) for a "
+                              f"{s.excitation} excitation")  # fmt: skip
+    if s.excitation == "multisine" and s.excitation_f_min > s.excitation_f_max:
+        raise ConfigError(f"config: scenario.excitation_f_min = {s.excitation_f_min:g} is above excitation_f_max = "
+                          f"{s.excitation_f_max:g} Hz")  # fmt: skip
+    if s.excitation != "prbs":
+        return
+    from servo.scenarios.excitation import PRBS_BIT_HZ  # imported when first needed: the kinds load scipy
+
+    if PRBS_BIT_HZ / s.excitation_f_max > s.excitation_period:
+        raise ConfigError(f"config: scenario.excitation_f_max = {s.excitation_f_max:g} Hz: a prbs flat to it holds each "
+                          f"bit {PRBS_BIT_HZ / s.excitation_f_max:.3g} s, longer than scenario.excitation_period = "
+                          f"{s.excitation_period:g} s; raise it to at least {PRBS_BIT_HZ / s.excitation_period:.3g} Hz")  # fmt: skip
 
 
 def load_config(path: str | Path | None = None) -> Config:
