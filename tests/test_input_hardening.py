@@ -87,3 +87,173 @@ def test_recover_refuses_a_file_not_named_journal(tmp_path, capsys):
     rc = main(["recover", str(path)])
     _one_line_error(capsys, rc)
     assert path.read_bytes() == before
+
+
+# -- nonsense a run accepted, refused where the config is validated --------------------
+
+from servo.config import Config, from_dict, to_dict  # noqa: E402
+from servo.errors import ConfigError  # noqa: E402
+
+
+def _cfg(**sections):
+    data = to_dict(Config())
+    for name, values in sections.items():
+        data[name].update(values)
+    return from_dict(data)
+
+
+NONSENSE = {
+    "a quantum beyond the stroke": (dict(drive=dict(position_quantum=1.0)), "drive.position_quantum"),
+    "a quantum equal to the stroke": (dict(drive=dict(position_quantum=15e-3)), "drive.position_quantum"),
+    "a disturbance at Nyquist": (dict(scenario=dict(disturbance_hz=25000.0)), "scenario.disturbance_hz"),
+    "a disturbance above Nyquist": (dict(scenario=dict(disturbance_hz=40000.0)), "scenario.disturbance_hz"),
+    "a prbs above Nyquist": (dict(scenario=dict(excitation="prbs", excitation_f_max=30000.0)), "excitation_f_max"),
+    "a chirp from above Nyquist": (dict(scenario=dict(excitation="chirp", excitation_f_min=26000.0)), "excitation_f_min"),
+    "a multisine band upside down": (dict(scenario=dict(excitation="multisine", excitation_f_min=3000.0,
+                                                        excitation_f_max=2000.0)), "excitation_f_min"),  # fmt: skip
+    "a prbs bit longer than its period": (dict(scenario=dict(excitation="prbs", excitation_f_max=2e-4)), "excitation_f_max"),
+    "a natural frequency of 5 GHz": (dict(drive=dict(J=1e-9, K=1e12)), "natural frequency"),
+    "a pre-sliding stiffness beyond Nyquist": (dict(drive=dict(J=1e-9)), "natural frequency"),
+}
+
+
+@pytest.mark.parametrize("case", list(NONSENSE))
+def test_the_config_refuses_values_that_make_a_result_meaningless(case):
+    """Issue 28: a quantum beyond the stroke reported "hold 0.0 nm", a disturbance at
+    Nyquist vanished, PRBS above Nyquist ran, J = 1e-9 with K = 1e12 reported a 1.69 m
+    error on a 15 mm stroke, f_max = 2e-4 Hz for a PRBS took 5.4 GB; all with exit 0."""
+    sections, named = NONSENSE[case]
+    with pytest.raises(ConfigError, match=named.replace(".", r"\.")):
+        _cfg(**sections)
+
+
+def test_the_physics_checks_leave_sensible_configs_alone():
+    _cfg(drive=dict(position_quantum=1e-6, J=1e-6), scenario=dict(disturbance_hz=24000.0))
+    _cfg(scenario=dict(excitation="prbs", excitation_f_max=4.4, excitation_period=0.1))
+    _cfg(scenario=dict(kind="hdd_benchmark", disturbance_hz=1e5, excitation="prbs", excitation_f_max=1e5))  # unused there
+
+
+RUN_REFUSED = {
+    "hdd at a rate it does not divide": ["--set", "scenario.kind=hdd_benchmark"],
+    "a multisine with no line in its band": ["--set", "scenario.excitation=multisine", "--set", "scenario.excitation_f_min=11",
+                                             "--set", "scenario.excitation_f_max=12"],  # fmt: skip
+    "a holding current beyond the limit": ["--set", "drive.initial_position=0.014", "--set", "drive.K=100"],
+    "a chirp above Nyquist": ["--set", "scenario.excitation=chirp", "--set", "scenario.excitation_f_max=30000"],
+    "an excitation period too long": ["--set", "scenario.excitation=multisine", "--set", "scenario.excitation_period=9.9",
+                                      "--set", "run.sample_rate_hz=200000"],  # fmt: skip
+}
+
+
+@pytest.mark.parametrize("case", list(RUN_REFUSED))
+def test_a_refused_run_leaves_no_folder(tmp_path, capsys, case):
+    """Issue 28: errors found after the output folder was made left OUT.incomplete/ with
+    only config.toml ("recorded data kept"), and the next run with that --out was refused."""
+    out = tmp_path / "o"
+    rc = main(["run", "--quiet", "--duration", "0.02", "--compensation", "on", "--out", str(out), *RUN_REFUSED[case]])
+    err = _one_line_error(capsys, rc)
+    assert "kept" not in err and err.startswith("servo: error: config: ")
+    assert list(tmp_path.iterdir()) == []
+
+
+# -- memory set by a file's content, checked before it is allocated --------------------
+
+import zipfile  # noqa: E402
+
+from servo.io import tables  # noqa: E402
+
+MAX_SAMPLES = getattr(tables, "MAX_SAMPLES", 1 << 25)
+#: Peak resident memory (MB) a load of these small recordings may take: the imports
+#: (numpy, scipy, h5py) and the three used columns; each file below would take more
+#: than twice this if its unused or bogus part were read.
+PEAK_MB = 200
+BIG = 1 << 25  # values in the unused column: 268 MB as float64
+
+
+def _peak_mb_loading(path, columns=None):
+    """Load ``path`` in a fresh interpreter: (peak resident MB, the error line or "")."""
+    code = ("import resource, sys\nfrom servo.io.recording import load_recording\nfrom servo.errors import ServoError\n"
+            f"try:\n    load_recording({str(path)!r}, {columns!r}); err = ''\n"
+            "except ServoError as exc:\n    err = str(exc)\n"
+            "print(resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024); print(err)")  # fmt: skip
+    r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, cwd=os.getcwd(),
+                       env={**os.environ, "PYTHONPATH": os.getcwd()})  # fmt: skip
+    assert r.returncode == 0, r.stderr
+    peak, err = r.stdout.split("\n", 1)
+    return float(peak), err.strip()
+
+
+def _small_columns(n=200):
+    t = np.arange(n) * 1e-3
+    return {"t": t, "u": np.sin(t), "x": np.cos(t)}
+
+
+def _npz_with_zeros(path, columns, name, n):
+    """An NPZ of ``columns`` plus a compressed column ``name`` of ``n`` zeros, written in
+    blocks (the file is a few hundred kB)."""
+    np.savez_compressed(path, **columns)
+    with zipfile.ZipFile(path, "a", compression=zipfile.ZIP_DEFLATED) as zf, zf.open(f"{name}.npy", "w", force_zip64=True) as f:
+        np.lib.format.write_array_header_1_0(f, {"descr": "<f8", "fortran_order": False, "shape": (n,)})
+        block = bytes(1 << 22)
+        for _ in range(n * 8 // len(block)):
+            f.write(block)
+    return path
+
+
+def test_an_unused_column_of_an_npz_is_never_read(tmp_path):
+    """Issue 28: a 3.8 MB NPZ with an unused 3 GB column took 3.2 GB."""
+    path = _npz_with_zeros(tmp_path / "r.npz", _small_columns(), "camera", BIG)
+    assert path.stat().st_size < 5e6
+    peak, err = _peak_mb_loading(path)
+    assert err == "" and peak < PEAK_MB, (peak, err)
+
+
+def test_an_unused_dataset_of_an_hdf5_file_is_never_read(tmp_path):
+    """Issue 28: a 1.2 MB HDF5 file with an unused 3 GB column took 3.2 GB."""
+    import h5py
+
+    path = tmp_path / "r.h5"
+    with h5py.File(path, "w") as f:
+        for k, v in _small_columns().items():
+            f[k] = v
+        f.create_dataset("scope/raw", shape=(BIG,), dtype="f8", chunks=(1 << 16,), compression="gzip")  # all fill value
+    assert path.stat().st_size < 5e6
+    peak, err = _peak_mb_loading(path)
+    assert err == "" and peak < PEAK_MB, (peak, err)
+
+
+def test_a_used_column_larger_than_the_budget_is_refused_from_its_declared_shape(tmp_path, capsys):
+    """A column declaring more than MAX_SAMPLES values: one line naming it and the limit,
+    before its data are read (this file holds none of them)."""
+    path = tmp_path / "r.npz"
+    np.savez(path, **_small_columns())
+    with zipfile.ZipFile(path, "a") as zf, zf.open("v.npy", "w") as f:
+        np.lib.format.write_array_header_1_0(f, {"descr": "<f8", "fortran_order": False, "shape": (10**10,)})
+    peak, err = _peak_mb_loading(path)
+    assert f"column 'v' holds {10**10} values" in err and str(MAX_SAMPLES) in err, err
+
+
+def test_a_text_recording_with_no_newline_is_refused_after_one_bounded_line(tmp_path):
+    """Issue 28: a 2 GB CSV with no newline took 4.2 GB (its first "line" read whole)."""
+    path = tmp_path / "r.csv"
+    with open(path, "w") as fh:
+        chunk = "1," * (1 << 20)
+        for _ in range(128):  # 268 MB of "1,1,1,..." and no newline
+            fh.write(chunk)
+    peak, err = _peak_mb_loading(path)
+    assert "line 1: longer than" in err and peak < PEAK_MB, (peak, err)
+
+
+def test_a_header_only_csv_is_one_line_that_says_so(tmp_path):
+    """Issue 28: a header-only CSV printed a two-line numpy warning, then "column 't' is
+    not numeric"."""
+    import warnings
+
+    from servo.errors import RecordingError
+    from servo.io.recording import load_recording
+
+    path = tmp_path / "r.csv"
+    path.write_text("# exported\nt,u,x\n\n")
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # a warning would be printed before the error line
+        with pytest.raises(RecordingError, match="a header row .t, u, x. and no rows of numbers"):
+            load_recording(path)

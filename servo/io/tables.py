@@ -19,17 +19,34 @@ the roles ``t, u, x, v, r`` and validates.  Every problem is one
   variables are left out.
 * **HDF5** (``.h5``, ``.hdf5``): every numeric dataset, named by its path without the
   leading ``/`` (``group/dataset``).
+
+Memory follows what a tool asks for, never what the file holds: only the named columns
+a tool reads are loaded from NPZ, MATLAB and HDF5 files (an unused column of any size
+costs nothing), each checked against :data:`MAX_SAMPLES` from its declared shape before
+it is read; text is parsed whole, each line at most :data:`MAX_LINE_CHARS` characters
+and the table at most :data:`MAX_TEXT_VALUES` values; and a compressed MATLAB variable is
+inflated to at most :data:`MAX_INFLATED_BYTES` (docs/robustness.md).
 """
 from __future__ import annotations
 
 import csv
 import io
 import re
+import warnings
 from pathlib import Path
 
 import numpy as np
 
 from servo.errors import RecordingError, first_line
+
+#: Most samples a column may hold (11 minutes at 50 kHz; 268 MB as float64).
+MAX_SAMPLES = 1 << 25
+#: Most characters a line of a text recording may hold (a header of ~5000 names).
+MAX_LINE_CHARS = 1 << 16
+#: Most values a text recording may hold, all columns (every one is parsed; 1.07 GB).
+MAX_TEXT_VALUES = 4 * MAX_SAMPLES
+#: Most bytes a compressed MATLAB variable may inflate to (any column of MAX_SAMPLES).
+MAX_INFLATED_BYTES = 8 * MAX_SAMPLES + (1 << 20)
 
 TEXT_SUFFIXES = (".csv", ".tsv", ".txt", ".dat")
 HDF5_SUFFIXES = (".h5", ".hdf5", ".he5")
@@ -38,29 +55,33 @@ _UNIT = re.compile(r"^(?P<name>.*?)\s*(?:\[(?P<u1>[^\]]*)\]|\((?P<u2>[^)]*)\))$"
 
 
 class Table(dict):
-    """``{name: array}`` with ``units`` (``{name: unit}``, from text headers) and the
-    ``format`` it was read from."""
+    """``{name: array}`` of the columns read, with ``names`` (every column of the file,
+    read or not), ``units`` (``{name: unit}``, from text headers) and the ``format`` it
+    was read from."""
 
-    def __init__(self, data=(), units: dict | None = None, format: str = ""):
+    def __init__(self, data=(), units: dict | None = None, format: str = "", names=None):
         super().__init__(data)
         self.units = dict(units or {})
         self.format = format
+        self.names = list(self if names is None else names)
 
 
-def read_table(path: str | Path) -> Table:
-    """The named columns of ``path`` (format from the suffix; see the module docstring)."""
+def read_table(path: str | Path, wanted=None) -> Table:
+    """The named columns of ``path`` (format from the suffix; see the module docstring):
+    those in ``wanted`` (None: all), each checked against :data:`MAX_SAMPLES` before it
+    is read; ``Table.names`` lists every column of the file."""
     path = Path(path)
     suffix = path.suffix.lower()
+    wanted = None if wanted is None else set(wanted)
     try:
         if suffix in TEXT_SUFFIXES:
-            return _read_text(path)
+            return _read_text(path, wanted)
         if suffix == ".npz":
-            with np.load(path, allow_pickle=False) as z:
-                return Table({k: np.asarray(z[k]) for k in z.files}, format="npz")
+            return _read_npz(path, wanted)
         if suffix == ".mat":
-            return _read_mat(path)
+            return _read_mat(path, wanted)
         if suffix in HDF5_SUFFIXES:
-            return _read_hdf5(path, sep="/", fmt="hdf5")
+            return _read_hdf5(path, sep="/", fmt="hdf5", wanted=wanted)
     except RecordingError:
         raise
     except FileNotFoundError:
@@ -74,7 +95,40 @@ def read_table(path: str | Path) -> Table:
     raise RecordingError(f"recording: {path}: unknown format {suffix!r} (use {known}; export spreadsheets as CSV)")
 
 
+def _check_size(path: Path, name: str, shape) -> None:
+    """Refuse a column whose declared shape holds more than :data:`MAX_SAMPLES` values."""
+    size = int(np.prod(shape, dtype=object))
+    if size > MAX_SAMPLES:
+        raise RecordingError(f"recording: {path}: column {name!r} holds {size} values ({'x'.join(map(str, shape))}), "
+                             f"more than the {MAX_SAMPLES} a column may hold")  # fmt: skip
+
+
+def _read_npz(path: Path, wanted) -> Table:
+    out = {}
+    with np.load(path, allow_pickle=False) as z:
+        for k in z.files:
+            if wanted is not None and k not in wanted:
+                continue
+            with z.zip.open(f"{k}.npy") as f:  # its header: the shape, before the data is read
+                major, minor = np.lib.format.read_magic(f)
+                read = np.lib.format.read_array_header_1_0 if major == 1 else np.lib.format.read_array_header_2_0
+                shape, _, _ = read(f)
+            _check_size(path, k, shape)
+            out[k] = np.asarray(z[k])
+        return Table(out, format="npz", names=z.files)
+
+
 # -- delimited text ------------------------------------------------------------------
+
+
+def _lines(fh, path: Path, lineno: int):
+    """The lines of ``fh`` from line ``lineno + 1`` on, each at most :data:`MAX_LINE_CHARS`
+    characters (a longer one is refused, never read whole)."""
+    while line := fh.readline(MAX_LINE_CHARS + 1):
+        lineno += 1
+        if len(line) > MAX_LINE_CHARS:
+            raise RecordingError(f"recording: {path} line {lineno}: longer than {MAX_LINE_CHARS} characters")
+        yield line
 
 
 def _encoding(path: Path) -> str:
@@ -135,11 +189,11 @@ def _number(s: str) -> bool:
         return False
 
 
-def _read_text(path: Path) -> Table:
+def _read_text(path: Path, wanted=None) -> Table:  # noqa: ARG001  (text is parsed whole)
     enc = _encoding(path)
     with open(path, encoding=enc, newline="") as fh:
         lineno, header, comment = 0, None, None
-        while line := fh.readline():
+        for line in _lines(fh, path, 0):
             lineno += 1
             if not _is_comment(line):
                 header = line.rstrip("\r\n")
@@ -150,7 +204,7 @@ def _read_text(path: Path) -> Table:
             raise RecordingError(f"recording: {path} is empty")
         start = fh.tell()
         first = None
-        while line := fh.readline():
+        for line in _lines(fh, path, lineno):
             if not _is_comment(line):
                 first = line.rstrip("\r\n")
                 break
@@ -163,23 +217,34 @@ def _read_text(path: Path) -> Table:
                 fields, start, lineno = _split(comment, cdelim), None, lineno - 1
         trailing = len(fields) > 1 and not fields[-1].strip()  # "t,u,x," as some exporters write
         names, units = _names(fields[:-1] if trailing else fields, path)
+        if first is None and start is not None:
+            raise RecordingError(f"recording: {path}: a header row ({', '.join(names)}) and no rows of numbers")
         comma = delim not in (",", None) and first is not None and "," in first
         if start is None:
             fh.seek(0)
             for _ in range(lineno):
-                fh.readline()
+                fh.readline(MAX_LINE_CHARS + 1)  # lines read once already: within the bound
         else:
             fh.seek(start)
-        src = (line.replace(",", ".") for line in fh) if comma else fh
+        lines = _lines(fh, path, lineno)
+        src = (line.replace(",", ".") for line in lines) if comma else lines
+        ncol = len(names)
+        max_rows = max(1, min(MAX_SAMPLES, MAX_TEXT_VALUES // ncol))  # every column is read: a row is checked whole
         try:
-            data = np.loadtxt(src, delimiter=delim, comments="#", quotechar='"', ndmin=2, dtype=float,
-                              usecols=range(len(names)) if trailing else None)  # fmt: skip
+            with warnings.catch_warnings():  # "input contained no data": said below in one line
+                warnings.simplefilter("ignore", UserWarning)
+                data = np.loadtxt(src, delimiter=delim, comments="#", quotechar='"', ndmin=2, dtype=float,
+                                  usecols=range(ncol) if trailing else None, max_rows=max_rows + 1)  # fmt: skip
         except ValueError:
             data = None
-    ncol = len(names)
     if data is None or (data.size and data.shape[1] != ncol):
         _first_bad_line(path, enc, lineno, delim, comma, ncol, trailing)
         raise RecordingError(f"recording: {path}: not a table of numbers with {ncol} columns")
+    if data.shape[0] > max_rows:
+        raise RecordingError(f"recording: {path}: more than {max_rows} rows of {ncol} columns, the most a text "
+                             f"recording may hold ({MAX_TEXT_VALUES} values); convert it to NPZ or HDF5")  # fmt: skip
+    if data.size == 0:
+        raise RecordingError(f"recording: {path}: a header row ({', '.join(names)}) and no rows of numbers")
     data = data.reshape(-1, ncol)
     return Table({n: data[:, i] for i, n in enumerate(names)}, units, format="text")
 
@@ -188,7 +253,7 @@ def _first_bad_line(path, enc, header_line, delim, comma, ncol, trailing=False) 
     """Raise the error of the first line that is not ``ncol`` numbers (then an empty
     field if ``trailing``): the slow path, taken only when ``numpy.loadtxt`` failed."""
     with open(path, encoding=enc, newline="") as fh:
-        for lineno, line in enumerate(fh, start=1):
+        for lineno, line in enumerate(_lines(fh, path, 0), start=1):
             if lineno <= header_line or _is_comment(line):
                 continue
             text = line.split("#", 1)[0].rstrip("\r\n")
@@ -205,19 +270,28 @@ def _first_bad_line(path, enc, header_line, delim, comma, ncol, trailing=False) 
 # -- MATLAB and HDF5 -----------------------------------------------------------------
 
 
-def _read_mat(path: Path) -> Table:
+def _read_mat(path: Path, wanted=None) -> Table:
     import h5py
 
     if h5py.is_hdf5(str(path)):
-        return _read_hdf5(path, sep=".", fmt="mat v7.3")
-    from scipy.io import loadmat
+        return _read_hdf5(path, sep=".", fmt="mat v7.3", wanted=wanted)
+    from scipy.io import loadmat, whosmat
 
     raw = path.read_bytes()
     if raw[124:126] == b"\x00\x01" or raw[124:126] == b"\x01\x00":  # v5-v7: its tags first
         _check_mat5_tags(raw)
+    listed = whosmat(io.BytesIO(raw))  # names, shapes and classes from the headers, no data
+    top = [name for name, _, _ in listed]
+    if wanted is not None:  # "struct.field" is read through its struct
+        top = [name for name in top if name in wanted or any(w.startswith(name + ".") for w in wanted)]
+    for name, shape, _ in listed:
+        if name in top:
+            _check_size(path, name, shape)
     out: dict = {}
-    _flatten_mat(loadmat(io.BytesIO(raw), simplify_cells=True), "", out)
-    return Table(out, format="mat")
+    if top:
+        _flatten_mat(loadmat(io.BytesIO(raw), simplify_cells=True, variable_names=top), "", out)
+    names = [name for name, _, cls in listed if cls != "struct"] + [n for n in out if "." in n]
+    return Table(out if wanted is None else {k: v for k, v in out.items() if k in wanted}, format="mat", names=names)
 
 
 _MAT5_TYPES = frozenset(range(1, 19)) - {8, 10, 11}  # miINT8 .. miUTF32 (8, 10, 11 unused)
@@ -251,7 +325,11 @@ def _check_mat5_tags(raw: bytes) -> None:
             if body + size > end:
                 raise ValueError(f"an element at byte {i} runs past the end of the file")
             if mtype == _MI_COMPRESSED:
-                inner = zlib.decompressobj().decompress(buf[body:body + size])
+                inflate = zlib.decompressobj()
+                inner = inflate.decompress(buf[body:body + size], MAX_INFLATED_BYTES)
+                if inflate.unconsumed_tail:
+                    raise ValueError(f"the compressed variable at byte {i} inflates beyond {MAX_INFLATED_BYTES} bytes, "
+                                     "the most a variable may hold")  # fmt: skip
                 walk(inner, 0, len(inner), top=False)
             elif mtype == _MI_MATRIX:
                 walk(buf, body, body + size, top=False)
@@ -273,10 +351,11 @@ def _flatten_mat(obj: dict, prefix: str, out: dict) -> None:
             out[name] = a
 
 
-def _read_hdf5(path: Path, sep: str, fmt: str) -> Table:
+def _read_hdf5(path: Path, sep: str, fmt: str, wanted=None) -> Table:
     import h5py
 
     out: dict = {}
+    names: list = []
     with h5py.File(path, "r") as f:
 
         def visit(group, prefix):
@@ -293,10 +372,13 @@ def _read_hdf5(path: Path, sep: str, fmt: str) -> Table:
                     continue
                 if item.dtype.kind not in "fiub" or item.size == 0:
                     continue
-                out[name] = np.asarray(item[()])  # MATLAB's column-major order is moot for vectors
+                names.append(name)
+                if wanted is None or name in wanted:
+                    _check_size(path, name, item.shape)  # its declared shape, before a byte is read
+                    out[name] = np.asarray(item[()])  # MATLAB's column-major order is moot for vectors
 
         visit(f, "")
-    return Table(out, format=fmt)
+    return Table(out, format=fmt, names=names)
 
 
 __all__ = ["Table", "read_table"]
