@@ -257,3 +257,51 @@ def test_a_header_only_csv_is_one_line_that_says_so(tmp_path):
         warnings.simplefilter("error")  # a warning would be printed before the error line
         with pytest.raises(RecordingError, match="a header row .t, u, x. and no rows of numbers"):
             load_recording(path)
+
+
+# -- a full disk: the error line names the path -----------------------------------------
+
+
+def _file_size_limit(limit):
+    def preexec():
+        signal.signal(signal.SIGXFSZ, signal.SIG_IGN)  # a write past the limit fails with EFBIG, as ENOSPC on a full disk
+        resource.setrlimit(resource.RLIMIT_FSIZE, (limit, limit))
+    return preexec
+
+
+def test_a_write_that_fails_names_its_file(tmp_path):
+    """Issue 28: on a full disk identify, diagnose and recover printed "No space left on
+    device" without the path.  Their files are written through atomic_write."""
+    import errno
+
+    from servo.cli import os_error_line
+    from servo.io.atomic import atomic_write
+
+    def full(tmp):
+        open(tmp, "wb").close()
+        raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC))  # what a write to a full disk raises: no file name
+
+    with pytest.raises(OSError) as got:
+        atomic_write(tmp_path / "report.json", full)
+    assert os_error_line(got.value) == f"{tmp_path / 'report.json'}: No space left on device"
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_recover_on_a_full_disk_names_the_file_and_keeps_the_journal(tmp_path):
+    path = _journal(tmp_path / "log.journal", GOOD, rows=5000)
+    r = subprocess.run([sys.executable, "-m", "servo", "recover", str(path)], capture_output=True, text=True,
+                       preexec_fn=_file_size_limit(20_000), env={**os.environ, "PYTHONPATH": os.getcwd()})  # fmt: skip
+    assert r.returncode == 2 and r.stderr.count("\n") == 1, r.stderr
+    assert r.stderr.startswith(f"servo: error: {tmp_path / 'log'}.") and "File too large" in r.stderr
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["log.journal"]
+
+
+def test_a_kernel_cache_that_cannot_be_written_does_not_fail_the_command(tmp_path):
+    """A full disk also fails Numba's cache write while a command compiles its kernels
+    (the first run after an install): `servo diagnose` printed "File too large" alone."""
+    (tmp_path / "kmod.py").write_text("from numba import float64\nfrom kernels._cache import kernel\n\n\n"
+                                      "@kernel(float64(float64))\ndef twice(x):\n    return 2.0 * x\n")  # fmt: skip
+    env = {**os.environ, "PYTHONPATH": f"{os.getcwd()}{os.pathsep}{tmp_path}", "SERVO_NUMBA_CACHE": str(tmp_path / "cache")}
+    r = subprocess.run([sys.executable, "-c", "import kmod; print(kmod.twice(2.0))"], capture_output=True, text=True,
+                       preexec_fn=_file_size_limit(100), env=env)  # fmt: skip
+    assert r.returncode == 0 and r.stdout == "4.0\n", r.stderr[-500:]

@@ -36,7 +36,7 @@ from typing import Callable, Iterable, Iterator
 import numpy as np
 
 from servo.errors import DriverError, RecordingError, first_line
-from servo.io.atomic import atomic_write
+from servo.io.atomic import atomic_write, naming
 
 #: Rows per chunk when a journal is read back (~6 MB for 12 columns).
 CHUNK_ROWS = 65536
@@ -402,34 +402,35 @@ def finalise_journal(path: str | Path, formats: Iterable[str] = FORMATS,
     written = []
     tmp_cols = [stem.with_name(f".{stem.name}.{c}.col") for c in cols]
     csv_tmp = stem.with_name(f".{stem.name}.csv.tmp")
-    try:
-        col_fh = [open(p, "wb") for p in tmp_cols] if "npz" in formats else []
-        csv_fh = open(csv_tmp, "w", encoding="ascii") if "csv" in formats else None
+    with naming(stem.with_suffix(".npz" if "npz" in formats else ".csv")):  # a full disk's error says where
         try:
-            if csv_fh:
-                csv_fh.write(",".join(_csv_names(path)) + "\n")
-            for chunk in iter_journal(path):
-                for i, f in enumerate(col_fh):
-                    f.write(np.ascontiguousarray(chunk[:, i]).tobytes())
+            col_fh = [open(p, "wb") for p in tmp_cols] if "npz" in formats else []
+            csv_fh = open(csv_tmp, "w", encoding="ascii") if "csv" in formats else None
+            try:
                 if csv_fh:
-                    np.savetxt(csv_fh, chunk, fmt="%.17g", delimiter=",")
-                for consume in consumers:
-                    consume(chunk)
-        finally:
-            for f in col_fh:
-                f.close()
+                    csv_fh.write(",".join(_csv_names(path)) + "\n")
+                for chunk in iter_journal(path):
+                    for i, f in enumerate(col_fh):
+                        f.write(np.ascontiguousarray(chunk[:, i]).tobytes())
+                    if csv_fh:
+                        np.savetxt(csv_fh, chunk, fmt="%.17g", delimiter=",")
+                    for consume in consumers:
+                        consume(chunk)
+            finally:
+                for f in col_fh:
+                    f.close()
+                if csv_fh:
+                    csv_fh.close()
+            if "npz" in formats:
+                atomic_write(stem.with_suffix(".npz"), lambda tmp: _zip_columns(tmp, cols, tmp_cols, meta))
+                written.append(stem.with_suffix(".npz"))
             if csv_fh:
-                csv_fh.close()
-        if "npz" in formats:
-            atomic_write(stem.with_suffix(".npz"), lambda tmp: _zip_columns(tmp, cols, tmp_cols, meta))
-            written.append(stem.with_suffix(".npz"))
-        if csv_fh:
-            os.replace(csv_tmp, stem.with_suffix(".csv"))
-            written.append(stem.with_suffix(".csv"))
-    finally:
-        for p in [*tmp_cols, csv_tmp]:
-            if p.exists():
-                p.unlink()
+                os.replace(csv_tmp, stem.with_suffix(".csv"))
+                written.append(stem.with_suffix(".csv"))
+        finally:
+            for p in [*tmp_cols, csv_tmp]:
+                if p.exists():
+                    p.unlink()
     path.unlink()
     return written
 
