@@ -301,7 +301,7 @@ def test_a_kernel_cache_that_cannot_be_written_does_not_fail_the_command(tmp_pat
     (the first run after an install): `servo diagnose` printed "File too large" alone."""
     (tmp_path / "kmod.py").write_text("from numba import float64\nfrom kernels._cache import kernel\n\n\n"
                                       "@kernel(float64(float64))\ndef twice(x):\n    return 2.0 * x\n")  # fmt: skip
-    env = {**os.environ, "PYTHONPATH": f"{os.getcwd()}{os.pathsep}{tmp_path}", "SERVO_NUMBA_CACHE": str(tmp_path / "cache")}
+    env = {**os.environ, "PYTHONPATH": f"{os.getcwd()}{os.pathsep}{tmp_path}"}  # the package's kernels: from the cache
     r = subprocess.run([sys.executable, "-c", "import kmod; print(kmod.twice(2.0))"], capture_output=True, text=True,
                        preexec_fn=_file_size_limit(100), env=env)  # fmt: skip
     assert r.returncode == 0 and r.stdout == "4.0\n", r.stderr[-500:]
