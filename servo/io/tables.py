@@ -121,13 +121,20 @@ def _read_npz(path: Path, wanted) -> Table:
 # -- delimited text ------------------------------------------------------------------
 
 
-def _lines(fh, path: Path, lineno: int):
+def _lines(fh, path: Path, lineno: int, max_rows: int | None = None, ncol: int = 0):
     """The lines of ``fh`` from line ``lineno + 1`` on, each at most :data:`MAX_LINE_CHARS`
-    characters (a longer one is refused, never read whole)."""
+    characters (a longer one is refused, never read whole); and, given ``max_rows``, at
+    most that many rows that are not comments (more are refused: the table's budget)."""
+    rows = 0
     while line := fh.readline(MAX_LINE_CHARS + 1):
         lineno += 1
         if len(line) > MAX_LINE_CHARS:
             raise RecordingError(f"recording: {path} line {lineno}: longer than {MAX_LINE_CHARS} characters")
+        if max_rows is not None and not _is_comment(line):
+            rows += 1
+            if rows > max_rows:
+                raise RecordingError(f"recording: {path}: more than {max_rows} rows of {ncol} columns, the most a text "
+                                     f"recording may hold ({MAX_TEXT_VALUES} values); convert it to NPZ or HDF5")  # fmt: skip
         yield line
 
 
@@ -226,23 +233,20 @@ def _read_text(path: Path, wanted=None) -> Table:  # noqa: ARG001  (text is pars
                 fh.readline(MAX_LINE_CHARS + 1)  # lines read once already: within the bound
         else:
             fh.seek(start)
-        lines = _lines(fh, path, lineno)
-        src = (line.replace(",", ".") for line in lines) if comma else lines
         ncol = len(names)
         max_rows = max(1, min(MAX_SAMPLES, MAX_TEXT_VALUES // ncol))  # every column is read: a row is checked whole
+        lines = _lines(fh, path, lineno, max_rows, ncol)  # (loadtxt's own max_rows would allocate them all)
+        src = (line.replace(",", ".") for line in lines) if comma else lines
         try:
             with warnings.catch_warnings():  # "input contained no data": said below in one line
                 warnings.simplefilter("ignore", UserWarning)
                 data = np.loadtxt(src, delimiter=delim, comments="#", quotechar='"', ndmin=2, dtype=float,
-                                  usecols=range(ncol) if trailing else None, max_rows=max_rows + 1)  # fmt: skip
+                                  usecols=range(ncol) if trailing else None)  # fmt: skip
         except ValueError:
             data = None
     if data is None or (data.size and data.shape[1] != ncol):
         _first_bad_line(path, enc, lineno, delim, comma, ncol, trailing)
         raise RecordingError(f"recording: {path}: not a table of numbers with {ncol} columns")
-    if data.shape[0] > max_rows:
-        raise RecordingError(f"recording: {path}: more than {max_rows} rows of {ncol} columns, the most a text "
-                             f"recording may hold ({MAX_TEXT_VALUES} values); convert it to NPZ or HDF5")  # fmt: skip
     if data.size == 0:
         raise RecordingError(f"recording: {path}: a header row ({', '.join(names)}) and no rows of numbers")
     data = data.reshape(-1, ncol)
