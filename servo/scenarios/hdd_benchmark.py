@@ -7,6 +7,11 @@ from servo.hdd.disturbances import Disturbances, generate
 from servo.scenarios.base import ArrayInputs, Inputs, ScenarioKind
 
 
+#: Most ticks a run of this scenario may last: its runout and force disturbance are
+#: generated whole, ~6 float64 arrays as long as the run (~800 MB).
+MAX_BENCHMARK_TICKS = 1 << 24
+
+
 class BenchmarkInputs(ArrayInputs):
     """A run's inputs (:class:`~servo.scenarios.base.Inputs`) from :class:`Disturbances`:
     reference ``-(RRO + flutter)`` held between PES samples; the force disturbance as the
@@ -30,6 +35,10 @@ class HddBenchmark(ScenarioKind):
 
     @classmethod
     def inputs(cls, cfg) -> Inputs:
+        if cfg.n_ticks > MAX_BENCHMARK_TICKS:  # its disturbances are arrays as long as the run
+            raise ConfigError(f"config: scenario.kind = hdd_benchmark holds its disturbances in memory, "
+                              f"{cfg.n_ticks} ticks at {cfg.run.sample_rate_hz:g} Hz, more than {MAX_BENCHMARK_TICKS}; "
+                              "shorten run.duration_s")  # fmt: skip
         try:
             dist = generate(cfg.n_ticks, cfg.scenario.hdd_version, seed=cfg.run.seed, fs=cfg.run.sample_rate_hz)
         except ValueError as exc:
