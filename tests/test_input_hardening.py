@@ -323,3 +323,26 @@ def test_a_small_text_recording_takes_little_memory(tmp_path):
     peak = tracemalloc.get_traced_memory()[1]
     tracemalloc.stop()
     assert peak < 4e6, peak
+
+
+def test_the_hdd_benchmark_scenario_refuses_a_run_beyond_its_budget_before_allocating():
+    """Its disturbances are arrays as long as the run: an hour at 52.8 kHz asked for
+    ~9 GB.  One tick over the budget is refused before anything is generated."""
+    import tracemalloc
+
+    from servo.hdd.benchmark import benchmark
+    from servo.run.job import prepare
+    from servo.runtime import scenario
+
+    limit = getattr(scenario, "MAX_BENCHMARK_TICKS", 1 << 24)
+    fs = 2.0 / benchmark(2).Ts
+    cfg = _cfg(run=dict(sample_rate_hz=fs, duration_s=(limit + 1) / fs), scenario=dict(kind="hdd_benchmark"),
+               drive=dict(mode_hz=[], mode_zeta=[], mode_gain=[]))  # fmt: skip
+    tracemalloc.start()
+    try:
+        with pytest.raises(ConfigError, match=f"more than {limit}"):
+            prepare(cfg)
+    finally:
+        peak = tracemalloc.get_traced_memory()[1]
+        tracemalloc.stop()
+    assert peak < 50e6, peak
