@@ -332,7 +332,7 @@ def test_the_hdd_benchmark_scenario_refuses_a_run_beyond_its_budget_before_alloc
 
     from servo.hdd.benchmark import benchmark
     from servo.run.job import prepare
-    from servo.runtime import scenario
+    from servo.scenarios import hdd_benchmark as scenario
 
     limit = getattr(scenario, "MAX_BENCHMARK_TICKS", 1 << 24)
     fs = 2.0 / benchmark(2).Ts

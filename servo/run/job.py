@@ -51,7 +51,7 @@ def default_out_dir() -> Path:
 
 
 def prepare(cfg: Config, simulated: bool = True) -> Inputs:
-    """The run's inputs (:func:`~servo.runtime.scenario.scenario_inputs`), built, and
+    """The run's inputs (:func:`~servo.scenarios.scenario_inputs`), built, and
     the simulated drive's plant checked (``simulated``): what a valid config can still
     be refused for when it runs (an excitation no signal meets, the HDD benchmark at a
     rate it does not divide, a holding current beyond the limit), raised before any
