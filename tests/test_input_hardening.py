@@ -346,3 +346,15 @@ def test_the_hdd_benchmark_scenario_refuses_a_run_beyond_its_budget_before_alloc
         peak = tracemalloc.get_traced_memory()[1]
         tracemalloc.stop()
     assert peak < 50e6, peak
+
+
+def test_an_unused_compressed_matlab_variable_is_never_inflated(tmp_path):
+    """A MATLAB file's compressed variable was inflated whole, used or not (a 130 kB file
+    holding 128 MB of zeros took 320 MB), before scipy read any of it."""
+    from scipy.io import savemat
+
+    path = tmp_path / "r.mat"
+    savemat(path, {**_small_columns(), "camera": np.zeros(BIG // 2)}, do_compression=True)
+    assert path.stat().st_size < 1e6
+    peak, err = _peak_mb_loading(path)
+    assert err == "" and peak < PEAK_MB - 64, (peak, err)  # (the unused variable alone is 134 MB)

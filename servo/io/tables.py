@@ -282,9 +282,11 @@ def _read_mat(path: Path, wanted=None) -> Table:
     from scipy.io import loadmat, whosmat
 
     raw = path.read_bytes()
+    every = None
     if raw[124:126] == b"\x00\x01" or raw[124:126] == b"\x01\x00":  # v5-v7: its tags first
+        raw, every = _mat5_select(raw, wanted)  # an unused variable is never inflated
         _check_mat5_tags(raw)
-    listed = whosmat(io.BytesIO(raw))  # names, shapes and classes from the headers, no data
+    listed = whosmat(io.BytesIO(raw))  # names, shapes and classes from the headers
     top = [name for name, _, _ in listed]
     if wanted is not None:  # "struct.field" is read through its struct
         top = [name for name in top if name in wanted or any(w.startswith(name + ".") for w in wanted)]
@@ -295,7 +297,57 @@ def _read_mat(path: Path, wanted=None) -> Table:
     if top:
         _flatten_mat(loadmat(io.BytesIO(raw), simplify_cells=True, variable_names=top), "", out)
     names = [name for name, _, cls in listed if cls != "struct"] + [n for n in out if "." in n]
+    names += [n for n in every or () if n not in names and not any(m.startswith(n + ".") for m in names)]
     return Table(out if wanted is None else {k: v for k, v in out.items() if k in wanted}, format="mat", names=names)
+
+
+def _mat5_select(raw: bytes, wanted) -> tuple[bytes, list[str]]:
+    """A MAT v5 file's bytes with only the top-level variables ``wanted`` names (all when
+    None; ``s`` for ``s.field``; a variable whose name cannot be read is kept, for the
+    checks to refuse), and the names of all.  A compressed variable's name is read from
+    its first inflated bytes: a variable that is not wanted is never inflated."""
+    import zlib
+
+    order = "<" if raw[126:128] == b"IM" else ">"
+    keep, names, i = [raw[:128]], [], 128
+    tops = None if wanted is None else {w.split(".")[0] for w in wanted}
+    while i + 8 <= len(raw):
+        mtype, size = (int(v) for v in np.frombuffer(raw, f"{order}u4", 2, i))
+        if mtype >> 16:  # a small element at the top level: not a variable; the tag check names it
+            keep.append(raw[i:])
+            break
+        end = i + 8 + (size if mtype == _MI_COMPRESSED else (size + 7) // 8 * 8)
+        body = raw[i + 8:min(end, len(raw))]
+        if mtype == _MI_COMPRESSED:
+            try:
+                body = zlib.decompressobj().decompress(body, 4096)[8:]  # past the inner matrix tag
+            except zlib.error:
+                body = b""
+        name = _mat5_name(body, order) if mtype in (_MI_MATRIX, _MI_COMPRESSED) else None
+        if name is not None:
+            names.append(name)
+        if tops is None or name is None or name in tops:
+            keep.append(raw[i:end])
+        i = end
+    return b"".join(keep), names
+
+
+def _mat5_name(body: bytes, order: str) -> str | None:
+    """The name of a MAT v5 matrix from the start of its body (array flags, dimensions,
+    name sub-elements), or None where they are not whole or not what the format says."""
+    o = 0
+    for _ in range(3):
+        if o + 8 > len(body):
+            return None
+        word, size = (int(v) for v in np.frombuffer(body, f"{order}u4", 2, o))
+        if word >> 16:
+            data, o = body[o + 4:o + 4 + (word >> 16)], o + 8
+        else:
+            data, o = body[o + 8:o + 8 + size], o + 8 + (size + 7) // 8 * 8
+    try:
+        return data.decode("ascii") or None
+    except UnicodeDecodeError:
+        return None
 
 
 _MAT5_TYPES = frozenset(range(1, 19)) - {8, 10, 11}  # miINT8 .. miUTF32 (8, 10, 11 unused)
