@@ -358,3 +358,17 @@ def test_an_unused_compressed_matlab_variable_is_never_inflated(tmp_path):
     assert path.stat().st_size < 1e6
     peak, err = _peak_mb_loading(path)
     assert err == "" and peak < PEAK_MB - 64, (peak, err)  # (the unused variable alone is 134 MB)
+
+
+def test_a_run_folder_log_is_read_within_the_budget(tmp_path):
+    """servo.load_run read every array of a log NPZ, whatever its size."""
+    from servo.errors import RecordingError
+    from servo.io.runfolder import load_run
+
+    folder = tmp_path / "r"
+    folder.mkdir()
+    np.savez(folder / "log_compensated.npz", **_small_columns())
+    with zipfile.ZipFile(folder / "log_compensated.npz", "a") as zf, zf.open("x2.npy", "w") as f:
+        np.lib.format.write_array_header_1_0(f, {"descr": "<f8", "fortran_order": False, "shape": (10**10,)})
+    with pytest.raises(RecordingError, match=f"not a readable run log .* more than the {MAX_SAMPLES}"):
+        load_run(folder)
