@@ -25,7 +25,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from servo.errors import ConfigError
+from servo.errors import ConfigError, first_line
 from servo.fields import P, check_value, choices_of, documented, range_text
 
 
@@ -386,8 +386,8 @@ def load_config(path: str | Path | None = None) -> Config:
         raise ConfigError(f"config: cannot read {p}: {exc}") from None
     try:
         data = tomllib.loads(text)
-    except tomllib.TOMLDecodeError as exc:
-        raise ConfigError(f"config: {p} is not valid TOML: {exc}") from None
+    except (tomllib.TOMLDecodeError, ValueError) as exc:  # ValueError: an integer of more digits than Python reads
+        raise ConfigError(f"config: {p} is not valid TOML: {first_line(exc)}") from None
     return from_dict(data)
 
 

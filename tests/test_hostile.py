@@ -84,7 +84,7 @@ def _plausible(f, near_only=False):
     """Values near a field's default (scaled by powers of ten, negated), its choices, and
     garbage of every TOML type."""
     d = f.default if f.default is not dataclasses.MISSING else f.default_factory()
-    garbage = st.one_of(st.booleans(), st.integers(-(10**20), 10**20), st.floats(), st.text(max_size=6),
+    garbage = st.one_of(st.booleans(), st.integers(-(10**20), 10**20), st.just(10**5000), st.floats(), st.text(max_size=6),
                         st.lists(st.floats(-1e6, 1e6), max_size=4), st.dictionaries(st.text(max_size=3), st.integers(), max_size=2))  # fmt: skip
     near = []
     if isinstance(d, bool):

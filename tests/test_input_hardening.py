@@ -372,3 +372,26 @@ def test_a_run_folder_log_is_read_within_the_budget(tmp_path):
         np.lib.format.write_array_header_1_0(f, {"descr": "<f8", "fortran_order": False, "shape": (10**10,)})
     with pytest.raises(RecordingError, match=f"not a readable run log .* more than the {MAX_SAMPLES}"):
         load_run(folder)
+
+
+def test_a_number_of_thousands_of_digits_is_one_line(tmp_path, capsys):
+    """Python refuses to read an integer of more than 4300 digits with a ValueError that
+    TOML's reader passes on: `servo run` exited 70 (internal error) for it."""
+    toml = tmp_path / "c.toml"
+    toml.write_text("[run]\nseed = " + "9" * 5000 + "\n")
+    for argv in (["--config", str(toml)], ["--set", "run.seed=" + "9" * 5000]):
+        rc = main(["run", "--out", str(tmp_path / "o"), *argv])
+        _one_line_error(capsys, rc)
+    assert list(tmp_path.iterdir()) == [toml]
+
+
+def test_a_config_error_quotes_a_long_value_in_a_few_characters(capsys, tmp_path):
+    rc = main(["run", "--out", str(tmp_path / "o"), "--set", "scenario.excitation=" + "a" * 100_000])
+    err = _one_line_error(capsys, rc)
+    assert len(err) < 300
+
+
+def test_a_list_field_holds_at_most_its_budget():
+    """2000 reference steps were accepted (each is evaluated on every input window)."""
+    with pytest.raises(ConfigError, match="step_times holds 2000 values, more than the 1024"):
+        _cfg(scenario=dict(step_times=[0.1] * 2000, step_positions=[0.0] * 2000))
