@@ -106,8 +106,9 @@ def _check_size(path: Path, name: str, shape) -> None:
 def _read_npz(path: Path, wanted) -> Table:
     out = {}
     with np.load(path, allow_pickle=False) as z:
+        members = set(z.zip.namelist())
         for k in z.files:
-            if wanted is not None and k not in wanted:
+            if (wanted is not None and k not in wanted) or f"{k}.npy" not in members:  # (not an array: no column)
                 continue
             with z.zip.open(f"{k}.npy") as f:  # its header: the shape, before the data is read
                 major, minor = np.lib.format.read_magic(f)
@@ -115,7 +116,7 @@ def _read_npz(path: Path, wanted) -> Table:
                 shape, _, _ = read(f)
             _check_size(path, k, shape)
             out[k] = np.asarray(z[k])
-        return Table(out, format="npz", names=z.files)
+        return Table(out, format="npz", names=[k for k in z.files if f"{k}.npy" in members])
 
 
 # -- delimited text ------------------------------------------------------------------
