@@ -395,3 +395,25 @@ def test_a_list_field_holds_at_most_its_budget():
     """2000 reference steps were accepted (each is evaluated on every input window)."""
     with pytest.raises(ConfigError, match="step_times holds 2000 values, more than the 1024"):
         _cfg(scenario=dict(step_times=[0.1] * 2000, step_positions=[0.0] * 2000))
+
+
+def test_two_roles_cannot_read_one_column(tmp_path):
+    """`--columns u=x` identified a drive whose force was its own position (exit 0)."""
+    from servo.errors import RecordingError
+    from servo.io.recording import load_recording
+
+    path = tmp_path / "r.npz"
+    np.savez(path, **_small_columns())
+    with pytest.raises(RecordingError, match="u and x would both be column 'x'"):
+        load_recording(path, {"u": "x"})
+
+
+def test_a_diagnosis_horizon_longer_than_the_held_out_part_is_refused(tmp_path, capsys):
+    """`servo diagnose --horizon 1e9` asked for 7.28 TiB: MemoryError, exit 70."""
+    t = np.arange(4000) * 1e-3
+    u = 0.02 * np.sign(np.sin(2 * np.pi * 5 * t))
+    path = tmp_path / "r.csv"
+    np.savetxt(path, np.column_stack([t, u, np.cumsum(np.cumsum(u)) * 1e-6]), delimiter=",", header="t,u,x", comments="")
+    rc = main(["diagnose", str(path), "--horizon", "1e9", "--quiet", "--out", str(tmp_path / "o")])
+    err = _one_line_error(capsys, rc)
+    assert "not shorter than the held-out part" in err

@@ -132,6 +132,12 @@ def load_recording(path: str | Path, columns: dict[str, str] | None = None, scal
         if a.ndim > 1 and sorted(a.shape)[:-1] != [1] * (a.ndim - 1):
             raise RecordingError(f"recording: {path.name}: column {name!r} has shape {a.shape}, expected a vector")
         arrays[role] = a.astype(float).ravel()
+    source = {role: columns.get(role, role) for role in arrays}
+    for role in arrays:
+        twins = [r for r in arrays if source[r] == source[role]]
+        if len(twins) > 1:
+            raise RecordingError(f"recording: {path.name}: {' and '.join(twins)} would both be column {source[role]!r}; "
+                                 "map each role to its own column (--columns)")  # fmt: skip
     for role, value in (scale or {}).items():
         if role not in arrays:
             raise RecordingError(f"recording: cannot scale {role!r}: no such column")
