@@ -75,7 +75,7 @@ def check_number(key: str, value: Any, m: dict, kind: type) -> Any:
         raise ConfigError(f"config: {key} must be a number, got {shown(value)}")
     if kind is int and not isinstance(value, int):
         raise ConfigError(f"config: {key} must be an integer, got {shown(value)}")
-    if not math.isfinite(value):
+    if isinstance(value, float) and not math.isfinite(value):  # (an int is finite; isfinite overflows on 10**400)
         raise ConfigError(f"config: {key} must be finite, got {shown(value)}")
     if abs(value) > MAGNITUDE_MAX and (m["lo"] is None or m["hi"] is None):
         raise ConfigError(f"config: {key} = {shown(value)} is beyond any physical value ({range_text(m)}, {m['unit']})")

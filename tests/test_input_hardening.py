@@ -417,3 +417,10 @@ def test_a_diagnosis_horizon_longer_than_the_held_out_part_is_refused(tmp_path, 
     rc = main(["diagnose", str(path), "--horizon", "1e9", "--quiet", "--out", str(tmp_path / "o")])
     err = _one_line_error(capsys, rc)
     assert "not shorter than the held-out part" in err
+
+
+def test_an_integer_too_large_for_a_float_is_out_of_range():
+    """Found by tests/test_hostile.py: from_dict({"run": {"sample_rate_hz": 10**5000}})
+    raised OverflowError (math.isfinite converts to float)."""
+    with pytest.raises(ConfigError, match="run.sample_rate_hz = an integer of thousands of digits is out of range"):
+        from_dict({"run": {"sample_rate_hz": 10**5000}})
