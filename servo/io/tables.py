@@ -75,7 +75,7 @@ def read_table(path: str | Path, wanted=None) -> Table:
     wanted = None if wanted is None else set(wanted)
     try:
         if suffix in TEXT_SUFFIXES:
-            return _read_text(path, wanted)
+            return _read_text(path)  # parsed whole: a row is checked field by field
         if suffix == ".npz":
             return _read_npz(path, wanted)
         if suffix == ".mat":
@@ -111,7 +111,7 @@ def _read_npz(path: Path, wanted) -> Table:
             if (wanted is not None and k not in wanted) or f"{k}.npy" not in members:  # (not an array: no column)
                 continue
             with z.zip.open(f"{k}.npy") as f:  # its header: the shape, before the data is read
-                major, minor = np.lib.format.read_magic(f)
+                major, _ = np.lib.format.read_magic(f)
                 read = np.lib.format.read_array_header_1_0 if major == 1 else np.lib.format.read_array_header_2_0
                 shape, _, _ = read(f)
             _check_size(path, k, shape)
@@ -197,7 +197,7 @@ def _number(s: str) -> bool:
         return False
 
 
-def _read_text(path: Path, wanted=None) -> Table:  # noqa: ARG001  (text is parsed whole)
+def _read_text(path: Path) -> Table:
     enc = _encoding(path)
     with open(path, encoding=enc, newline="") as fh:
         lineno, header, comment = 0, None, None

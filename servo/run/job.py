@@ -77,7 +77,8 @@ def run_simulated(cfg: Config, out_dir: Path, compensated: bool, fast: bool,
     ``result.link``.  ``realtime``: pace the ticks on the wall clock (tick path,
     simulated drive); the result then carries the pacing report and the lateness of
     every tick.  A run against a plant in real time (paced, or a board) journals its log
-    in blocks of :data:`~servo.run.realtime.REALTIME_LOG_BLOCK` rows."""
+    in blocks of :data:`~servo.run.realtime.REALTIME_LOG_BLOCK` rows.  ``inputs``: the
+    run's inputs as :func:`prepare` built them (built from ``cfg`` when None)."""
     label = "compensated" if compensated else "uncompensated"
     inputs = scenario_inputs(cfg) if inputs is None else inputs
     meta = {"label": label, "fast_path": fast, "sample_rate_hz": cfg.run.sample_rate_hz, "seed": cfg.run.seed,
