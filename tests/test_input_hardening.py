@@ -424,3 +424,12 @@ def test_an_integer_too_large_for_a_float_is_out_of_range():
     raised OverflowError (math.isfinite converts to float)."""
     with pytest.raises(ConfigError, match="run.sample_rate_hz = an integer of thousands of digits is out of range"):
         from_dict({"run": {"sample_rate_hz": 10**5000}})
+
+
+@pytest.mark.parametrize("option", [["--n-freq", "100000000"], ["--periods", "1000000000"]])
+def test_a_bode_sweep_beyond_its_budget_is_refused_before_it_starts(tmp_path, capsys, option):
+    """`servo bode --n-freq 1e8` took over 1 GB and ran on; `--periods 1e9` would simulate
+    1e12 samples at its first point."""
+    rc = main(["bode", *option, "--quiet", "--out", str(tmp_path / "o")])
+    err = _one_line_error(capsys, rc)
+    assert "more than the" in err and list(tmp_path.iterdir()) == []
