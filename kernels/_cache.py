@@ -83,11 +83,16 @@ def keyed_cache(folder: Path = HERE):
 def kernel(signature, **options):
     """``numba.njit(signature, cache=True, **options)``, compiled (or loaded from the keyed
     cache, :func:`keyed_cache`) at decoration: every kernel of this project is declared
-    with it, so it has an explicit signature and is ready before any loop runs."""
+    with it, so it has an explicit signature and is ready before any loop runs.  A cache
+    that cannot be written (a full disk, a file-size limit) costs a compilation in the
+    next process, never the command."""
 
     def decorate(fn):
         with keyed_cache(Path(fn.__code__.co_filename).resolve().parent):
-            dispatcher = njit(signature, cache=True, **options)(fn)
+            try:
+                dispatcher = njit(signature, cache=True, **options)(fn)
+            except OSError:  # compiled, but its cache could not be written (a full disk): compile uncached
+                dispatcher = njit(signature, **options)(fn)
         DECLARED.append(dispatcher)
         return dispatcher
 

@@ -30,18 +30,34 @@ def check_value(key: str, value: Any, f: dataclasses.Field) -> Any:
     kind = f.type if isinstance(f.type, str) else f.type.__name__
     if kind == "bool":
         if not isinstance(value, bool):
-            raise ConfigError(f"config: {key} must be true or false, got {value!r}")
+            raise ConfigError(f"config: {key} must be true or false, got {shown(value)}")
         return value
     if kind == "str":
         choices = choices_of(m)
         if not isinstance(value, str) or value not in choices:
-            raise ConfigError(f"config: {key} must be one of {', '.join(choices)}, got {value!r}")
+            raise ConfigError(f"config: {key} must be one of {', '.join(choices)}, got {shown(value)}")
         return value
     if kind == "list":
         if not isinstance(value, list):
-            raise ConfigError(f"config: {key} must be a list of numbers, got {value!r}")
+            raise ConfigError(f"config: {key} must be a list of numbers, got {shown(value)}")
+        if len(value) > MAX_LIST_LENGTH:
+            raise ConfigError(f"config: {key} holds {len(value)} values, more than the {MAX_LIST_LENGTH} a list may hold")
         return [check_number(f"{key}[{i}]", v, m, float) for i, v in enumerate(value)]
     return check_number(key, value, m, int if kind == "int" else float)
+
+
+#: Most values a list field may hold (steps, modes, notches: a run's cost grows with each).
+MAX_LIST_LENGTH = 1024
+
+
+def shown(value: Any, limit: int = 60) -> str:
+    """``repr(value)``, cut to ``limit`` characters: an error line quotes what was given,
+    not a megabyte of it."""
+    try:
+        text = repr(value)
+    except ValueError:  # an integer of more digits than Python converts to text
+        return "an integer of thousands of digits"
+    return text if len(text) <= limit else text[: limit - 3] + "..."
 
 
 def choices_of(m: dict) -> tuple:
@@ -56,18 +72,18 @@ def documented(cls) -> list[dataclasses.Field]:
 
 def check_number(key: str, value: Any, m: dict, kind: type) -> Any:
     if isinstance(value, bool) or not isinstance(value, (int, float)):
-        raise ConfigError(f"config: {key} must be a number, got {value!r}")
+        raise ConfigError(f"config: {key} must be a number, got {shown(value)}")
     if kind is int and not isinstance(value, int):
-        raise ConfigError(f"config: {key} must be an integer, got {value!r}")
-    if not math.isfinite(value):
-        raise ConfigError(f"config: {key} must be finite, got {value!r}")
+        raise ConfigError(f"config: {key} must be an integer, got {shown(value)}")
+    if isinstance(value, float) and not math.isfinite(value):  # (an int is finite; isfinite overflows on 10**400)
+        raise ConfigError(f"config: {key} must be finite, got {shown(value)}")
     if abs(value) > MAGNITUDE_MAX and (m["lo"] is None or m["hi"] is None):
-        raise ConfigError(f"config: {key} = {value!r} is beyond any physical value ({range_text(m)}, {m['unit']})")
+        raise ConfigError(f"config: {key} = {shown(value)} is beyond any physical value ({range_text(m)}, {m['unit']})")
     lo, hi = m["lo"], m["hi"]
     if lo is not None and (value < lo or (m["lo_open"] and value == lo)):
-        raise ConfigError(f"config: {key} = {value!r} is out of range ({range_text(m)}, {m['unit']})")
+        raise ConfigError(f"config: {key} = {shown(value)} is out of range ({range_text(m)}, {m['unit']})")
     if hi is not None and (value > hi or (m["hi_open"] and value == hi)):
-        raise ConfigError(f"config: {key} = {value!r} is out of range ({range_text(m)}, {m['unit']})")
+        raise ConfigError(f"config: {key} = {shown(value)} is out of range ({range_text(m)}, {m['unit']})")
     return kind(value)
 
 

@@ -48,6 +48,8 @@ def parse_set(items: list[str] | None) -> dict:
             parsed = tomllib.loads(f"v = {value.strip()}")["v"]
         except tomllib.TOMLDecodeError:
             parsed = value.strip()  # a bare word: a string
+        except ValueError:  # an integer of more digits than Python reads
+            raise ConfigError(f"--set {key.strip()}: {len(value.strip())} characters, not a value") from None
         into = out.setdefault(section, {})
         sub, dot, leaf = name.partition(".")
         if dot:

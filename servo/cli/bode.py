@@ -53,6 +53,12 @@ def handle(args: argparse.Namespace) -> int:
         raise ConfigError(f"--f-max must stay below a quarter of the sample rate ({cfg.run.sample_rate_hz / 4:g} Hz)")
     if max(s.levels) > cfg.controller.current_limit:
         raise ConfigError("a level exceeds the current limit")
+    from servo.experiments.bode import check_settings
+
+    try:
+        check_settings(s, cfg.run.sample_rate_hz)
+    except ValueError as exc:
+        raise ConfigError(f"bode: {exc}") from None
     out = Path(args.out) if args.out else Path("servo-out") / time.strftime("bode-%Y%m%d-%H%M%S")
     from servo.io.progress import reporting
     from servo.io.provenance import provenance

@@ -24,10 +24,9 @@ def handle(args: argparse.Namespace) -> int:
 
     formats = ("npz", "csv") if args.log_format == "both" else (args.log_format,)
     for path in args.journals:
-        try:
-            rows = journal_rows(path)
-        except (ValueError, KeyError, UnicodeDecodeError) as exc:
-            raise RecordingError(f"{path}: not a run-log journal ({exc})") from None
+        if not str(path).endswith(".journal"):  # its outputs are named after it: never an input's name
+            raise RecordingError(f"{path}: a journal's name ends in .journal (the NPZ and CSV are written beside it)")
+        rows = journal_rows(path)  # the header checked: one line naming what is wrong
         written = finalise_journal(path, formats)
         print(f"servo recover: {path}: {rows} rows -> " + ", ".join(str(p) for p in written))
     return 0

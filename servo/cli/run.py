@@ -81,28 +81,29 @@ def realtime_options(args: argparse.Namespace):
 def handle(args: argparse.Namespace) -> int:
     from servo.io.outdir import check_output, staged
     from servo.io.progress import reporting
-    from servo.run.job import default_out_dir, format_summary, run_job
+    from servo.run.job import default_out_dir, format_summary, prepare, run_job
 
     realtime = realtime_options(args)
     cfg = config_from_args(args, run={"duration_s": args.duration, "seed": args.seed})
     out = Path(args.out) if args.out else default_out_dir()
     formats = ("npz", "csv") if args.log_format == "both" else (args.log_format,)
     check_output(out)
+    inputs = prepare(cfg, simulated=args.port is None)  # what the config can be refused for, before any folder
     from servo.io.provenance import provenance
 
     prov = provenance(cfg, [], getattr(args, "argv", None))
     with reporting(progress_from_args(args, "servo run")):  # closed (its line cleared) before the summary
         if args.port is None:
-            with staged(out, keep_partial=True) as tmp:
+            with staged(out, keep_partial="log_*") as tmp:
                 summary = run_job(cfg, tmp, compensation=args.compensation, fast=False if realtime else args.fast,
-                                  realtime=realtime, log_formats=formats, provenance=prov)  # fmt: skip
+                                  realtime=realtime, log_formats=formats, provenance=prov, inputs=inputs)  # fmt: skip
         else:
-            summary = _run_on_port(cfg, out, args, formats, prov)
+            summary = _run_on_port(cfg, out, args, formats, prov, inputs)
     print(format_summary(summary, out))
     return 0
 
 
-def _run_on_port(cfg, out: Path, args: argparse.Namespace, formats: tuple[str, ...], prov: dict) -> dict:
+def _run_on_port(cfg, out: Path, args: argparse.Namespace, formats: tuple[str, ...], prov: dict, inputs) -> dict:
     """The same job against the serial link: a fresh session (driver) per run.  The first
     driver is configured (handshake, version and rate checks) before anything is written,
     so a bad URL or an absent board leaves no output folder."""
@@ -114,6 +115,6 @@ def _run_on_port(cfg, out: Path, args: argparse.Namespace, formats: tuple[str, .
     if args.fast or (args.fast is None and cfg.run.fast_path):
         raise UsageError("servo run: --port runs tick by tick through the link; drop --fast (run.fast_path)")
     # the collection that pauses the garbage collector comes before the board is put in READY
-    with realtime_section(), Sessions(cfg, args.port) as ports, staged(out, keep_partial=True) as tmp:
+    with realtime_section(), Sessions(cfg, args.port) as ports, staged(out, keep_partial="log_*") as tmp:
         return run_job(cfg, tmp, compensation=args.compensation, fast=False, make_driver=ports.make_driver,
-                       where=ports.where(cfg), log_formats=formats, provenance=prov)  # no GC pauses while the board waits
+                       where=ports.where(cfg), log_formats=formats, provenance=prov, inputs=inputs)  # no GC pauses while the board waits

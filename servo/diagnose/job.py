@@ -554,6 +554,10 @@ def _diagnose(rec: Recording, opt: Options | None) -> Diagnosis:
     if opt.blocks < 4:
         raise IdentificationError(f"at least 4 cross-validation blocks are needed, got {opt.blocks}")
     check_recording(rec)
+    held_out_s = rec.n * rec.dt * opt.test_fraction
+    if opt.horizon_s is not None and not opt.horizon_s < held_out_s:  # (its samples are allocated per start)
+        raise IdentificationError(f"horizon {opt.horizon_s:g} s is not shorter than the held-out part of the recording "
+                                  f"({held_out_s:.3g} s): no simulated output of that length fits in it")  # fmt: skip
     check_memory(rec.n, opt)
     base = baseline_mod.from_file(opt.model) if opt.model else baseline_mod.from_terms(opt.baseline)
     progress.stage("signals and the baseline fit")

@@ -106,6 +106,23 @@ def check_holding_loop(cfg: Config, seconds: float = 2.0, name: str = "the drive
             )
 
 
+#: Most frequencies a sweep may hold, and most samples one point may simulate (its
+#: settling and measuring window; several float64 arrays of it are held at once).
+MAX_FREQUENCIES = 1000
+MAX_POINT_SAMPLES = 1 << 24
+
+
+def check_settings(s: SweepSettings, fs: float) -> None:
+    """Refuse (ValueError, one line) a sweep beyond the budgets above at sample rate
+    ``fs`` (Hz): the point at ``f_min`` is the longest."""
+    if s.n_freq > MAX_FREQUENCIES:
+        raise ValueError(f"{s.n_freq} frequencies, more than the {MAX_FREQUENCIES} a sweep may hold")
+    n = max(s.settle_periods / s.f_min, s.settle_s) * fs + s.periods * fs / s.f_min
+    if n > MAX_POINT_SAMPLES:
+        raise ValueError(f"the point at {s.f_min:g} Hz simulates {n:.3g} samples ({s.periods} periods at {fs:g} Hz), "
+                         f"more than the {MAX_POINT_SAMPLES} a point may; fewer --periods or a higher --f-min")  # fmt: skip
+
+
 def frequencies(s: SweepSettings) -> np.ndarray:
     return np.geomspace(s.f_min, s.f_max, s.n_freq)
 

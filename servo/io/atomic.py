@@ -4,19 +4,35 @@ from __future__ import annotations
 import json
 import math
 import os
+from contextlib import contextmanager
 from pathlib import Path
 
 import numpy as np
 
 
+@contextmanager
+def naming(path: str | Path):
+    """Give an :class:`OSError` raised in the block without a file name (a write that
+    meets a full disk or a file-size limit: ``No space left on device``) the name
+    ``path``, so that its one error line says where."""
+    try:
+        yield
+    except OSError as exc:
+        if exc.filename is None and exc.errno is not None:
+            raise type(exc)(exc.errno, exc.strerror or str(exc), str(path)) from None
+        raise
+
+
 def atomic_write(path: Path, write) -> None:
     """Call ``write(tmp_path)`` then rename ``tmp_path`` onto ``path``; never leaves a
-    half-written ``path`` (the temporary is removed if ``write`` fails)."""
+    half-written ``path`` (the temporary is removed if ``write`` fails).  A failed
+    write's error names ``path`` (:func:`naming`)."""
     path = Path(path)
     tmp = path.with_name(f".{path.name}.tmp")
     try:
-        write(tmp)
-        os.replace(tmp, path)
+        with naming(path):
+            write(tmp)
+            os.replace(tmp, path)
     finally:
         if tmp.exists():
             tmp.unlink()

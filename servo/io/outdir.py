@@ -49,12 +49,13 @@ def check_output(final: str | Path) -> None:
 
 
 @contextmanager
-def staged(final: str | Path, keep_partial: bool = False):
+def staged(final: str | Path, keep_partial: bool | str = False):
     """Yield the staging folder for the outputs of ``final``; rename it to ``final``
     when the block completes.  On an exception the staging folder is removed, unless
-    ``keep_partial`` and it holds files: then it stays and the error (a
-    :class:`~servo.errors.ServoError`, or :class:`~servo.errors.Interrupted` for
-    Ctrl-C) names it."""
+    it holds recorded data: files matching the glob ``keep_partial`` (``True``: any
+    file; a run passes ``"log_*"``, so a folder holding only its ``config.toml`` goes).
+    Then it stays and the error (a :class:`~servo.errors.ServoError`, or
+    :class:`~servo.errors.Interrupted` for Ctrl-C) names it."""
     final = Path(os.path.abspath(final))
     check_output(final)
     staging = staging_dir(final)
@@ -62,7 +63,8 @@ def staged(final: str | Path, keep_partial: bool = False):
     try:
         yield staging
     except BaseException as exc:
-        kept = keep_partial and any(staging.iterdir())
+        pattern = "*" if keep_partial is True else keep_partial
+        kept = bool(pattern) and any(staging.glob(pattern))
         if not kept:
             shutil.rmtree(staging, ignore_errors=True)
         where = f"recorded data kept in {staging}/" if kept else "nothing written"

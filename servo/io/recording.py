@@ -110,18 +110,19 @@ def load_recording(path: str | Path, columns: dict[str, str] | None = None, scal
     (default: the same names); ``scale`` multiplies a column by a number or a scalar
     variable of the file (``{"u": "gtau"}``)."""
     path = Path(path)
-    table = read_table(path)
     columns = dict(columns or {})
     for key in columns:
         if key not in REQUIRED + OPTIONAL:
             raise RecordingError(f"recording: unknown column role {key!r} (roles: t, u, x, v, r)")
+    wanted = {columns.get(role, role) for role in REQUIRED + OPTIONAL} | set((scale or {}).values())
+    table = read_table(path, wanted)  # only these are read: an unused column costs nothing
     arrays: dict[str, np.ndarray] = {}
     for role in REQUIRED + OPTIONAL:
         name = columns.get(role, role)
         if name not in table:
             if role in OPTIONAL and role not in columns:
                 continue
-            have = ", ".join(sorted(table)) or "none"
+            have = ", ".join(sorted(table.names)) or "none"
             raise RecordingError(
                 f"recording: {path.name} has no column {name!r} for {role} (it has: {have}); map one with --columns {role}=NAME"
             )
@@ -131,6 +132,12 @@ def load_recording(path: str | Path, columns: dict[str, str] | None = None, scal
         if a.ndim > 1 and sorted(a.shape)[:-1] != [1] * (a.ndim - 1):
             raise RecordingError(f"recording: {path.name}: column {name!r} has shape {a.shape}, expected a vector")
         arrays[role] = a.astype(float).ravel()
+    source = {role: columns.get(role, role) for role in arrays}
+    for role in arrays:
+        twins = [r for r in arrays if source[r] == source[role]]
+        if len(twins) > 1:
+            raise RecordingError(f"recording: {path.name}: {' and '.join(twins)} would both be column {source[role]!r}; "
+                                 "map each role to its own column (--columns)")  # fmt: skip
     for role, value in (scale or {}).items():
         if role not in arrays:
             raise RecordingError(f"recording: cannot scale {role!r}: no such column")

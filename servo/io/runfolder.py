@@ -16,6 +16,7 @@ import numpy as np
 from kernels.compose import LOG_COLUMNS, LOG_UNITS
 from servo.config import Config, load_config
 from servo.errors import RecordingError
+from servo.io.tables import read_table
 
 
 @dataclass
@@ -48,17 +49,15 @@ class RunFolder:
 
 
 def _read_log(npz: Path, csv: Path) -> tuple[dict[str, np.ndarray], dict]:
+    """A log's columns and meta, through :func:`~servo.io.tables.read_table` (each column
+    within its budget; a CSV header's units, ``t [s]``, split off)."""
+    path = npz if npz.exists() else csv
     try:
-        if npz.exists():
-            with np.load(npz) as z:
-                meta = json.loads(str(z["meta"])) if "meta" in z.files else {}
-                return {c: z[c] for c in z.files if c != "meta"}, meta
-        with open(csv, encoding="ascii") as fh:
-            names = [n.split(" [")[0] for n in fh.readline().strip().split(",")]  # "t [s]" -> "t"
-        data = np.loadtxt(csv, delimiter=",", skiprows=1, ndmin=2)
-        return {c: data[:, i].copy() for i, c in enumerate(names)}, {}
-    except (OSError, ValueError, KeyError) as exc:
-        raise RecordingError(f"{npz if npz.exists() else csv}: not a readable run log ({exc})") from None
+        table = read_table(path)
+        meta = json.loads(str(table.pop("meta"))) if "meta" in table else {}
+    except (RecordingError, ValueError) as exc:
+        raise RecordingError(f"{path}: not a readable run log ({str(exc).removeprefix('recording: ')})") from None
+    return dict(table), meta if isinstance(meta, dict) else {}
 
 
 def load_run(path: str | Path) -> RunFolder:

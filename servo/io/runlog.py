@@ -35,8 +35,8 @@ from typing import Callable, Iterable, Iterator
 
 import numpy as np
 
-from servo.errors import DriverError
-from servo.io.atomic import atomic_write
+from servo.errors import DriverError, RecordingError, first_line
+from servo.io.atomic import atomic_write, naming
 
 #: Rows per chunk when a journal is read back (~6 MB for 12 columns).
 CHUNK_ROWS = 65536
@@ -295,17 +295,68 @@ def interrupts_deferred():
         raise KeyboardInterrupt
 
 
+#: Most bytes a journal's header line may take (a run's is well under 4 kB).
+MAX_HEADER_BYTES = 1 << 20
+#: Most columns a journal may declare (a run's log has about 15).
+MAX_COLUMNS = 1024
+
+
+class JournalFormatError(RecordingError):
+    """A file given as a journal is not one (or not one this version wrote)."""
+
+
+def journal_header(fh) -> tuple[tuple[str, ...], dict[str, str], dict]:
+    """Columns, units and meta of the journal open (binary) as ``fh``, which is left at
+    its first row.  The header is checked before anything is sized from it: one JSON
+    line of at most :data:`MAX_HEADER_BYTES`, a table holding ``columns`` (1 to
+    :data:`MAX_COLUMNS` distinct ASCII identifiers: they name files and NPZ members),
+    ``units`` (column -> unit text, optional) and ``meta`` (a table, optional).  Raises
+    :class:`JournalFormatError` naming what is wrong."""
+    name = getattr(fh, "name", "journal")
+    line = fh.readline(MAX_HEADER_BYTES + 1)
+
+    def bad(what: str) -> JournalFormatError:
+        return JournalFormatError(f"{name}: not a run-log journal: {what}")
+
+    if not line.endswith(b"\n"):
+        if len(line) > MAX_HEADER_BYTES:
+            raise bad(f"no header line within its first {MAX_HEADER_BYTES} bytes")
+        raise bad("no header line (the file ends before one)")
+    try:
+        header = json.loads(line)
+    except (UnicodeDecodeError, ValueError, RecursionError) as exc:
+        raise bad(f"its first line is not JSON ({first_line(exc)})") from None
+    if not isinstance(header, dict):
+        raise bad(f"its header is a JSON {type(header).__name__}, not a table")
+    cols = header.get("columns")
+    if not isinstance(cols, list) or not cols or len(cols) > MAX_COLUMNS:
+        raise bad(f"its header's 'columns' must be a list of 1 to {MAX_COLUMNS} names")
+    for c in cols:
+        if not (isinstance(c, str) and c.isascii() and c.isidentifier()):
+            raise bad(f"column name {c!r} is not an ASCII identifier (letters, digits, _)")
+    dup = sorted({c for c in cols if cols.count(c) > 1})
+    if dup:
+        raise bad(f"column {dup[0]!r} is named twice")
+    units = header.get("units", {})
+    if not isinstance(units, dict) or not all(
+            isinstance(u, str) and u.isascii() and u.isprintable() and "," not in u for u in units.values()):  # fmt: skip
+        raise bad("its header's 'units' must be a table of column -> unit text (ASCII, no commas)")
+    meta = header.get("meta", {})
+    if not isinstance(meta, dict):
+        raise bad("its header's 'meta' must be a table")
+    return tuple(cols), {c: units[c] for c in cols if units.get(c)}, meta
+
+
 def _journal_header(fh) -> tuple[tuple[str, ...], dict]:
-    header = json.loads(fh.readline())
-    return tuple(header["columns"]), header["meta"]
+    cols, _, meta = journal_header(fh)
+    return cols, meta
 
 
 def _csv_names(path) -> list[str]:
     """The CSV header of a journal's columns: ``name [unit]`` where a unit is known."""
     with open(path, "rb") as fh:
-        header = json.loads(fh.readline())
-    units = header.get("units") or {}
-    return [f"{c} [{units[c]}]" if units.get(c) else c for c in header["columns"]]
+        cols, units, _ = journal_header(fh)
+    return [f"{c} [{units[c]}]" if units.get(c) else c for c in cols]
 
 
 def iter_journal(path: str | Path, chunk_rows: int = CHUNK_ROWS) -> Iterator[np.ndarray]:
@@ -354,34 +405,35 @@ def finalise_journal(path: str | Path, formats: Iterable[str] = FORMATS,
     written = []
     tmp_cols = [stem.with_name(f".{stem.name}.{c}.col") for c in cols]
     csv_tmp = stem.with_name(f".{stem.name}.csv.tmp")
-    try:
-        col_fh = [open(p, "wb") for p in tmp_cols] if "npz" in formats else []
-        csv_fh = open(csv_tmp, "w", encoding="ascii") if "csv" in formats else None
+    with naming(stem.with_suffix(".npz" if "npz" in formats else ".csv")):  # a full disk's error says where
         try:
-            if csv_fh:
-                csv_fh.write(",".join(_csv_names(path)) + "\n")
-            for chunk in iter_journal(path):
-                for i, f in enumerate(col_fh):
-                    f.write(np.ascontiguousarray(chunk[:, i]).tobytes())
+            col_fh = [open(p, "wb") for p in tmp_cols] if "npz" in formats else []
+            csv_fh = open(csv_tmp, "w", encoding="ascii") if "csv" in formats else None
+            try:
                 if csv_fh:
-                    np.savetxt(csv_fh, chunk, fmt="%.17g", delimiter=",")
-                for consume in consumers:
-                    consume(chunk)
-        finally:
-            for f in col_fh:
-                f.close()
+                    csv_fh.write(",".join(_csv_names(path)) + "\n")
+                for chunk in iter_journal(path):
+                    for i, f in enumerate(col_fh):
+                        f.write(np.ascontiguousarray(chunk[:, i]).tobytes())
+                    if csv_fh:
+                        np.savetxt(csv_fh, chunk, fmt="%.17g", delimiter=",")
+                    for consume in consumers:
+                        consume(chunk)
+            finally:
+                for f in col_fh:
+                    f.close()
+                if csv_fh:
+                    csv_fh.close()
+            if "npz" in formats:
+                atomic_write(stem.with_suffix(".npz"), lambda tmp: _zip_columns(tmp, cols, tmp_cols, meta))
+                written.append(stem.with_suffix(".npz"))
             if csv_fh:
-                csv_fh.close()
-        if "npz" in formats:
-            atomic_write(stem.with_suffix(".npz"), lambda tmp: _zip_columns(tmp, cols, tmp_cols, meta))
-            written.append(stem.with_suffix(".npz"))
-        if csv_fh:
-            os.replace(csv_tmp, stem.with_suffix(".csv"))
-            written.append(stem.with_suffix(".csv"))
-    finally:
-        for p in [*tmp_cols, csv_tmp]:
-            if p.exists():
-                p.unlink()
+                os.replace(csv_tmp, stem.with_suffix(".csv"))
+                written.append(stem.with_suffix(".csv"))
+        finally:
+            for p in [*tmp_cols, csv_tmp]:
+                if p.exists():
+                    p.unlink()
     path.unlink()
     return written
 

@@ -38,6 +38,7 @@ from servo.runtime.loop import LoopResult, log_rows, run_closed_loop
 from servo.runtime.pacing import realtime_section
 from servo.scenarios import Inputs, scenario_inputs
 from servo.runtime.simdriver import SimDriver
+from servo.runtime.simplant import build_plant
 
 #: Rows per journal block of a simulated run (~0.8 MB): each block is one write and one fsync.
 LOG_BLOCK = 8192
@@ -48,10 +49,22 @@ def default_out_dir() -> Path:
     return Path("servo-out") / time.strftime("run-%Y%m%d-%H%M%S")
 
 
+def prepare(cfg: Config, simulated: bool = True) -> Inputs:
+    """The run's inputs (:func:`~servo.scenarios.scenario_inputs`), built, and
+    the simulated drive's plant checked (``simulated``): what a valid config can still
+    be refused for when it runs (an excitation no signal meets, the HDD benchmark at a
+    rate it does not divide, a holding current beyond the limit), raised before any
+    file or folder is made."""
+    inputs = scenario_inputs(cfg)
+    if simulated:
+        build_plant(cfg.drive, cfg.dt)
+    return inputs
+
+
 def run_simulated(cfg: Config, out_dir: Path, compensated: bool, fast: bool,
                   make_driver: Callable[[Config, Inputs], Driver] | None = None,
                   realtime: RealtimeOptions | None = None,
-                  log_formats: tuple[str, ...] = FORMATS) -> tuple[dict, np.ndarray, LoopResult]:  # fmt: skip
+                  log_formats: tuple[str, ...] = FORMATS, inputs: Inputs | None = None) -> tuple[dict, np.ndarray, LoopResult]:  # fmt: skip
     """One closed-loop run against a fresh driver (default: the simulated drive); returns
     (figures, plot rows, result): the run's tracking and step figures
     (:class:`~servo.run.reduce.RunFigures`), the rows its plots draw
@@ -63,9 +76,10 @@ def run_simulated(cfg: Config, out_dir: Path, compensated: bool, fast: bool,
     ``result.link``.  ``realtime``: pace the ticks on the wall clock (tick path,
     simulated drive); the result then carries the pacing report and the lateness of
     every tick.  A run against a plant in real time (paced, or a board) journals its log
-    in blocks of :data:`~servo.run.realtime.REALTIME_LOG_BLOCK` rows."""
+    in blocks of :data:`~servo.run.realtime.REALTIME_LOG_BLOCK` rows.  ``inputs``: the
+    run's inputs as :func:`prepare` built them (built from ``cfg`` when None)."""
     label = "compensated" if compensated else "uncompensated"
-    inputs = scenario_inputs(cfg)
+    inputs = scenario_inputs(cfg) if inputs is None else inputs
     meta = {"label": label, "fast_path": fast, "sample_rate_hz": cfg.run.sample_rate_hz, "seed": cfg.run.seed,
             "realtime": realtime is not None}  # fmt: skip
     driver = SimDriver(cfg, inputs) if make_driver is None else make_driver(cfg, inputs)
@@ -126,14 +140,15 @@ def output_bytes(cfg: Config, runs: int, log_formats: tuple[str, ...]) -> float:
 def run_job(cfg: Config, out_dir: Path, compensation: str = "compare", fast: bool | None = None,
             make_driver: Callable[[Config, Inputs], Driver] | None = None, where: str | None = None,
             realtime: RealtimeOptions | None = None, log_formats: tuple[str, ...] = FORMATS,
-            provenance: dict | None = None) -> dict:  # fmt: skip
+            provenance: dict | None = None, inputs: Inputs | None = None) -> dict:  # fmt: skip
     """Run the ``servo run`` job into ``out_dir``; returns the summary (also written as
     ``summary.json``).  ``make_driver(cfg, inputs)``: a fresh driver per run instead of the
     simulated drive (``where`` describes it, e.g. the serial URL).  ``realtime``: pace
     every tick of the simulated drive on the wall clock (implies the tick path; asking for
     the fast path as well, or pacing a board, which is its own clock, is an error).
     ``log_formats``: ``npz`` and/or ``csv``; ``provenance``
-    (:func:`servo.io.provenance.provenance`) is recorded in the summary.  Memory does
+    (:func:`servo.io.provenance.provenance`) is recorded in the summary; ``inputs``: the
+    run's inputs as :func:`prepare` built them (built here when None).  Memory does
     not grow with the run's length; the disk its logs need is checked first (one line if
     it is not there).  On a fault
     the drive is at zero current and the log of the interrupted run is kept."""
@@ -144,6 +159,7 @@ def run_job(cfg: Config, out_dir: Path, compensation: str = "compare", fast: boo
     fast = cfg.run.fast_path if fast is None else fast
     out_dir = Path(out_dir)
     labels = LABELS[compensation]
+    inputs = prepare(cfg, make_driver is None) if inputs is None else inputs  # before anything is written
     check_disk(out_dir, output_bytes(cfg, len(labels), log_formats), "the run logs",
                "shorten --duration, raise run.log_every, or write one format (--log-format npz)")  # fmt: skip
     out_dir.mkdir(parents=True, exist_ok=True)
@@ -152,7 +168,7 @@ def run_job(cfg: Config, out_dir: Path, compensation: str = "compare", fast: boo
     for label in labels:
         progress.stage(f"{label} run", cfg.n_ticks, "ticks")
         figures, plot_logs[label], results[label] = run_simulated(cfg, out_dir, label == "compensated", fast,
-                                                                  make_driver, realtime, log_formats)  # fmt: skip
+                                                                  make_driver, realtime, log_formats, inputs)  # fmt: skip
         if not runs:
             age = process_age_s()
             startup = None if age is None else age - (time.perf_counter() - results[label].started)

@@ -121,9 +121,14 @@ def prbs(n: int, dt: float, amplitude: float = 1.0, nbits: int = 10, hold: int =
     return np.resize(one, n)
 
 
+#: A PRBS flat to ``f_max`` Hz (within about 3 dB: its ``sinc^2`` envelope) holds each bit
+#: ``PRBS_BIT_HZ/f_max`` s.
+PRBS_BIT_HZ = 0.44
+
+
 def prbs_period(nbits: int, hold: int = 1) -> int:
     """Samples in one period of :func:`prbs`: ``(2**nbits - 1)*hold``."""
     return (2 ** int(nbits) - 1) * int(hold)
 
 
-__all__ = ["ExcitationError", "chirp", "multisine", "multisine_lines", "prbs", "prbs_period"]
+__all__ = ["PRBS_BIT_HZ", "ExcitationError", "chirp", "multisine", "multisine_lines", "prbs", "prbs_period"]

@@ -11,6 +11,11 @@ if TYPE_CHECKING:
     from servo.hdd.disturbances import Disturbances
 
 
+#: Most ticks a run of this scenario may last: its runout and force disturbance are
+#: generated whole, ~6 float64 arrays as long as the run (~800 MB).
+MAX_BENCHMARK_TICKS = 1 << 24
+
+
 class BenchmarkInputs(ArrayInputs):
     """A run's inputs (:class:`~servo.scenarios.base.Inputs`) from :class:`~servo.hdd.disturbances.Disturbances`:
     reference ``-(RRO + flutter)`` held between PES samples; the force disturbance as the
@@ -34,6 +39,10 @@ class HddBenchmark(ScenarioKind):
 
     @classmethod
     def inputs(cls, cfg) -> Inputs:
+        if cfg.n_ticks > MAX_BENCHMARK_TICKS:  # its disturbances are arrays as long as the run
+            raise ConfigError(f"config: scenario.kind = hdd_benchmark holds its disturbances in memory, "
+                              f"{cfg.n_ticks} ticks at {cfg.run.sample_rate_hz:g} Hz, more than {MAX_BENCHMARK_TICKS}; "
+                              "shorten run.duration_s")  # fmt: skip
         from servo.hdd.disturbances import generate  # scipy.signal: imported when the kind is run, not registered
 
         try:

@@ -8,7 +8,8 @@ from servo.errors import ConfigError
 from servo.scenarios import excitation as excite
 from servo.scenarios.base import Inputs, ScenarioKind
 
-#: Most samples one period of a periodic excitation may hold (8 MB).
+#: Most samples one period of a periodic excitation may hold (8 MB; a prbs's period,
+#: rounded up to whole bits of its sequence, up to 4 times as many).
 MAX_PERIOD_SAMPLES = 1 << 20
 
 
@@ -40,10 +41,17 @@ class ScenarioInputs(Inputs):
             raise ConfigError(f"config: scenario.excitation_period = {s.excitation_period:g} s is {n} samples at "
                               f"{cfg.run.sample_rate_hz:g} Hz, more than {MAX_PERIOD_SAMPLES}; shorten it")  # fmt: skip
         if s.excitation == "multisine":
-            return excite.multisine(n, dt, s.excitation_f_min, s.excitation_f_max, s.excitation_amplitude)
-        hold = max(1, int(0.44 / (s.excitation_f_max * dt)))
+            try:
+                return excite.multisine(n, dt, s.excitation_f_min, s.excitation_f_max, s.excitation_amplitude)
+            except excite.ExcitationError as exc:
+                raise ConfigError(f"config: scenario.excitation = multisine: {exc}") from None
+        hold = max(1, int(excite.PRBS_BIT_HZ / (s.excitation_f_max * dt)))
         nbits = max(2, int(np.ceil(np.log2(n / hold + 1))))
-        return excite.prbs(excite.prbs_period(nbits, hold), dt, s.excitation_amplitude, nbits, hold)
+        samples = excite.prbs_period(nbits, hold)
+        if samples > 4 * MAX_PERIOD_SAMPLES:  # bits as long as the period (config refuses longer) make at most 3n
+            raise ConfigError(f"config: scenario.excitation_f_max = {s.excitation_f_max:g} Hz makes a prbs period of "
+                              f"{samples} samples, more than {4 * MAX_PERIOD_SAMPLES}; raise it")  # fmt: skip
+        return excite.prbs(samples, dt, s.excitation_amplitude, nbits, hold)
 
     def excitation(self, ticks):
         """The excitation current (A) of ``scenario.excitation`` at ``ticks``."""
