@@ -5,7 +5,7 @@ Drives", IEEE Trans. Magnetics 38(5), 2002, as a fixed-rate servo runtime with a
 core (:mod:`kernels`).  The packages' layers, bottom up, are listed (and checked) in
 ``tests/test_layers.py``; this facade is their top and imports what it offers lazily.
 """
-from servo._version import __version__
+from servo._version import __version__  # noqa: F401  (servo.__version__)
 
 
 def __getattr__(name: str):

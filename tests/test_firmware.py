@@ -15,7 +15,6 @@ Builds are cached in one temporary directory per test session (a second or two e
 import ctypes
 import math
 import os
-import re
 import shutil
 import signal
 import subprocess

@@ -17,7 +17,6 @@ import json
 import os
 import tempfile
 import tracemalloc
-import zipfile
 from collections import Counter
 from pathlib import Path
 
