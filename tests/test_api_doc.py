@@ -2,6 +2,8 @@
 repository's root, as a notebook would run them.  A block that fails names itself."""
 from __future__ import annotations
 
+import pytest
+
 import os
 import re
 from pathlib import Path
@@ -14,6 +16,7 @@ def blocks(text: str) -> list[str]:
     return re.findall(r"^```python\n(.*?)^```", text, flags=re.S | re.M)
 
 
+@pytest.mark.slow
 def test_the_api_walkthrough_runs(monkeypatch):
     code = blocks(DOC.read_text())
     assert len(code) >= 6  # recording, identify, plot, diagnose, frf, files

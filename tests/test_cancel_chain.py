@@ -19,6 +19,7 @@ from servo.scenarios import scenario_inputs
 from servo.runtime.simdriver import SimDriver
 
 
+@pytest.mark.slow
 def test_the_chain_on_a_dahl_pivot_other_than_the_nominal_one(tmp_path, capsys):
     """The whole chain through the CLI (quick settings: 2 levels, 6 frequencies, the same
     code path): the diagnosis finds the pivot's Dahl element; the compensator written from

@@ -11,6 +11,7 @@ def servo(*args, cwd=None):
     return subprocess.run([sys.executable, "-m", "servo", *args], capture_output=True, text=True, cwd=cwd, timeout=300)
 
 
+@pytest.mark.slow
 def test_run_writes_logs_summary_and_plots(tmp_path):
     out = tmp_path / "out"
     r = servo("run", "--duration", "0.3", "--out", str(out))
@@ -30,6 +31,7 @@ def test_run_writes_logs_summary_and_plots(tmp_path):
     assert np.load(out / "log_compensated.npz")["t"].shape == (15000,)
 
 
+@pytest.mark.slow
 def test_fast_path_run_matches_tick_path_run(tmp_path):
     a, b = tmp_path / "a", tmp_path / "b"
     assert servo("run", "--duration", "0.1", "--compensation", "on", "--out", str(a)).returncode == 0
@@ -39,6 +41,7 @@ def test_fast_path_run_matches_tick_path_run(tmp_path):
         assert np.array_equal(la[col], lb[col])
 
 
+@pytest.mark.slow
 def test_config_prints_a_loadable_documented_default(tmp_path):
     r = servo("config")
     assert r.returncode == 0 and "[drive]" in r.stdout
@@ -69,6 +72,7 @@ def test_bad_input_is_one_line_and_a_nonzero_exit(args, needle, tmp_path):
     assert not (tmp_path / "o").exists()  # nothing written on bad input
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("command", [["run", "--duration", "0.01"], ["identify", "--simulate"],
                                      ["hysteresis", "--simulate"]])  # fmt: skip
 @pytest.mark.parametrize("where", ["under_a_file", "on_a_file"])

@@ -25,6 +25,7 @@ def kinds_restored():
     KINDS.update(before)
 
 
+@pytest.mark.slow
 def test_the_worked_example_in_the_docs_runs(tmp_path, monkeypatch, kinds_restored):
     blocks = re.findall(r"^```python\n(.*?)^```", DOC.read_text(), flags=re.S | re.M)
     assert len(blocks) >= 2
@@ -113,6 +114,7 @@ def test_a_kind_cannot_take_a_built_in_name_nor_log_other_than_its_columns(kinds
     assert KINDS["pi"] is PI and "twocols" not in KINDS
 
 
+@pytest.mark.slow
 def test_a_plugin_that_fails_and_a_design_that_cannot_be_are_one_line_before_any_output(tmp_path):
     (tmp_path / "bad_raise.py").write_text("raise RuntimeError('boom')\n")
     cases = [

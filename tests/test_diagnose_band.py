@@ -28,6 +28,7 @@ def _recording(f_hz: float, amplitude: float = 3.0, n: int = 20000) -> Recording
     return Recording(t, u, y, None, source=f"750 Hz, {f_hz:g} Hz drive")
 
 
+@pytest.mark.slow
 def test_reversals_close_in_samples_get_a_smaller_decimation_and_the_band_is_stated():
     rec = _recording(10.0)  # a reversal every ~37 samples: a third of them inside the default filter's reach
     fixed = diagnose(rec, Options(settings=RobustSettings()))

@@ -67,6 +67,7 @@ def test_combined_test_keeps_its_level_on_null_events():
             assert np.mean(comb < a) <= a + 3 * np.sqrt(a * (1 - a) / comb.size), (N, a)
 
 
+@pytest.mark.slow
 def test_truncated_product_is_calibrated_on_uniform_pvalues():
     """The truncated product's null law (Zaykin et al. 2002), checked on uniform p-values."""
     rng = np.random.default_rng(7)

@@ -22,6 +22,7 @@ def hysteresis_csv(tmp_path_factory):
     return path
 
 
+@pytest.mark.slow
 def test_diagnose_writes_the_report_the_model_and_the_plots(tmp_path, capsys, hysteresis_csv):
     out = tmp_path / "d"
     assert main(["diagnose", str(hysteresis_csv), "--out", str(out)]) == 0

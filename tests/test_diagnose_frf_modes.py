@@ -209,6 +209,7 @@ def test_no_input_power_above_the_band_is_said_not_guessed():
     assert "band above: the frequency response at full rate covers 200-2250 Hz (the input has no power" in text
 
 
+@pytest.mark.slow
 def test_the_figure_shows_both_parts_and_the_model_before_and_after(tmp_path):
     from matplotlib.figure import Figure
 

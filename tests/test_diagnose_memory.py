@@ -21,6 +21,7 @@ def rec200k():
     rec, _ = concealed_recording("hysteresis", 2e-4, seed=1, scenario=Scenario(duration_s=SAMPLES / 50_000))
     return rec
 
+@pytest.mark.slow
 def test_peak_memory_per_sample_is_bounded(rec200k, tmp_path):
     path = tmp_path / "rec.npz"
     np.savez(path, t=rec200k.t, u=rec200k.u, x=rec200k.x)

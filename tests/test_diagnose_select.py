@@ -1,6 +1,7 @@
 """The statistics of candidate selection: fold fits from Gram matrices, the sign-flip
 test on gain blocks (and the t-test it replaced), the effective sample size, collinear
 columns."""
+import pytest
 import numpy as np
 
 from servo.diagnose.select import Grams, integrated_time, make_blocks, paired_test, signflip_test, solve
@@ -76,6 +77,7 @@ def test_an_effect_in_a_few_blocks_passes_the_signflip_test_where_the_t_test_fai
     assert paired_test(fold0, fold1)[1] > 0.02
 
 
+@pytest.mark.slow
 def test_signflip_false_alarm_rate_on_useless_columns():
     """Pure-noise candidates tried by blocked CV on white and on correlated residuals,
     one column and the best of a grid of five chosen inside each fold (nested, as a

@@ -1,6 +1,7 @@
 """The detection study (``python -m studies.concealed``) runs on Dask through the
 fleet's path (issue 13.6): on a local cluster of two workers it gives the runs of the
 serial loop, in the same order, and the same tables."""
+import pytest
 import json
 
 from studies.concealed import main, run_one, study_jobs, tables
@@ -10,6 +11,7 @@ def _untimed(runs):
     return [{k: v for k, v in r.items() if k != "seconds"} for r in runs]
 
 
+@pytest.mark.slow
 def test_a_small_study_on_two_dask_workers_gives_the_serial_loops_runs_and_tables(tmp_path, capsys):
     jobs = study_jobs(["hysteresis"], seeds=1, null_seeds=1)
     assert jobs[0] == (None, 0.0, 10_000) and len(jobs) == 6  # one null recording, five sizes of one seed

@@ -45,6 +45,7 @@ def test_the_serial_loop_names_exactly_the_defective_drives_and_their_defects(fl
         assert r["findings"] == (defect or "")
 
 
+@pytest.mark.slow
 def test_a_local_cluster_of_two_workers_gives_the_serial_table_row_for_row(fleet, tmp_path):
     tasks, s, serial, truth = fleet
     summary = run_fleet("diagnose", tasks, s, tmp_path, Where(workers=2))
@@ -70,6 +71,7 @@ def _wait_for(path, seconds=60.0):
         time.sleep(0.1)
 
 
+@pytest.mark.slow
 def test_a_real_scheduler_loses_nothing_when_a_worker_is_killed_mid_run(fleet, tmp_path):
     from distributed import Client
 

@@ -158,6 +158,7 @@ def v2_evaluations():
             (("reference", designs.reference), ("own", designs.own))}  # fmt: skip
 
 
+@pytest.mark.slow
 def test_reference_design_is_stable_on_every_perturbed_plant(v2_evaluations):
     s = v2_evaluations["reference"]["summary"]
     assert s["plants"] == 54 and s["unstable"] == 0
@@ -171,6 +172,7 @@ def test_reference_design_is_stable_on_every_version1_plant():
     assert len(ms) == 30 and all(m["stable"] for m in ms)
 
 
+@pytest.mark.slow
 def test_own_design_beats_the_reference(v2_evaluations):
     ref, own = v2_evaluations["reference"]["summary"], v2_evaluations["own"]["summary"]
     assert own["unstable"] == 0

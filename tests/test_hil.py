@@ -115,6 +115,7 @@ def test_another_controller_kind_runs_through_the_link_unchanged(lockstep_emulat
     assert np.array_equal(hil, sim)
 
 
+@pytest.mark.slow
 def test_servo_run_port_gives_the_simulator_run_bit_for_bit(lockstep_emulator, tmp_path):
     url, cfg_file = lockstep_emulator
     out = tmp_path / "port"
@@ -191,6 +192,7 @@ def test_each_link_fault_is_detected_counted_and_stops_cleanly(fault, message, s
     assert sorted(p.name for p in tmp_path.iterdir()) == ["log.csv", "log.npz"]
 
 
+@pytest.mark.slow
 def test_a_port_that_disappears_mid_run_stops_servo_run_with_one_line(tmp_path):
     """The emulator process dies (the pty's master side goes away) while ``servo run`` runs."""
     cfg_file = tmp_path / "cfg.toml"

@@ -1,4 +1,5 @@
 """The kernels' on-disk cache is keyed by their source, so an edit recompiles them all."""
+import pytest
 import shutil
 from pathlib import Path
 
@@ -43,6 +44,7 @@ def test_numba_caches_into_the_keyed_directory_and_its_configuration_is_left_alo
     assert r.returncode == 0, r.stderr
 
 
+@pytest.mark.slow
 def test_the_first_run_says_it_compiled_the_kernels_and_the_second_that_it_loaded_them(tmp_path):
     """Issue 12.6: the first run after an install said "cached kernels" while it compiled."""
     import os

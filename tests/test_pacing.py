@@ -125,6 +125,7 @@ def servo(*args):
     return subprocess.run([sys.executable, "-m", "servo", *args], capture_output=True, text=True, timeout=300)
 
 
+@pytest.mark.slow
 def test_servo_run_realtime_reports_lateness_and_matches_the_unpaced_run(tmp_path):
     a, b = tmp_path / "rt", tmp_path / "plain"
     r = servo("run", "--realtime", "--duration", "0.06", "--compensation", "on", "--out", str(a))

@@ -1,4 +1,5 @@
 """``servo paper``: every figure of section IV and a report stating measured numbers."""
+import pytest
 import re
 
 from servo.config import Config
@@ -6,6 +7,7 @@ from servo.experiments.bode import SweepSettings
 from servo.experiments.paper import run_paper
 
 
+@pytest.mark.slow
 def test_paper_writes_every_figure_and_a_report(tmp_path):
     sweep = SweepSettings(levels=(1e-3, 16e-3), f_min=50.0, f_max=500.0, n_freq=3, periods=2, settle_periods=2)
     summary = run_paper(Config(), tmp_path, sweep)
