@@ -31,7 +31,8 @@ class HddBenchmark(ScenarioKind):
     @classmethod
     def inputs(cls, cfg) -> Inputs:
         try:
-            dist = generate(cfg.n_ticks, cfg.scenario.hdd_version, seed=cfg.run.seed, fs=cfg.run.sample_rate_hz)
+            dist = generate(cfg.n_ticks, cfg.scenario.hdd_version, seed=cfg.run.seed, fs=cfg.run.sample_rate_hz,
+                            package=cfg.scenario.hdd_package or None)
         except ValueError as exc:
             raise ConfigError(f"config: scenario.kind = hdd_benchmark: {exc}") from None
         return BenchmarkInputs(dist)

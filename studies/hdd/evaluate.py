@@ -12,9 +12,11 @@ stationary NRRO 3 sigma the disturbance models imply (Lyapunov), which the simul
 estimates.
 
     python -m studies.hdd.evaluate [--version 2] [--revolutions 1000] [--seed 0]
-                                 [--designs reference,own] [--out DIR]
+                                   [--designs reference,own] [--package DIR] [--out DIR]
 
-prints the table of ``docs/hdd.md``; ``--out`` (new or empty) also writes
+prints the table of ``docs/hdd.md``; ``--package``: a copy of the benchmark package,
+whose written-in runout ``RROSequence.mat`` joins the RRO (without it: the three
+harmonics alone); ``--out`` (new or empty) also writes
 ``evaluation.json`` and ``pes_<design>.png`` (the nominal plant's PES figures).
 """
 from __future__ import annotations
@@ -79,16 +81,17 @@ def evaluate_plant(design: Design, bench: Benchmark, name: str, plant, dist: Dis
 
 
 def evaluate(design: Design, version: int = 2, revolutions: int | None = None, seed: int = 0,
-             with_kf: bool = True, only: int | None = None, margin_points: int = 20000) -> dict:  # fmt: skip
+             with_kf: bool = True, only: int | None = None, margin_points: int = 20000, package=None) -> dict:  # fmt: skip
     """Evaluate ``design`` on every perturbed plant of the benchmark (``only``: the first
-    ``only`` plants; ``margin_points``: the margins' frequency grid).  Returns ``{"plants": [PlantResult...], "summary": {...}}`` where the
+    ``only`` plants; ``margin_points``: the margins' frequency grid; ``package``: the
+    benchmark package's folder, for its written-in runout).  Returns ``{"plants": [PlantResult...], "summary": {...}}`` where the
     summary holds mean and worst RRO p-p and NRRO 3 sigma (tracks) over the plants, the
     number unstable, and the smallest margins."""
     bench = benchmark(version)
     if abs(design.fs_pes * bench.Ts - 1) > 1e-9:
         raise ValueError(f"the design's PES rate {design.fs_pes:g} Hz is not the benchmark's {1 / bench.Ts:g} Hz")
     revs = bench.revolutions if revolutions is None else int(revolutions)
-    dist = generate(revs * bench.sectors * design.pes_every, version, seed, design.fs)
+    dist = generate(revs * bench.sectors * design.pes_every, version, seed, design.fs, package=package)
     U = linsim.inputs(dist)
     results = [evaluate_plant(design, bench, name, p, dist, U, margin_points) for name, p in plants(bench, with_kf)[:only]]
     return dict(plants=results, summary=summarise(results))
@@ -137,6 +140,7 @@ def main(argv=None) -> int:
     ap.add_argument("--revolutions", type=int, default=None, help="default: the benchmark's 1000")
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--designs", default=None, help="comma-separated: reference, own (default: both; version 1: reference)")
+    ap.add_argument("--package", default=None, help="folder of the benchmark package (its RROSequence.mat joins the RRO)")
     ap.add_argument("--out", default=None, help="folder (new or empty) for evaluation.json and PES plots")
     a = ap.parse_args(argv)
     try:
@@ -150,9 +154,10 @@ def main(argv=None) -> int:
             raise ValueError("--revolutions must be >= 3")
         if a.out and Path(a.out).exists() and (not Path(a.out).is_dir() or any(Path(a.out).iterdir())):
             raise ValueError(f"{a.out}: exists and is not an empty folder")
-        results = {n: evaluate(known[n](a.version), a.version, a.revolutions, a.seed) for n in names}
-        print(f"NSS HDD benchmark v{a.version}, linear evaluation ({a.revolutions or 1000} revolutions, seed {a.seed}); "
-              "figures in % of a track")  # fmt: skip
+        results = {n: evaluate(known[n](a.version), a.version, a.revolutions, a.seed, package=a.package) for n in names}
+        rro = "with the written-in RRO" if a.package else "RRO: the three harmonics alone"
+        print(f"NSS HDD benchmark v{a.version}, linear evaluation ({a.revolutions or 1000} revolutions, seed {a.seed}, "
+              f"{rro}); figures in % of a track")  # fmt: skip
         text = table(results)
         print(text)
         if a.out:
