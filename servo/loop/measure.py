@@ -33,6 +33,7 @@ a serial driver (tick by tick, ``make_driver``), so a board measures the same wa
 """
 from __future__ import annotations
 
+import dataclasses
 import math
 from dataclasses import dataclass, field
 from typing import Callable
@@ -42,6 +43,10 @@ import numpy as np
 from servo.config import Config
 from servo.errors import ConfigError
 from servo.io.frequency_response import FrequencyResponse
+
+#: The highest frequency a stepped sine measures, as a share of the Nyquist frequency
+#: (a window of whole periods in whole samples; ``servo loop``'s default ``f_max``).
+F_MAX_SHARE = 0.4
 
 #: Log columns the estimator correlates.
 SIGNALS = ("u", "u_n", "u_c", "u_exc", "x")
@@ -63,11 +68,14 @@ class LoopSettings:
     levels: tuple = (0.2e-3,)
 
     def check(self, cfg: Config) -> "LoopSettings":
-        """Refuse settings no measurement can honour (one :class:`ConfigError` line)."""
+        """Refuse settings no measurement can honour (one :class:`ConfigError` line);
+        ``f_max`` None becomes :data:`F_MAX_SHARE` of the Nyquist frequency."""
         nyq = 0.5 * cfg.run.sample_rate_hz
+        if self.f_max is None:
+            return dataclasses.replace(self, f_max=F_MAX_SHARE * nyq).check(cfg)
         if not (0.0 < self.f_min < self.f_max) or not math.isfinite(self.f_max):
             raise ConfigError(f"loop: need 0 < f_min < f_max (got {self.f_min:g}, {self.f_max:g} Hz)")
-        if self.f_max > 0.4 * nyq:
+        if self.f_max > F_MAX_SHARE * nyq * (1 + 1e-12):
             raise ConfigError(f"loop: f_max {self.f_max:g} Hz must stay below 40 % of the Nyquist frequency "
                               f"({0.4 * nyq:g} Hz at {cfg.run.sample_rate_hz:g} Hz)")  # fmt: skip
         if self.n_freq < 4:

@@ -1,0 +1,41 @@
+"""A measured loop knows how well its margins are known (servo/loop/quality.py): the
+uncertainty of every margin from the points' own random error, and a warning beyond
+tolerance."""
+import math
+
+import control
+import numpy as np
+import pytest
+
+from servo.design.margins import margins
+from servo.loop.quality import TOLERANCE, uncertainty, warnings_for
+
+
+def loop():
+    s = control.tf("s")
+    L = 40 * (s + 3) / (s * s * (s / 30 + 1) * (s / 80 + 1))
+    f = np.geomspace(0.1, 30.0, 25)
+    return f, np.asarray(L(2j * np.pi * f))
+
+
+def test_margin_uncertainty_follows_the_points_error():
+    f, L = loop()
+    m = margins(f, L)
+    u = uncertainty(m, f, L, np.full(f.shape, 0.01))
+    assert u["phase_margin_deg"] == pytest.approx(math.degrees(0.01), rel=1e-9)
+    assert u["gain_margin_db"] == pytest.approx(20 / math.log(10) * 0.01, rel=1e-9)
+    # the crossover: e / |slope of ln|L| in ln f| (about 1.2 near crossover here)
+    assert 0.005 * m["crossover_hz"] < u["crossover_hz"] < 0.012 * m["crossover_hz"]
+    assert 0 < u["max_S_db"] < 20 / math.log(10) * 0.01 * (10 ** (m["max_S_db"] / 20) + 1)  # |T| <= |S| + 1
+    assert warnings_for("x", m, u) == []
+    noisy = uncertainty(m, f, L, np.full(f.shape, 0.2))  # 11 deg of phase
+    w = warnings_for("measured, on", m, noisy)
+    assert {line.split(" = ")[0] for line in w} == {f"measured, on: {k}" for k in TOLERANCE}
+    assert all("raise --levels" in line for line in w)
+
+
+def test_unknown_error_gives_no_uncertainty_and_no_warning():
+    f, L = loop()
+    m = margins(f, L)
+    u = uncertainty(m, f, L, np.full(f.shape, np.nan))
+    assert all(v is None for v in u.values()) and warnings_for("x", m, u) == []
