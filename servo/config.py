@@ -40,6 +40,12 @@ class RunConfig:
     estimator_every: int = P(10, "ticks", "tracking-error estimator task period", 1, 10**6)
     log_every: int = P(1, "ticks", "logging period (decimation of the run log)", 1, 10**6)
     fast_path: bool = P(False, "-", "run the all-compiled loop instead of tick by tick")
+    fault_position: float = P(0.0, "m", "a run whose position leaves +-this stops as unstable, exit 3 "
+                              "(0: 95 % of drive.stroke, short of the hard stops; docs/runtime.md)", 0.0)
+    fault_limit_share: float = P(0.5, "-", "a run whose current command sits at its limit on more than this share "
+                                 "of the ticks of any fault_window_s window stops as unstable, exit 3 (1: never)",
+                                 0.0, 1.0, lo_open=True)
+    fault_window_s: float = P(0.05, "s", "the window of fault_limit_share", 0.0, 60.0, lo_open=True)
 
 
 @dataclass
