@@ -3,7 +3,8 @@ independent of the project's runtime: ``python -m studies.hdd.evaluate``.
 
 For every perturbed plant (54 in version 2: 18 mechanical x 3 force constants): the
 exact multirate open loop at the PES rate (:func:`servo.design.loop.open_loop`): closed-loop
-stability, gain and phase margins and crossover (``control.stability_margins``); then, if
+stability, then for a stable loop its margins (:func:`servo.design.margins.margins`: the
+binding gain margin, phase margin at the lowest crossover, max|S|); then, if
 stable, the PES of a linear simulation of the loop over the benchmark's 1000 revolutions
 with its disturbances (:mod:`servo.hdd.linsim`; the same disturbance record for every
 plant, as the benchmark does), the first 10 ms ignored, and its figures
@@ -52,8 +53,12 @@ class PlantResult:
 
     def row(self) -> dict:
         m = self.margins
-        out = dict(plant=self.name, stable=m["stable"], gain_margin_db=m["gain_margin_db"],
-                   phase_margin_deg=m["phase_margin_deg"], crossover_hz=m["crossover_hz"])  # fmt: skip
+        out = dict(plant=self.name, stable=m["stable"], pole_radius=m["pole_radius"],
+                   gain_margin_db=m["gain_margin_db"], gain_margin_side=m["gain_margin_side"],
+                   gain_margin_upper_db=m["gain_margin_upper_db"], gain_margin_lower_db=m["gain_margin_lower_db"],
+                   phase_margin_deg=m["phase_margin_deg"], crossover_hz=m["crossover_hz"],
+                   delay_margin_s=m["delay_margin_s"], max_S_db=m["max_S_db"], max_S_hz=m["max_S_hz"],
+                   max_T_db=m["max_T_db"])  # fmt: skip
         if self.figures is not None:
             out.update(rro_pp=self.figures.rro_pp, nrro_3sigma=self.figures.nrro_3sigma, sigma3=self.figures.sigma3,
                        nrro_3sigma_theory=3 * self.theory["total"] / TP, rro_pp_theory=self.rro_pp_theory)  # fmt: skip
@@ -97,11 +102,18 @@ def evaluate(design: Design, version: int = 2, revolutions: int | None = None, s
     return dict(plants=results, summary=summarise(results))
 
 
+def _least(results: list[PlantResult], key: str, size=lambda v: v) -> float:
+    """The smallest (by ``size``) of a margin over the plants; inf when none has one."""
+    vals = [r.margins[key] for r in results if r.margins[key] is not None]
+    return float(min(vals, key=size)) if vals else math.inf
+
+
 def summarise(results: list[PlantResult]) -> dict:
     """Mean and worst of the figures over the plants (NaN figures when any is unstable)."""
     ok = [r for r in results if r.figures is not None]
     rro = np.array([r.figures.rro_pp for r in ok])
     nrro = np.array([r.figures.nrro_3sigma for r in ok])
+    pes = np.array([r.figures.sigma3 for r in ok])
     th = np.array([3 * r.theory["total"] / TP for r in ok])
     rth = np.array([r.rro_pp_theory for r in ok])
     unstable = len(results) - len(ok)
@@ -110,27 +122,34 @@ def summarise(results: list[PlantResult]) -> dict:
         plants=len(results), unstable=unstable,
         rro_pp_mean=float(rro.mean()) if ok and not unstable else nan,
         rro_pp_worst=float(rro.max()) if ok and not unstable else nan,
+        sigma3_mean=float(pes.mean()) if ok and not unstable else nan,
+        sigma3_worst=float(pes.max()) if ok and not unstable else nan,
         nrro_3sigma_mean=float(nrro.mean()) if ok and not unstable else nan,
         nrro_3sigma_worst=float(nrro.max()) if ok and not unstable else nan,
         nrro_3sigma_theory_mean=float(th.mean()) if ok and not unstable else nan,
         rro_pp_theory_mean=float(rth.mean()) if ok and not unstable else nan,
-        gain_margin_db_min=min(r.margins["gain_margin_db"] for r in results),
-        phase_margin_deg_min=min(r.margins["phase_margin_deg"] for r in results),
-        crossover_hz_nominal=results[0].margins["crossover_hz"],
+        # margins exist for stable loops only: over the plants when all are stable
+        gain_margin_db_min=_least(results, "gain_margin_db", abs) if not unstable else nan,
+        gain_margin_upper_db_min=_least(results, "gain_margin_upper_db") if not unstable else nan,
+        phase_margin_deg_min=_least(results, "phase_margin_deg") if not unstable else nan,
+        max_S_db_worst=max(r.margins["max_S_db"] for r in results) if not unstable else nan,
+        crossover_hz_nominal=results[0].margins["crossover_hz"] if results[0].margins["stable"] else nan,
     )  # fmt: skip
 
 
 def table(named: dict) -> str:
     """Markdown table of the summaries ``{design name: evaluate(...)}`` (figures in % of a track)."""
-    head = ("| design | unstable | RRO p-p mean | RRO p-p worst | NRRO 3σ mean | NRRO 3σ worst | NRRO 3σ theory mean "
-            "| min GM (dB) | min PM (deg) | crossover (Hz) |")
-    out = [head, "|" + "---|" * 10]
+    head = ("| design | unstable | PES 3σ mean | PES 3σ worst | RRO p-p mean | RRO p-p worst | NRRO 3σ mean | NRRO 3σ worst | NRRO 3σ theory mean "
+            "| min GM (dB) | min PM (deg) | worst max\\|S\\| (dB) | crossover (Hz) |")
+    out = [head, "|" + "---|" * 13]
     for name, ev in named.items():
         s = ev["summary"]
         pct = lambda v: f"{100 * v:.2f}" if np.isfinite(v) else "—"  # noqa: E731
-        out.append(f"| {name} | {s['unstable']}/{s['plants']} | {pct(s['rro_pp_mean'])} | {pct(s['rro_pp_worst'])} "
+        out.append(f"| {name} | {s['unstable']}/{s['plants']} | {pct(s['sigma3_mean'])} | {pct(s['sigma3_worst'])} "
+                   f"| {pct(s['rro_pp_mean'])} | {pct(s['rro_pp_worst'])} "
                    f"| {pct(s['nrro_3sigma_mean'])} | {pct(s['nrro_3sigma_worst'])} | {pct(s['nrro_3sigma_theory_mean'])} "
-                   f"| {s['gain_margin_db_min']:.2f} | {s['phase_margin_deg_min']:.1f} | {s['crossover_hz_nominal']:.0f} |")  # fmt: skip
+                   f"| {s['gain_margin_db_min']:.2f} | {s['phase_margin_deg_min']:.1f} | {s['max_S_db_worst']:.1f} "
+                   f"| {s['crossover_hz_nominal']:.0f} |")  # fmt: skip
     return "\n".join(out)
 
 
