@@ -15,7 +15,7 @@ import pytest
 from kernels.compose import LOG_COLUMNS
 from servo.config import Config
 from servo.errors import UnstableLoop
-from servo.experiments.sim import MemoryLog
+from servo.runtime.closedloop import MemoryLog
 from servo.runtime.watchdog import Watchdog
 
 PID = textwrap.dedent('''
@@ -156,7 +156,7 @@ def test_an_unstable_plugin_stops_over_the_serial_link(plugin, tmp_path):
     from servo.io.runlog import RunLog
     from servo.runtime.controller import Controller
     from servo.runtime.loop import run_closed_loop
-    from servo.runtime.scenario import scenario_inputs
+    from servo.scenarios import scenario_inputs
 
     try:
         cfg = Config().replace(controller={"kind": "pid", "pid": {"kd": 0.0}}, run={"duration_s": 0.3},
