@@ -31,6 +31,9 @@ def register(sub) -> None:
                    help="highest frequency, Hz (default: 40 %% of the Nyquist frequency, the highest a stepped sine "
                    "measures)")  # fmt: skip
     p.add_argument("--n-freq", type=int, default=25, help="log-spaced frequencies (default 25)")
+    p.add_argument("--target-error", type=float, default=0.0, metavar="PCT",
+                   help="adapt each frequency's amplitude (a pilot run, then scaled) to this relative random error of "
+                   "L in %%, each --levels value then the cap (default 0: the levels as given)")  # fmt: skip
     p.add_argument("--periods", type=int, default=8, help="measured periods per frequency (default 8)")
     p.add_argument("--settle", type=float, default=0.02, metavar="S",
                    help="settling before each frequency's window, s (at least 4 periods; default 0.02)")  # fmt: skip
@@ -48,7 +51,7 @@ def settings_from_args(args) -> "LoopSettings":  # noqa: F821
 
     levels = levels_from_arg(args.levels)
     return LoopSettings(f_min=args.f_min, f_max=args.f_max, n_freq=args.n_freq, periods=args.periods,
-                        settle_s=args.settle, levels=levels)  # fmt: skip  (f_max None: the highest, LoopSettings.check)
+                        settle_s=args.settle, levels=levels, target_rel_err=args.target_error / 100.0)  # fmt: skip  (f_max None: the highest, LoopSettings.check)
 
 
 def handle(args: argparse.Namespace) -> int:
