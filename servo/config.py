@@ -40,6 +40,12 @@ class RunConfig:
     estimator_every: int = P(10, "ticks", "tracking-error estimator task period", 1, 10**6)
     log_every: int = P(1, "ticks", "logging period (decimation of the run log)", 1, 10**6)
     fast_path: bool = P(False, "-", "run the all-compiled loop instead of tick by tick")
+    fault_position: float = P(0.0, "m", "a run whose position leaves +-this stops as unstable, exit 3 "
+                              "(0: 95 % of drive.stroke, short of the hard stops; docs/runtime.md)", 0.0)
+    fault_limit_share: float = P(0.5, "-", "a run whose current command sits at its limit on more than this share "
+                                 "of the ticks of any fault_window_s window stops as unstable, exit 3 (1: never)",
+                                 0.0, 1.0, lo_open=True)
+    fault_window_s: float = P(0.05, "s", "the window of fault_limit_share", 0.0, 60.0, lo_open=True)
 
 
 @dataclass
@@ -185,6 +191,9 @@ class ScenarioConfig:
                   "benchmark's runout, force disturbance and noise, reported as PES figures (docs/hdd.md)",
                   choices=_scenario_kind_names)  # fmt: skip
     hdd_version: int = P(2, "-", "hdd_benchmark: the benchmark's version (1 or 2)", 1, 2)
+    hdd_package: str = P("", "-", "hdd_benchmark: folder of your copy of the NSS HDD benchmark package (relative to "
+                         "the working directory); its RROSequence.mat, the written-in runout, is added to the RRO. "
+                         "Empty: the RRO is the three harmonics alone")  # fmt: skip
 
     step_times: list = P([0.05, 0.12, 0.19, 0.28], "s", "times of the reference steps", 0.0)
     step_positions: list = P([0.3e-6, 0.0, 20e-6, 0.0], "m", "reference after each step, from the holding position", -0.015, 0.015)
@@ -475,7 +484,8 @@ def to_markdown() -> str:
         out += ["| key | default | unit | range | meaning |", "|---|---|---|---|---|"]
         for f in documented(cls):
             m = f.metadata
-            rng = " / ".join(choices_of(m)) if m["choices"] else range_text(m, f.type != "bool")
+            free = f.type in ("str", str) and not m["choices"]
+            rng = " / ".join(choices_of(m)) if m["choices"] else "a path" if free else range_text(m, f.type != "bool")
             out.append(
                 f"| `{f.name}` | `{_toml_value(getattr(default, f.name))}` | {m['unit']} | {rng} | {m['doc']} |"
             )

@@ -30,6 +30,14 @@ class DriverError(ServoError):
     exit_code = 3
 
 
+class UnstableLoop(ServoError):
+    """The closed loop is unstable: a design whose closed loop has poles outside the unit
+    circle, or a run that diverged, limit-cycled, sat at a limit or left its stroke (the
+    actuator was put in its safe state, what was recorded is kept)."""
+
+    exit_code = 3
+
+
 class LifecycleError(DriverError):
     """A driver method was called in a state that does not allow it."""
 

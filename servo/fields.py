@@ -33,6 +33,10 @@ def check_value(key: str, value: Any, f: dataclasses.Field) -> Any:
             raise ConfigError(f"config: {key} must be true or false, got {shown(value)}")
         return value
     if kind == "str":
+        if m["choices"] is None:  # free text (a path)
+            if not isinstance(value, str):
+                raise ConfigError(f"config: {key} must be a string, got {value!r}")
+            return value
         choices = choices_of(m)
         if not isinstance(value, str) or value not in choices:
             raise ConfigError(f"config: {key} must be one of {', '.join(choices)}, got {shown(value)}")

@@ -12,6 +12,7 @@ from servo.config import CompensatorConfig, Config, load_config, to_toml
 from servo.diagnose.concealed import concealed_recording
 from servo.diagnose.job import diagnose
 from servo.diagnose.report import build_report
+from servo.errors import UnstableLoop
 from servo.runtime.closedloop import simulate
 from tests.helpers import NO_MODES, quiet_config
 from tests.test_cli import servo
@@ -135,12 +136,11 @@ def test_a_wrong_model_is_held_by_the_authority(tmp_path):
     assert a["kf_authority"] < 0.5
     unbounded = bounded.replace(compensator={"kf_authority": 0.95, "authority": 0.0})
     good, r = _hold(bounded)
-    bad, _ = _hold(unbounded)
     err_good = np.max(np.abs(good["x"][-500:] - good["x"][0] - r[-500:]))
-    err_bad = np.max(np.abs(bad["x"][-500:] - bad["x"][0] - r[-500:]))
     assert err_good < 0.5e-6 and np.max(np.abs(good["u"])) < 0.01, err_good  # settled on the step
-    # lost: oscillating at the current limit, tens of microns off
-    assert err_bad > 10e-6 and np.max(np.abs(bad["u"])) == cfg.controller.current_limit, err_bad
+    # lost: at the current limit most of the time, which the run's watchdog stops
+    with pytest.raises(UnstableLoop, match="sat at its limit"):
+        _hold(unbounded)
 
 
 def test_the_authority_bounds_the_compensation_current():

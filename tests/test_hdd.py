@@ -17,6 +17,9 @@ from servo.scenarios.hdd_benchmark import BenchmarkInputs
 from studies.hdd import evaluate
 from servo.hdd.plant import modal_ss, plants
 from servo.run.pes_plots import pes_plot
+from tests.helpers import SHARED
+
+PACKAGE = SHARED / "data" / "nss-hdd-benchmark"
 
 V2 = benchmark(2)
 
@@ -142,7 +145,7 @@ def test_linear_simulation_matches_the_stationary_theory():
     d = designs.reference(2)
     b = V2
     name, p = plants(b)[0]
-    dist = generate(220 * 2 * 300, 2, seed=1)
+    dist = generate(220 * 2 * 300, 2, seed=1, package=PACKAGE)  # the steady RRO of the whole revolution
     cl = linsim.closed_loop(d, p, b.Td)
     pes = linsim.simulate(cl, linsim.inputs(dist))
     fig = pes_figures(pes, 220, 1 / b.Ts, skip=264)
@@ -154,7 +157,7 @@ def test_linear_simulation_matches_the_stationary_theory():
 
 @pytest.fixture(scope="module")
 def v2_evaluations():
-    return {n: evaluate.evaluate(f(2), 2, revolutions=100, seed=3, margin_points=3000) for n, f in
+    return {n: evaluate.evaluate(f(2), 2, revolutions=100, seed=3, margin_points=3000, package=PACKAGE) for n, f in
             (("reference", designs.reference), ("own", designs.own))}  # fmt: skip
 
 
@@ -177,7 +180,9 @@ def test_own_design_beats_the_reference(v2_evaluations):
     ref, own = v2_evaluations["reference"]["summary"], v2_evaluations["own"]["summary"]
     assert own["unstable"] == 0
     assert own["rro_pp_mean"] < ref["rro_pp_mean"] and own["rro_pp_worst"] < ref["rro_pp_worst"]
-    assert own["rro_pp_theory_mean"] < 0.7 * ref["rro_pp_theory_mean"]  # steady state, no leakage of NRRO
+    # steady state, no leakage of NRRO; with the written-in runout the advantage is 12 % (docs/hdd.md)
+    assert own["rro_pp_theory_mean"] < 0.9 * ref["rro_pp_theory_mean"]
+    assert own["sigma3_mean"] < ref["sigma3_mean"]
     # NRRO: on par, not better (docs/hdd.md): the stationary expectation (no sampling
     # noise) of the mean over the plants within 1 % of the reference's
     assert own["nrro_3sigma_theory_mean"] < 1.01 * ref["nrro_3sigma_theory_mean"]

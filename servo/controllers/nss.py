@@ -19,14 +19,20 @@ class NSSSection:
     """The NSS benchmark's reference design (kind "nss"): discrete PID at the PES rate
     (PES in tracks), notches at twice the PES rate (run.sample_rate_hz = 2 / Ts)."""
 
+    # The defaults are the benchmark's own design (example1/followdemo.m): the notches are
+    # servo.design.reference.NSS_NOTCHES, written out so that loading a config does not
+    # import the design tools; tests/test_nss_reference.py holds the two equal and
+    # rebuilds the benchmark's matrices from the package's file.
+
     p_gain: float = P(2.0, "-", "the benchmark's P (PES in tracks)", 0.0)
     i_gain: float = P(0.05, "-", "the benchmark's I (per PES sample)", 0.0)
     d_gain: float = P(70.0, "-", "the benchmark's D", 0.0)
     g: float = P(1.665e3, "-", "scale: current = C / g", 0.0, None, lo_open=True)
     track_pitch: float = P(2.54e-7, "m", "track pitch (PES in tracks = e / pitch)", 0.0, None, lo_open=True)
     notch_hz: list = P([4100.0, 5000.0, 8200.0, 12300.0], "Hz", "notch centres", 0.0, None, lo_open=True)
-    notch_depth_db: list = P([20.0, 20.0, 20.0, 20.0], "dB", "notch depths", 0.0, 80.0, lo_open=True)
-    notch_width: list = P([0.3, 0.3, 0.3, 0.3], "-", "notch relative widths", 0.0, 2.0, lo_open=True)
+    notch_depth_db: list = P([10.0, 20.0, 20.0, 20.0], "dB", "notch depths (the benchmark's)", 0.0, 80.0, lo_open=True)
+    notch_width: list = P([0.412, 0.272, 0.724, 0.606], "-", "notch relative widths (the benchmark's)", 0.0, 2.0,
+                          lo_open=True)
     pes_every: int = P(2, "ticks", "ticks per PES sample (the benchmark: 2)", 1, 2)
     output_limit: float = P(1.0, "A", "output limit of the loop", 0.0, None, lo_open=True)
 

@@ -9,7 +9,8 @@ first tick of each PES period), so the open loop ``L(z)`` at the PES rate is exa
 margins, crossover and closed-loop poles are those of the multirate loop, images included.
 
 Systems here are plain ``(A, B, C, D)`` tuples of float64 arrays; :func:`open_loop`
-returns a :class:`control.StateSpace` for ``control.stability_margins``.
+returns a :class:`control.StateSpace`; :func:`margins` reads it by the one rule of
+:mod:`servo.design.margins`.
 """
 from __future__ import annotations
 
@@ -19,9 +20,9 @@ import control
 import numpy as np
 from scipy import signal
 from scipy.linalg import expm
-from scipy.optimize import brentq
 
 from servo.design.design import Design
+from servo.design.margins import margins as shared_margins
 
 
 def _ss(A, B, C, D):
@@ -150,45 +151,14 @@ def frequency_response(L: control.StateSpace, f_hz, chunk: int = 1024) -> np.nda
 
 
 def margins(L: control.StateSpace, n: int = 20000) -> dict:
-    """Margins of the loop ``L`` (negative feedback), from its frequency response on a
-    dense grid (log-spaced to the PES Nyquist, ``n`` points) with every crossing refined
-    (``brentq``).
-
-    ``crossover_hz`` the lowest gain crossover (the servo bandwidth) and
-    ``phase_margin_deg`` there; ``gain_margin`` / ``gain_margin_db`` the smallest factor
-    by which the gain may *grow* before a phase crossover reaches -1 (inf when none);
-    ``phase_margin_min_deg`` the smallest over every gain crossover (a lightly damped
-    mode poking above 0 dB adds crossovers; a phase-stabilised one may show a negative
-    value there and still be stable); ``stability_margin`` ``min |1 + L|`` (1 / the peak
-    of the sensitivity); ``stable`` every pole of ``L/(1+L)`` strictly inside the unit
-    circle, ``pole_radius`` the largest of them; frequencies in Hz.  (``tests/test_design.py``
-    checks these against ``control.stability_margins``.)"""
+    """Margins of the loop ``L`` (negative feedback) by the one rule of
+    :func:`servo.design.margins.margins`, over the whole band: the frequency response on
+    ``n`` log-spaced points from ``1e-5`` of the PES Nyquist frequency up to it, every
+    crossing and peak refined on the exact response, the closed loop's stability and
+    pole radius from the poles of ``L/(1+L)`` (an unstable loop gets no margins)."""
     fn = 0.5 / L.dt
-    f = np.geomspace(fn * 1e-5, fn * (1 - 1e-9), n)
-    h = frequency_response(L, f)
-    mag = np.abs(h)
-
-    def refine(fun, i):
-        return brentq(lambda x: fun(frequency_response(L, np.array([x]))[0]), f[i], f[i + 1], xtol=1e-9 * f[i])
-
-    g_fun = lambda v: abs(v) - 1.0  # noqa: E731
-    p_fun = lambda v: v.imag  # noqa: E731  (a phase crossover: Im L = 0 with Re L < 0)
-    wg = [refine(g_fun, i) for i in np.nonzero(np.diff(np.sign(mag - 1.0)) != 0)[0]]
-    wp = [refine(p_fun, i) for i in np.nonzero(np.diff(np.sign(h.imag)) != 0)[0] if h[i].real < 0 and h[i + 1].real < 0]
-    hg = frequency_response(L, np.array(wg)) if wg else np.zeros(0)
-    hp = frequency_response(L, np.array(wp)) if wp else np.zeros(0)
-    pms = np.degrees(np.angle(hg)) % 360.0 - 180.0
-    with np.errstate(divide="ignore"):
-        gms = 1.0 / np.abs(hp) if len(wp) else np.zeros(0)
-    up = gms[gms > 1.0]
-    g = float(up.min()) if up.size else math.inf
+    f = np.geomspace(fn * 1e-5, fn, n)
     cl = control.feedback(L, 1)
     radius = float(np.max(np.abs(cl.poles()))) if cl.nstates else 0.0
-    return dict(
-        gain_margin=g, gain_margin_db=20 * math.log10(g) if np.isfinite(g) else math.inf,
-        phase_margin_deg=float(pms[0]) if len(wg) else math.inf,
-        crossover_hz=float(wg[0]) if wg else math.nan,
-        phase_margin_min_deg=float(pms.min()) if len(wg) else math.inf,
-        crossovers_hz=[float(w) for w in wg], phase_crossovers_hz=[float(w) for w in wp],
-        stability_margin=float(np.abs(1 + h).min()), stable=radius < 1.0, pole_radius=radius,
-    )  # fmt: skip
+    return shared_margins(f, frequency_response(L, f), dense=True, response=lambda x: frequency_response(L, x),
+                          nyquist_hz=fn, stable=radius < 1.0, pole_radius=radius)  # fmt: skip

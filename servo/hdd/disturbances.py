@@ -20,7 +20,12 @@ deviations *when sampled at the PES period Ts* (the force disturbance's comment 
   from rest as the benchmark's ``lsim``): ``Amp_i`` (tracks * scl) is the peak of each
   resonance's ASD;
 * RRO: harmonics 1, 2, 3 of the spindle (120, 240, 360 Hz) of 0.15, 0.03, 0.006 track
-  with uniformly random phases, repeated exactly every revolution (220 PES samples).
+  with uniformly random phases, plus the benchmark's written-in runout (the package's
+  ``RROSequence.mat``: 220 samples, 9.2 % of a track peak to peak; ``SetRRO.m`` adds it)
+  when the caller points ``package`` at a copy of the benchmark package
+  (:func:`written_in_rro`), repeated exactly every revolution (220 PES samples).  Without
+  the package the RRO is the three harmonics alone, as the parameter files state them
+  (the package's own ``SetDistParam.m`` falls back the same way when the file is absent).
 
 (The alternative reading, unit *two-sided* PSD, would make every random level sqrt(2)
 larger; the benchmark's own numbers for its reference design, NRPE 3 sigma 7-10 % of a
@@ -33,9 +38,10 @@ gets it as the reference ``r = -(flutter + RRO)``, so ``e = r - y_meas = -PES``.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from pathlib import Path
 
 import numpy as np
-from scipy import signal
+from scipy import io, signal
 
 from servo.hdd.benchmark import Benchmark, benchmark
 
@@ -56,6 +62,8 @@ class Disturbances:
     noise_std: float
     force_std: float
     rro_phases: np.ndarray
+    rro_revolution: np.ndarray  # one revolution of the RRO (m), (sectors,): rro repeats it
+    written_in: bool = False  # the package's written-in RRO is part of rro
 
     @property
     def runout(self) -> np.ndarray:
@@ -83,11 +91,36 @@ def flutter_filters(bench: Benchmark):
     return out
 
 
-def generate(n_ticks: int, version: int = 2, seed: int = 0, fs: float | None = None) -> Disturbances:
+#: The written-in runout's file in the benchmark package (``hdd_distparam_v2.m`` loads it).
+RRO_FILE = "RROSequence.mat"
+
+
+def written_in_rro(package, sectors: int = 220) -> np.ndarray:
+    """The benchmark's written-in runout, one revolution (tracks, ``(sectors,)``), read
+    from ``RROSequence.mat`` in ``package`` (a folder: the user's copy of the benchmark
+    package).  Raises ValueError (one line) when the file is missing or not the
+    benchmark's (variable ``RROSequence``, ``sectors`` finite samples)."""
+    path = Path(package) / RRO_FILE
+    if not path.is_file():
+        raise ValueError(f"{path}: not found (point it at a copy of the NSS HDD benchmark package)")
+    try:
+        seq = io.loadmat(str(path)).get("RROSequence")
+    except (ValueError, TypeError, OSError, io.matlab.MatReadError) as exc:
+        raise ValueError(f"{path}: not a MATLAB file ({exc})") from None
+    seq = None if seq is None else np.ravel(np.asarray(seq, dtype=float))
+    if seq is None or seq.shape != (sectors,) or not np.all(np.isfinite(seq)):
+        raise ValueError(f"{path}: no RROSequence of {sectors} finite samples")
+    return seq
+
+
+def generate(n_ticks: int, version: int = 2, seed: int = 0, fs: float | None = None, package=None) -> Disturbances:
     """The benchmark's disturbances for ``n_ticks`` ticks at ``fs`` (Hz, default ``2/Ts``;
     ``fs*Ts`` must be a whole number of ticks per PES sample).  Deterministic in ``seed``:
-    each source draws from its own stream of ``numpy.random.SeedSequence(seed)``."""
+    each source draws from its own stream of ``numpy.random.SeedSequence(seed)``.
+    ``package``: folder of a copy of the benchmark package whose written-in runout
+    (:func:`written_in_rro`) is added to the RRO; None: the three harmonics alone."""
     b = benchmark(version)
+    written = None if package is None or str(package) == "" else written_in_rro(package, b.sectors)
     fs = 2.0 / b.Ts if fs is None else float(fs)
     pes_every = int(round(fs * b.Ts))
     if pes_every < 1 or abs(fs * b.Ts - pes_every) > 1e-9:
@@ -106,8 +139,11 @@ def generate(n_ticks: int, version: int = 2, seed: int = 0, fs: float | None = N
         flutter += signal.lfilter(num, den, g_flutter.standard_normal(n_pes) / np.sqrt(2 * Ts))
     flutter *= Tp
     phases = g_rro.uniform(0.0, 2 * np.pi, len(b.rro_harmonics))
-    k = np.arange(n_pes) % b.sectors  # exactly periodic per revolution
-    t = k * Ts
-    rro = sum(a * np.sin(2 * np.pi * h * b.spindle_hz * t + ph) for h, a, ph in zip(b.rro_harmonics, b.rro_amp, phases))
-    return Disturbances(fs, pes_every, np.asarray(rro * Tp, float), flutter, noise, force, float(noise_std),
-                        float(force_std), phases)  # fmt: skip
+    t = np.arange(b.sectors) * Ts
+    rev = sum(a * np.sin(2 * np.pi * h * b.spindle_hz * t + ph) for h, a, ph in zip(b.rro_harmonics, b.rro_amp, phases))
+    if written is not None:
+        rev = rev + written
+    rev = np.asarray(rev * Tp, float)
+    rro = rev[np.arange(n_pes) % b.sectors]  # exactly periodic per revolution
+    return Disturbances(fs, pes_every, rro, flutter, noise, force, float(noise_std), float(force_std), phases, rev,
+                        written is not None)  # fmt: skip

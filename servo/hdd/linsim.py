@@ -152,11 +152,9 @@ def sensitivity(cl, f_hz, fs_pes: float) -> np.ndarray:
 
 
 def rro_response(cl, bench: Benchmark, dist: Disturbances, fs_pes: float) -> np.ndarray:
-    """The steady PES (m) over one revolution due to the RRO harmonics (``(sectors,)``)."""
-    k = np.arange(bench.sectors)
-    out = np.zeros(bench.sectors)
-    for h, a, ph in zip(bench.rro_harmonics, bench.rro_amp, dist.rro_phases):
-        f = h * bench.spindle_hz
-        s = sensitivity(cl, f, fs_pes)[0]
-        out += a * bench.Tp * abs(s) * np.sin(2 * np.pi * f * k / fs_pes + ph + np.angle(s))
-    return out
+    """The steady PES (m) over one revolution due to the RRO (``(sectors,)``): the
+    revolution's harmonics (``dist.rro_revolution``, DFT) each through the sensitivity."""
+    n = bench.sectors
+    spec = np.fft.rfft(dist.rro_revolution)
+    s = sensitivity(cl, np.arange(spec.shape[0]) * fs_pes / n, fs_pes)
+    return np.fft.irfft(spec * s, n)

@@ -21,6 +21,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import Callable
 
 import numpy as np
 from scipy.linalg import expm
@@ -141,7 +142,13 @@ def plant_response(cfg: Config, f_hz, model: str = "nominal", compensated: bool 
     the two constant-input pieces of each sample, :func:`servo.runtime.simplant.mode_matrices`
     does the same for the modes).
     """
-    f = np.asarray(f_hz, dtype=float)
+    return sampled_plant(cfg, model, compensated, stiffness)(f_hz)
+
+
+def sampled_plant(cfg: Config, model: str = "nominal", compensated: bool = True,
+                  stiffness: float | None = None) -> Callable[[np.ndarray], np.ndarray]:  # fmt: skip
+    """:func:`plant_response` as a function of the frequencies (Hz), its sampled
+    matrices computed once (for a caller that evaluates it many times)."""
     a, b, c = _state_space(cfg, model, compensated, stiffness)
     dt = cfg.dt
     whole, frac = split_delay(cfg.drive.input_delay_s, dt)
@@ -149,17 +156,21 @@ def plant_response(cfg: Config, f_hz, model: str = "nominal", compensated: bool 
     phi1, g1 = _gamma(a, b, frac)  # first piece: the previous one
     phi = phi2 @ phi1
     g_prev = phi2 @ g1
-    z = _z(cfg, f).ravel()
     n = a.shape[0]
-    out = np.empty(z.shape, dtype=complex)
-    eye = np.eye(n)
-    for i, zi in enumerate(z):
-        gi = (g_prev / zi + g2) * zi ** -(whole + cfg.link.command_latency_ticks)
-        try:
-            out[i] = c @ np.linalg.solve(zi * eye - phi, gi)
-        except np.linalg.LinAlgError:  # z = 1 on an integrating plant
-            out[i] = np.inf
-    return out.reshape(f.shape)
+    lag = whole + cfg.link.command_latency_ticks
+
+    def response(f_hz) -> np.ndarray:
+        f = np.asarray(f_hz, dtype=float)
+        z = _z(cfg, f).ravel()
+        out = np.full(z.shape, np.inf, dtype=complex)  # z = 1 on an integrating plant stays inf
+        g = (g_prev[None, :] / z[:, None] + g2[None, :]) * (z**-lag)[:, None]
+        m = z[:, None, None] * np.eye(n) - phi
+        ok = np.abs(np.linalg.det(m)) > 0
+        if ok.any():
+            out[ok] = np.linalg.solve(m[ok], g[ok][..., None])[..., 0] @ c
+        return out.reshape(f.shape)
+
+    return response
 
 
 @dataclass
@@ -217,5 +228,5 @@ def design_grid(cfg: Config, f_min: float, f_max: float, n: int = 2000) -> np.nd
 
 
 __all__ = ["PLANT_MODELS", "LoopDesign", "compensator_response", "controller_response", "current_loop_design",
-           "design_grid", "loop_design", "plant_response",
+           "design_grid", "loop_design", "plant_response", "sampled_plant",
            "uses_measured_velocity"]

@@ -15,8 +15,10 @@ Files written into one folder (all computed before the first is written):
 * ``loop.csv`` -- the same as one table;
 * ``loop.png`` -- Bode plot of ``L``, measured and designed, crossover and phase margin marked;
 * ``sensitivity.png`` -- ``|S|`` and ``|T|``, measured and designed;
-* ``summary.json`` -- settings, margins of every run and design, agreement with the
-  design, crossover shift without the compensator, link report, provenance.
+* ``summary.json`` -- settings, margins of every run and design, each measured margin's
+  uncertainty (:mod:`servo.loop.quality`) and ``warnings`` for those beyond tolerance,
+  agreement with the design, crossover shift without the compensator, link report,
+  provenance.
 """
 from __future__ import annotations
 
@@ -26,19 +28,28 @@ from typing import Callable
 import numpy as np
 
 from servo.config import Config
+from servo.errors import UnstableLoop
 from servo.io import progress
 from servo.io.atomic import write_json
 from servo.io.frequency_response import FrequencyResponse, save_csv, save_npz
-from servo.loop.design import LoopDesign, current_loop_design, loop_design
+from servo.loop.design import (LoopDesign, compensator_response, controller_response, current_loop_design,
+                               loop_design, sampled_plant)
 from servo.loop.margins import margins
 from servo.loop.measure import RESPONSES, LoopMeasurement, LoopSettings, measure
 from servo.loop.plots import plot_loop, plot_sensitivity
+from servo.loop.quality import uncertainty, warnings_for
 
 COMPENSATOR_CHOICES = {"on": (True,), "off": (False,), "both": (True, False)}
 #: points of a design written to the files and plotted
 FILE_POINTS = 400
-#: points of a design for its margins
+#: points of a design for its curves and the agreement (on the measured band)
 MARGIN_POINTS = 1200
+#: points of a design for its margins, log-spaced over the whole band up to Nyquist
+FULL_BAND_POINTS = 8000
+#: the design loops: key -> (plant model, compensated) of :func:`servo.loop.design.loop_design`
+DESIGN_MODELS = {"nominal": ("nominal", True), "drive": ("drive", True), "pivot": ("drive", False)}
+NAMES = {"nominal": "nominal 1/(J s^2)", "drive": "drive model, compensated",
+         "pivot": "drive model, pivot small-signal, no comp."}  # fmt: skip
 
 
 def designs(cfg: Config, f_min: float, f_max: float, n: int, comps) -> dict[str, LoopDesign]:
@@ -51,6 +62,41 @@ def designs(cfg: Config, f_min: float, f_max: float, n: int, comps) -> dict[str,
         out["drive"] = loop_design(cfg, f, "drive", compensated=True)
     if False in comps:
         out["pivot"] = loop_design(cfg, f, "drive", compensated=False)
+    return out
+
+
+def full_band(cfg: Config) -> np.ndarray:
+    """The whole band of a design's margins (Hz): from 1e-5 of the Nyquist frequency up
+    to it, :data:`FULL_BAND_POINTS` log-spaced points."""
+    nyq = 0.5 * cfg.run.sample_rate_hz
+    return np.geomspace(1e-5 * nyq, nyq, FULL_BAND_POINTS)
+
+
+def design_margins(cfg: Config, key: str) -> dict:
+    """Margins of the design loop ``key`` (:data:`DESIGN_MODELS`; ``"current"``: the loop
+    broken at the current with the compensator) over the whole band up to Nyquist, its
+    stability by the Nyquist criterion, every crossing and peak refined on the design."""
+    if key == "current":  # (C - F) * P_drive, the pivot on its pre-sliding slope
+        P = sampled_plant(cfg, "drive", compensated=False)
+        resp = lambda x: (controller_response(cfg, x) - compensator_response(cfg, x)) * P(x)  # noqa: E731
+    else:
+        P = sampled_plant(cfg, *DESIGN_MODELS[key])
+        resp = lambda x: controller_response(cfg, x) * P(x)  # noqa: E731
+    f = full_band(cfg)
+    return margins(f, resp(f), dense=True, response=resp, nyquist_hz=f[-1])
+
+
+def check_designs_stable(cfg: Config, comps) -> dict:
+    """The margins of the designs the runs of ``comps`` are set against; raises
+    :class:`UnstableLoop` (one line) when one of them is unstable: its margins mean nothing and
+    running it would drive the actuator away."""
+    keys = ["nominal"] + (["drive"] if True in comps else []) + (["pivot"] if False in comps else [])
+    out = {k: design_margins(cfg, k) for k in keys}
+    for k, m in out.items():
+        if m["stable"] is False:
+            raise UnstableLoop(f"loop: the designed closed loop ({NAMES[k]}) of controller kind "
+                               f"'{cfg.controller.kind}' is unstable ({m['unstable_poles']} closed-loop poles outside "
+                               "the unit circle): no margins to report, nothing run")  # fmt: skip
     return out
 
 
@@ -88,18 +134,19 @@ def measure_all(cfg: Config, s: LoopSettings, comps, make_driver: Callable | Non
     return runs
 
 
-def analyse(cfg: Config, s: LoopSettings, runs: list[LoopMeasurement]) -> tuple[dict, dict]:
-    """Designs (on the file grid) and the summary's analysis of ``runs``."""
+def analyse(cfg: Config, s: LoopSettings, runs: list[LoopMeasurement], checked: dict | None = None) -> tuple[dict, dict]:
+    """Designs (on the file grid) and the summary's analysis of ``runs`` (``checked``: the
+    designs' margins, :func:`check_designs_stable`, when the caller has them)."""
     comps = tuple(sorted({r.compensation for r in runs}, reverse=True))
     dense = designs(cfg, s.f_min, s.f_max, MARGIN_POINTS, comps)
-    des_margins = {k: margins(d.f_hz, d.L, dense=True) for k, d in dense.items()}
+    des_margins = {k: m for k, m in (checked or check_designs_stable(cfg, comps)).items() if k in dense}
 
     def band(key):
         fc = des_margins[key]["crossover_hz"]
         return (max(fc / 2.0, s.f_min), min(fc * 2.0, s.f_max)) if fc else (s.f_min, s.f_max)
 
     lo, hi = band("nominal")
-    out_runs = []
+    out_runs, warns = [], []
     for r in runs:
         ref = "drive" if r.compensation else "pivot"
         cur = current_loop_design(cfg, np.geomspace(s.f_min, s.f_max, MARGIN_POINTS), r.compensation)
@@ -112,7 +159,7 @@ def analyse(cfg: Config, s: LoopSettings, runs: list[LoopMeasurement]) -> tuple[
             f"vs_{ref}": agreement(r.f, r.value("L"), r.value("S"), dense[ref], *band(ref)),
             "at_current": {
                 "margins": margins(r.f, r.value("L_u")),
-                "design_margins": margins(cur.f_hz, cur.L, dense=True),
+                "design_margins": design_margins(cfg, "current") if r.compensation else des_margins["pivot"],
                 "vs_design": agreement(r.f, r.value("L_u"), r.value("S_u"), cur, lo, hi),
             },
             "clipped_ticks": r.clipped,
@@ -121,6 +168,8 @@ def analyse(cfg: Config, s: LoopSettings, runs: list[LoopMeasurement]) -> tuple[
             "min_coherence": float(np.min(r.response("L").coherence)),
             "median_rel_std_L": float(np.median(r.response("L").rel_std)),
         }
+        entry["margin_uncertainty"] = uncertainty(entry["margins"], r.f, r.value("L"), r.response("L").rel_std)
+        warns += warnings_for(f"measured, {r.label}", entry["margins"], entry["margin_uncertainty"])
         if r.link is not None:
             entry["link"] = r.link
         out_runs.append(entry)
@@ -132,13 +181,13 @@ def analyse(cfg: Config, s: LoopSettings, runs: list[LoopMeasurement]) -> tuple[
             a, b = on[0]["margins"]["crossover_hz"], off[0]["margins"]["crossover_hz"]
             shift.append({"level_A": level, "crossover_on_hz": a, "crossover_off_hz": b, "shift_hz": b - a,
                           "shift_rel": (b - a) / a})  # fmt: skip
-    names = {"nominal": "nominal 1/(J s^2)", "drive": "drive model, compensated",
-             "pivot": "drive model, pivot small-signal, no comp."}  # fmt: skip
+    names = NAMES
     summary = {
         "designs": {names[k]: m for k, m in des_margins.items()},
         "agreement_band_hz": [lo, hi],  # vs_nominal, at_current; vs_drive/vs_pivot: half to twice that design's crossover
         "runs": out_runs,
         "crossover_shift": shift,
+        "warnings": warns,
     }
     file_designs = {k: LoopDesign(d.f_hz[:: MARGIN_POINTS // FILE_POINTS], d.C[:: MARGIN_POINTS // FILE_POINTS],
                                   d.P[:: MARGIN_POINTS // FILE_POINTS], names[k]) for k, d in dense.items()}  # fmt: skip
@@ -146,13 +195,15 @@ def analyse(cfg: Config, s: LoopSettings, runs: list[LoopMeasurement]) -> tuple[
 
 
 def run_loop(cfg: Config, out: Path, s: LoopSettings, compensator: str = "both", make_driver: Callable | None = None,
-             where: str = "the simulated drive", provenance: dict | None = None) -> dict:  # fmt: skip
+             where: str = "the simulated drive", provenance: dict | None = None, checked: dict | None = None) -> dict:  # fmt: skip
     """Every run, the analysis, then the files of the module docstring into ``out``;
-    returns the summary (``provenance`` recorded as given)."""
+    returns the summary (``provenance`` recorded as given).  The designs are checked
+    stable before anything runs (``checked``: the caller did, :func:`check_designs_stable`)."""
     s = s.check(cfg)
     comps = COMPENSATOR_CHOICES[compensator]
+    checked = checked or check_designs_stable(cfg, comps)
     runs = measure_all(cfg, s, comps, make_driver)
-    file_designs, summary = analyse(cfg, s, runs)
+    file_designs, summary = analyse(cfg, s, runs, checked)
     responses: dict[str, FrequencyResponse] = {}
     for r in runs:
         for name in RESPONSES:
@@ -183,10 +234,14 @@ def run_loop(cfg: Config, out: Path, s: LoopSettings, compensator: str = "both",
 
 
 def _fmt_margins(m: dict) -> str:
+    """Crossover, phase margin, the binding gain margin (side), max|S| (frequency)."""
+    if m["stable"] is False:
+        return "unstable: no margins"
     fc = "     -   " if m["crossover_hz"] is None else f"{m['crossover_hz']:7.1f} Hz"
     pm = "    -    " if m["phase_margin_deg"] is None else f"{m['phase_margin_deg']:5.1f} deg"
-    gm = "none in band" if m["gain_margin_db"] is None else f"{m['gain_margin_db']:6.1f} dB at {m['phase_crossover_hz']:.0f} Hz"
-    return f"{fc}   {pm}   {gm:<20}  {-20 * np.log10(m['stability_margin']):5.1f} dB"
+    gm = ("none in band" if m["gain_margin_db"] is None
+          else f"{m['gain_margin_db']:+6.1f} dB {m['gain_margin_side']} at {m['gain_margin_hz']:.0f} Hz")  # fmt: skip
+    return f"{fc}   {pm}   {gm:<26}  {m['max_S_db']:5.1f} dB at {m['max_S_hz']:.0f} Hz"
 
 
 def format_summary(summary: dict, out: Path) -> str:
@@ -194,7 +249,7 @@ def format_summary(summary: dict, out: Path) -> str:
     st = summary["settings"]
     lines = [f"servo loop: stepped sine on {summary['where']}, {st['n_freq']} frequencies {st['f_min']:g}-{st['f_max']:g} Hz, "
              f"{st['periods']} periods each; L broken at the controller output (L = -U_pi/U_n)"]  # fmt: skip
-    lines.append(f"  {'':50} crossover   phase margin  gain margin           max|S|")
+    lines.append(f"  {'':50} crossover   phase margin  gain margin (binding)       max|S|")
     for name, m in summary["designs"].items():
         lines.append(f"  {'design, ' + name:50} {_fmt_margins(m)}")
     lo, hi = summary["agreement_band_hz"]
@@ -226,8 +281,11 @@ def format_summary(summary: dict, out: Path) -> str:
         h = [lk.get("host", {}) for lk in links]
         lines.append(f"  link: {sum(x.get('rx_frames', 0) for x in h)} frames received, "
                      f"{sum(x.get('crc_errors', 0) + x.get('seq_dropped', 0) for x in h)} host-side errors")  # fmt: skip
+    for w in summary.get("warnings", []):
+        lines.append(f"  warning: {w}")
     lines.append(f"  wrote {out}/: " + ", ".join(summary["files"]))
     return "\n".join(lines)
 
 
-__all__ = ["COMPENSATOR_CHOICES", "agreement", "analyse", "designs", "format_summary", "measure_all", "run_loop"]
+__all__ = ["COMPENSATOR_CHOICES", "agreement", "analyse", "check_designs_stable", "design_margins", "designs",
+           "format_summary", "full_band", "measure_all", "run_loop"]

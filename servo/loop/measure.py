@@ -33,6 +33,7 @@ a serial driver (tick by tick, ``make_driver``), so a board measures the same wa
 """
 from __future__ import annotations
 
+import dataclasses
 import math
 from dataclasses import dataclass, field
 from typing import Callable
@@ -43,6 +44,10 @@ from servo.config import Config
 from servo.errors import ConfigError
 from servo.io.frequency_response import FrequencyResponse
 
+#: The highest frequency a stepped sine measures, as a share of the Nyquist frequency
+#: (a window of whole periods in whole samples; ``servo loop``'s default ``f_max``).
+F_MAX_SHARE = 0.4
+
 #: Log columns the estimator correlates.
 SIGNALS = ("u", "u_n", "u_c", "u_exc", "x")
 
@@ -52,7 +57,9 @@ class LoopSettings:
     """``f_min``/``f_max`` (Hz) and ``n_freq`` log-spaced frequencies; ``periods``
     measured per frequency; the settling before each window is the longer of
     ``settle_periods`` periods and ``settle_s`` seconds; ``levels``: excitation
-    amplitudes (A)."""
+    amplitudes (A); ``target_rel_err`` > 0: each frequency's amplitude is adapted to
+    reach this relative random error of ``L`` (:func:`adapted_levels`), each level then
+    the cap."""
 
     f_min: float = 20.0
     f_max: float = 2000.0
@@ -61,13 +68,17 @@ class LoopSettings:
     settle_periods: int = 4
     settle_s: float = 0.02
     levels: tuple = (0.2e-3,)
+    target_rel_err: float = 0.0
 
     def check(self, cfg: Config) -> "LoopSettings":
-        """Refuse settings no measurement can honour (one :class:`ConfigError` line)."""
+        """Refuse settings no measurement can honour (one :class:`ConfigError` line);
+        ``f_max`` None becomes :data:`F_MAX_SHARE` of the Nyquist frequency."""
         nyq = 0.5 * cfg.run.sample_rate_hz
+        if self.f_max is None:
+            return dataclasses.replace(self, f_max=F_MAX_SHARE * nyq).check(cfg)
         if not (0.0 < self.f_min < self.f_max) or not math.isfinite(self.f_max):
             raise ConfigError(f"loop: need 0 < f_min < f_max (got {self.f_min:g}, {self.f_max:g} Hz)")
-        if self.f_max > 0.4 * nyq:
+        if self.f_max > F_MAX_SHARE * nyq * (1 + 1e-12):
             raise ConfigError(f"loop: f_max {self.f_max:g} Hz must stay below 40 % of the Nyquist frequency "
                               f"({0.4 * nyq:g} Hz at {cfg.run.sample_rate_hz:g} Hz)")  # fmt: skip
         if self.n_freq < 4:
@@ -76,6 +87,8 @@ class LoopSettings:
             raise ConfigError("loop: periods >= 2, settle_periods >= 0 and 0 <= settle_s <= 10 s")
         if not self.levels or min(self.levels) <= 0.0 or not all(map(math.isfinite, self.levels)):
             raise ConfigError("loop: excitation levels must be positive")
+        if not (0.0 <= self.target_rel_err < 1.0):
+            raise ConfigError("loop: the target relative error must be in [0, 1)")
         if max(self.levels) >= cfg.controller.current_limit:
             raise ConfigError(f"loop: level {max(self.levels) * 1e3:g} mA reaches controller.current_limit "
                               f"({cfg.controller.current_limit * 1e3:g} mA)")  # fmt: skip
@@ -98,13 +111,40 @@ class Program:
     def n_ticks(self) -> int:
         return int(self.win[-1, 1]) if len(self.win) else 0
 
-    def excitation(self, level: float) -> np.ndarray:
-        """``u_exc`` (A) per tick, shape ``(n_ticks,)``."""
+    def excitation(self, level) -> np.ndarray:
+        """``u_exc`` (A) per tick, shape ``(n_ticks,)``; ``level`` (A): one for every
+        segment or one per segment."""
         u = np.zeros(self.n_ticks)
-        for f, a, (_, b) in zip(self.f, self.start, self.win):
+        levels = np.broadcast_to(np.asarray(level, dtype=float), self.f.shape)
+        for f, lv, a, (_, b) in zip(self.f, levels, self.start, self.win):
             k = np.arange(b - a)
-            u[a:b] = level * np.sin(2.0 * np.pi * f * k * self.dt)
+            u[a:b] = lv * np.sin(2.0 * np.pi * f * k * self.dt)
         return u
+
+
+#: The largest head motion an adapted excitation may cause, as a share of ``drive.stroke``.
+STROKE_SHARE = 0.01
+
+
+def adapted_levels(cfg: Config, prog: Program, cap: float, target: float, compensation: bool) -> np.ndarray:
+    """Excitation amplitudes (A, one per segment of ``prog``) for a relative random error
+    ``target`` of the measured ``L``, from the design loop (drive model) and the sensor
+    noise ``drive.position_noise`` (sigma_n, per tick).  The noise enters ``U_pi`` and
+    ``U_n`` alike through ``C*S``; over a window of ``n`` ticks a single-bin estimate of it
+    has amplitude ``sigma_n*sqrt(2/n)``, so ``L = -U_pi/U_n`` has the relative error
+    ``sigma_n*sqrt(2/n)*|1 + L| / (|P|*A)``.  Hence
+
+        A = sigma_n*sqrt(2/n)*|1 + L| / (|P|*target)
+
+    bounded by :func:`_bounds`.  Other noise (a velocity sensor's, the pivot's) is not in
+    the model: :func:`measure` runs a pilot at these amplitudes and scales each by its
+    measured error over the target."""
+    from servo.loop.design import loop_design
+
+    d = loop_design(cfg, prog.f, "drive", compensated=compensation)
+    n = (prog.win[:, 1] - prog.win[:, 0]).astype(float)
+    need = cfg.drive.position_noise * np.sqrt(2.0 / n) * np.abs(1.0 + d.L) / (np.abs(d.P) * target)
+    return np.minimum(need, _bounds(cfg, prog, cap, compensation))
 
 
 def program(cfg: Config, s: LoopSettings, freqs=None) -> Program:
@@ -224,6 +264,7 @@ class LoopMeasurement:
     window_ticks: int = 0
     link: dict | None = None
     label: str = field(default="")
+    levels_A: np.ndarray | None = None  # the amplitude at each frequency (A)
 
     def __post_init__(self):
         if not self.label:
@@ -284,7 +325,28 @@ def measure(cfg: Config, s: LoopSettings, level: float, compensation: bool, make
     """One stepped-sine run at ``level`` (A) on the simulated drive or ``make_driver``'s
     (see :func:`run_log`), at the frequencies of ``s`` (or ``freqs``, Hz)."""
     prog = program(cfg, s, freqs)
-    log, link = run_log(cfg, prog.excitation(level), compensation, make_driver)
+    amp = level
+    if s.target_rel_err > 0:  # a pilot run at the model's amplitudes, then each scaled by its own error
+        amp = adapted_levels(cfg, prog, level, s.target_rel_err, compensation)
+        pilot = _measure(cfg, s, prog, amp, level, compensation, make_driver)
+        rel = pilot.response("L").rel_std
+        hi = _bounds(cfg, prog, level, compensation)
+        amp = np.clip(np.where(np.isfinite(rel), amp * rel / s.target_rel_err, hi), 0.0, hi)
+    return _measure(cfg, s, prog, amp, level, compensation, make_driver)
+
+
+def _bounds(cfg: Config, prog: Program, cap: float, compensation: bool) -> np.ndarray:
+    """The largest amplitude (A) at each segment: ``cap``, half the current limit, and a
+    head motion of :data:`STROKE_SHARE` of the stroke on the design loop."""
+    from servo.loop.design import loop_design
+
+    d = loop_design(cfg, prog.f, "drive", compensated=compensation)
+    stroke = STROKE_SHARE * cfg.drive.stroke / np.maximum(np.abs(d.P * d.S), 1e-300)
+    return np.minimum(stroke, min(cap, 0.5 * cfg.controller.current_limit))
+
+
+def _measure(cfg, s, prog, amp, level, compensation, make_driver) -> "LoopMeasurement":
+    log, link = run_log(cfg, prog.excitation(amp), compensation, make_driver)
     whole, per, frac = correlate(log, prog)
     inside = np.zeros(prog.n_ticks, bool)
     for w0, w1 in prog.win:
@@ -293,8 +355,11 @@ def measure(cfg: Config, s: LoopSettings, level: float, compensation: bool, make
     own_limit = getattr(c.section, "holding_limit", getattr(c.section, "output_limit", np.inf))  # the kind's, if any
     clipped = int(np.count_nonzero(inside & ((np.abs(log["u"]) >= c.current_limit) | (np.abs(log["u_n"]) >= own_limit))))
     fast = int(np.count_nonzero(inside & (log["regime"] != 0.0))) if compensation else 0
-    return LoopMeasurement(level, compensation, prog.f, whole, per, frac, clipped, fast, int(inside.sum()), link)
+    label = f"compensator {'on' if compensation else 'off'}, adapted to {100 * s.target_rel_err:g} % up to {level * 1e3:g} mA" \
+        if s.target_rel_err > 0 else ""
+    return LoopMeasurement(level, compensation, prog.f, whole, per, frac, clipped, fast, int(inside.sum()), link, label,
+                           np.broadcast_to(np.asarray(amp, float), prog.f.shape).copy())
 
 
-__all__ = ["RESPONSES", "SIGNALS", "LoopMeasurement", "LoopSettings", "Program", "correlate", "measure", "program",
+__all__ = ["RESPONSES", "SIGNALS", "LoopMeasurement", "LoopSettings", "Program", "adapted_levels", "correlate", "measure", "program",
            "run_config", "run_log"]

@@ -35,6 +35,7 @@ from servo.runtime.window import BLOCK, Window
 from servo.scenarios import Inputs
 from servo.runtime.scheduler import Scheduler, Task
 from servo.runtime.simdriver import SimDriver
+from servo.runtime.watchdog import Watchdog
 
 
 @dataclass
@@ -83,7 +84,9 @@ def run_closed_loop(
     """Run ``cfg.n_ticks`` ticks of ``controller`` against ``driver``.
 
     Configures the driver if it is not yet, activates it, and deactivates it (safe state)
-    on every exit path.  ``fast`` uses the all-compiled loop (simulated drive only); it
+    on every exit path.  The :class:`~servo.runtime.watchdog.Watchdog` looks at the
+    logged rows as they are written and stops an unstable loop
+    (:class:`~servo.errors.UnstableLoop`, exit 3), what was recorded kept.  ``fast`` uses the all-compiled loop (simulated drive only); it
     runs a block of ticks per call, so it cannot be paced.
     """
     if fast and not isinstance(driver, SimDriver):
@@ -96,13 +99,15 @@ def run_closed_loop(
         stats = np.zeros(STATS_SIZE)
         durations = Durations() if (timing and not fast) else None
         _warm_up(controller, log)
+        watchdog = Watchdog(cfg)
         driver.activate()
         t0 = time.perf_counter()
         try:
             if fast:
-                _run_fast(cfg, driver, controller, inputs, log, stats)
+                _run_fast(cfg, driver, controller, inputs, log, stats, watchdog)
             else:
-                _run_ticks(cfg, driver, controller, inputs, log, stats, pacer, durations)
+                _run_ticks(cfg, driver, controller, inputs, log, stats, pacer, durations, watchdog)
+            watchdog.look(log)  # the last rows
         finally:
             driver.deactivate()
             if pacer is not None:
@@ -125,7 +130,7 @@ def _warm_up(controller, log: RunLog) -> None:
     error_stats(np.zeros(STATS_SIZE), 0.0)
 
 
-def _run_ticks(cfg, driver, controller, inputs, log, stats, pacer, durations) -> None:
+def _run_ticks(cfg, driver, controller, inputs, log, stats, pacer, durations, watchdog) -> None:
     dt = cfg.dt
     state = controller.stage_state
     log_row = controller.unchecked_log_row  # rows of log.data: 1-D, contiguous, the controller's width
@@ -145,7 +150,7 @@ def _run_ticks(cfg, driver, controller, inputs, log, stats, pacer, durations) ->
     def logger(k: int) -> None:
         log_row(log.data[log.rows], k, dt, data.x, data.u_exc)
         log.rows += 1
-        log.maybe_flush()
+        watchdog.maybe_look(log)  # and the log's block hand-over
 
     sched.before = [Task("excitation", cfg.run.excitation_every, excitation)]
     sched.after = [
@@ -157,7 +162,7 @@ def _run_ticks(cfg, driver, controller, inputs, log, stats, pacer, durations) ->
     sched.run(0, cfg.n_ticks, start=True, timing=durations)
 
 
-def _run_fast(cfg, driver: SimDriver, controller, inputs, log, stats) -> None:
+def _run_fast(cfg, driver: SimDriver, controller, inputs, log, stats, watchdog) -> None:
     n = cfg.n_ticks
     p = driver.plant
     every = cfg.run.excitation_every
@@ -178,8 +183,8 @@ def _run_fast(cfg, driver: SimDriver, controller, inputs, log, stats) -> None:
         )  # fmt: skip
         k += m
         driver.tick = k
-        log.maybe_flush()
         driver.check_state()  # after the block's log is kept
+        watchdog.flush(log)
 
 
 __all__ = ["LOG_COLUMNS", "LoopResult", "log_rows", "run_closed_loop"]

@@ -46,7 +46,8 @@ class HddBenchmark(ScenarioKind):
         from servo.hdd.disturbances import generate  # scipy.signal: imported when the kind is run, not registered
 
         try:
-            dist = generate(cfg.n_ticks, cfg.scenario.hdd_version, seed=cfg.run.seed, fs=cfg.run.sample_rate_hz)
+            dist = generate(cfg.n_ticks, cfg.scenario.hdd_version, seed=cfg.run.seed, fs=cfg.run.sample_rate_hz,
+                            package=cfg.scenario.hdd_package or None)
         except ValueError as exc:
             raise ConfigError(f"config: scenario.kind = hdd_benchmark: {exc}") from None
         return BenchmarkInputs(dist)
