@@ -168,18 +168,18 @@ def loop_margins(cfg: Config) -> tuple[float | None, float | None, float | None]
     has one) before the loop is unstable; None where there is none or they cannot be
     computed."""
     from servo.loop.design import design_grid, loop_design
-    from servo.loop.margins import margins
+    from servo.design.margins import margins
 
     f = design_grid(cfg, 1.0, 0.45 / cfg.dt, 1500)
     try:
         design = loop_design(cfg, f, model="drive")  # its modes and delay: where the margins are
-        gms = [g for g in margins(f, design.L, dense=True)["all_gain_margins_db"] if g is not None and math.isfinite(g)]
+        gms = [g for g in margins(f, design.L, dense=True)["gain_margins"] if math.isfinite(g["db"])]
         ps = np.abs(design.P * design.S)
         worst = float(np.max(ps[np.isfinite(ps)]))
     except (ValueError, NotImplementedError):
         return None, None, None
-    up = min((g for g in gms if g > 0), default=None)
-    down = max((g for g in gms if g < 0), default=None)
+    up = min((g["db"] for g in gms if g["side"] == "upper"), default=None)
+    down = max((g["db"] for g in gms if g["side"] == "lower"), default=None)
     return up, down, worst
 
 

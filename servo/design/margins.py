@@ -138,7 +138,7 @@ def margins(f_hz, L, *, dense: bool = False, response: Callable | None = None, n
     Returns the keys of :data:`MARGIN_KEYS` (None for an unstable loop), ``stable``
     (True, False or None: unknown), ``pole_radius``, ``unstable_poles``, the lists
     ``crossovers_hz``, ``phase_margins_deg``, ``phase_crossovers_hz``, ``gain_margins``
-    (``{"hz", "db", "side", "binding"}`` each) and ``all_gain_margins_db``, and
+    (``{"hz", "db", "side", "binding"}`` each) and
     ``band_hz`` the band searched."""
     f = np.asarray(f_hz, dtype=float)
     v = np.asarray(L, dtype=complex)
@@ -155,8 +155,7 @@ def margins(f_hz, L, *, dense: bool = False, response: Callable | None = None, n
         if n_out is not None:
             out["stable"], out["unstable_poles"] = n_out == 0, n_out
     empty = dict.fromkeys(MARGIN_KEYS)
-    empty.update(crossovers_hz=[], phase_margins_deg=[], phase_crossovers_hz=[], gain_margins=[],
-                 all_gain_margins_db=[])  # fmt: skip
+    empty.update(crossovers_hz=[], phase_margins_deg=[], phase_crossovers_hz=[], gain_margins=[])  # fmt: skip
     out.update(empty)
     if out["stable"] is False:
         return out
@@ -181,7 +180,6 @@ def margins(f_hz, L, *, dense: bool = False, response: Callable | None = None, n
     gms = [{"hz": float(w), "db": -_db(abs(h)), "side": "upper" if abs(h) < 1 else "lower", "binding": False}
            for w, h in zip(wp, hp) if abs(h) > 0]  # fmt: skip
     out["phase_crossovers_hz"] = [g["hz"] for g in gms]
-    out["all_gain_margins_db"] = [g["db"] for g in gms]
     up = [g for g in gms if g["side"] == "upper"]
     lo = [g for g in gms if g["side"] == "lower"]
     out["gain_margin_upper_db"] = min(g["db"] for g in up) if up else None

@@ -3,7 +3,7 @@
 For each compensator setting (on, off or both) and excitation level, one stepped-sine
 run (:mod:`servo.loop.measure`) on the simulated drive or through a driver the caller
 makes (the serial link); then the designs (:mod:`servo.loop.design`) and the margins of
-everything on the same band (:mod:`servo.loop.margins`).
+everything on the same band (:mod:`servo.design.margins`).
 
 Files written into one folder (all computed before the first is written):
 
@@ -34,7 +34,7 @@ from servo.io.atomic import write_json
 from servo.io.frequency_response import FrequencyResponse, save_csv, save_npz
 from servo.loop.design import (LoopDesign, compensator_response, controller_response, current_loop_design,
                                loop_design, sampled_plant)
-from servo.loop.margins import margins
+from servo.design.margins import margins
 from servo.loop.measure import RESPONSES, LoopMeasurement, LoopSettings, measure
 from servo.loop.plots import plot_loop, plot_sensitivity
 from servo.loop.quality import uncertainty, warnings_for
