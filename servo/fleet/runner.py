@@ -28,6 +28,7 @@ from __future__ import annotations
 
 import logging
 import os
+import time
 from dataclasses import dataclass
 from functools import partial
 from typing import Callable
@@ -120,11 +121,74 @@ def _in_process(fn, items: list, on_results) -> list:
     return out
 
 
+#: the most a Dask handshake may claim to hold (a real one is a few hundred bytes)
+HANDSHAKE_MAX_BYTES = 1 << 16
+
+
+def _recv(sock, n: int) -> bytes:
+    out = b""
+    while len(out) < n:
+        got = sock.recv(n - len(out))
+        if not got:
+            break
+        out += got
+    return out
+
+
+def probe_scheduler(address: str, timeout_s: float | None = None) -> None:
+    """Check that ``address`` (``tcp://HOST:PORT`` or ``HOST:PORT``) speaks Dask's
+    protocol before ``distributed`` trusts it: a Dask scheduler sends its handshake as
+    soon as a connection opens (an 8-byte length, then frames: their count, their
+    lengths, a msgpack map), so read that within ``timeout_s`` (default
+    :data:`CONNECT_TIMEOUT_S`) and refuse, in one line,
+    an endpoint that sends nothing (an HTTP server, a dashboard's port), closes, or
+    sends something else (a text banner: ``distributed`` would take its first 8 bytes
+    for a length of exbibytes).  Other protocols (``tls://``, ``ucx://``...) are left
+    to ``distributed``."""
+    import socket
+    import struct
+
+    timeout_s = CONNECT_TIMEOUT_S if timeout_s is None else timeout_s
+    scheme, sep, rest = address.partition("://")
+    if not sep:
+        scheme, rest = "tcp", address
+    if scheme != "tcp":
+        return
+    host, _, port = rest.rpartition(":")
+    host = host.strip("[]")
+    where = f"fleet: --scheduler {address}"
+    try:
+        port_n = int(port.split("/")[0])
+    except ValueError:
+        raise ConfigError(f"{where}: expected tcp://HOST:PORT") from None
+    deadline = time.monotonic() + timeout_s
+    try:
+        with socket.create_connection((host, port_n), timeout=timeout_s) as sock:
+            sock.settimeout(max(deadline - time.monotonic(), 0.01))
+            head = _recv(sock, 8)
+            if len(head) == 8:
+                (n,) = struct.unpack("<Q", head)
+                if 16 <= n <= HANDSHAKE_MAX_BYTES:
+                    body = _recv(sock, n)
+                    (frames,) = struct.unpack_from("<Q", body) if len(body) >= 8 else (0,)
+                    if len(body) == n and 1 <= frames <= 16 and 8 * (frames + 1) <= n:
+                        return
+    except socket.timeout:
+        raise ConfigError(f"{where}: not a Dask scheduler (no Dask handshake within {timeout_s:g} s: an HTTP server "
+                          "or a dashboard's port?)") from None  # fmt: skip
+    except OSError as exc:
+        raise ConfigError(f"fleet: cannot reach the Dask scheduler at {address}: {exc.strerror or exc}") from None
+    shown = " ".join(head.decode("ascii", "replace").split())[:24] if head else ""
+    said = f"it sent {shown!r}" if shown else "it closed the connection"
+    raise ConfigError(f"{where}: not a Dask scheduler ({said}, not a Dask handshake)")
+
+
 def _client(where: Where, n_tasks: int):
     """A connected ``distributed.Client`` and the local cluster it owns (or None)."""
     from distributed import Client, LocalCluster
 
     if where.scheduler is not None:
+        probe_scheduler(where.scheduler)
         try:
             return Client(where.scheduler, timeout=CONNECT_TIMEOUT_S), None
         except (OSError, TimeoutError, ValueError) as exc:
@@ -202,4 +266,5 @@ def run(command: str, tasks: list[Task], settings: dict, where: Where = Where(),
                        partial(_failed_rows, settings), client)  # fmt: skip
 
 
-__all__ = ["IN_PROCESS_MAX", "Progress", "Where", "batches", "describe", "local_workers", "map_batches", "run"]
+__all__ = ["IN_PROCESS_MAX", "Progress", "Where", "batches", "describe", "local_workers", "map_batches",
+           "probe_scheduler", "run"]

@@ -58,16 +58,18 @@ def rows_of(table: pa.Table) -> list[dict]:
     return table.to_pylist()
 
 
-def done_rows(path: str | Path) -> dict[str, dict]:
-    """For ``--resume``: key -> row of every drive of an earlier table that succeeded
-    (``status`` ok); empty if there is no table yet."""
+def done_rows(path: str | Path) -> dict[tuple[str, str], dict]:
+    """For ``--resume``: (source, key) -> row of every drive of an earlier table that
+    succeeded (``status`` ok); empty if there is no table yet.  A row belongs to its
+    recording's path (or simulated drive) as well as to its key: two recordings with
+    the same bytes are two drives."""
     path = Path(path)
     if not path.exists():
         return {}
     table = read(path)
-    if "key" not in table.column_names or "status" not in table.column_names:
-        raise ConfigError(f"fleet: {path}: not a fleet table (no key and status columns)")
-    return {r["key"]: r for r in rows_of(table) if r["status"] == "ok"}
+    if not {"key", "status", "source"} <= set(table.column_names):
+        raise ConfigError(f"fleet: {path}: not a fleet table (no source, key and status columns)")
+    return {(r["source"], r["key"]): r for r in rows_of(table) if r["status"] == "ok"}
 
 
 __all__ = ["NAME", "columns_of", "done_rows", "read", "rows_of", "to_table", "write"]
