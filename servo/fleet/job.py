@@ -12,6 +12,8 @@ one writer per output (a second fleet given the same ``OUT`` is refused):
   how to continue it (``resume``);
 * ``fleet_report.md`` (:mod:`servo.fleet.report`), ``fleet.json`` (the summary, strict
   JSON);
+* ``dask.log``: the records and warnings of Dask itself, when there are some (they
+  stay off stderr);
 * ``histograms.png``, ``scatter.png`` and, for a diagnosis, ``findings.png``
   (:mod:`servo.fleet.plots`), unless ``plots`` is off.
 
@@ -40,6 +42,8 @@ from servo.io.outdir import staged, staging_dir
 from servo.io.progress import stage
 
 CHECKPOINT_S = 5.0
+#: where Dask's own log records and warnings go (only when there are some)
+DASK_LOG = "dask.log"
 
 
 class _Checkpoint:
@@ -97,13 +101,15 @@ def run_fleet(command: str, tasks: list[Task], settings: dict, out: str | Path, 
     hint = f"continue with --resume {out} --out {out}"
     with staged(out, keep_partial=True, resume=adopt, kept="the drives done so far", hint=hint) as tmp:
         for f in tmp.iterdir():  # an interrupted run's other files: rewritten below, or not at all
-            if f.name != table.NAME:
+            if f.name not in (table.NAME, DASK_LOG):
                 f.unlink()
         if kept and hasattr(progress, "start"):
             progress.start(len(todo))
         t0 = time.perf_counter()
         check = _Checkpoint(tmp / table.NAME, list(kept.values()), CHECKPOINT_S, progress)
-        new = runner.run(command, todo, settings, where, getattr(adapter, "BATCH", 1), check)
+        with runner.dask_logs(tmp / DASK_LOG):  # Dask's records and warnings, not on stderr
+            new = runner.run(command, todo, settings, where, getattr(adapter, "BATCH", 1), check,
+                             on_client=getattr(progress, "connected", None))  # fmt: skip
         wall = time.perf_counter() - t0
         stage("the table, report and plots")
         rows = _merge(tasks, kept, new)
@@ -119,7 +125,7 @@ def _outputs(command, adapter, rows, settings, tmp: Path, out: Path, plots: bool
     scored, pairs = adapter.scored(cols), adapter.pairs(cols)
     shown = adapter.figures(cols) if hasattr(adapter, "figures") else scored
     found = outliers(rows, scored)
-    files = [table.NAME, "fleet.json", "fleet_report.md"]
+    files = [table.NAME, "fleet.json", "fleet_report.md"] + [DASK_LOG] * (tmp / DASK_LOG).exists()
     if plots:
         fleet_plots.save(fleet_plots.histograms(rows, shown), tmp / "histograms.png")
         fleet_plots.save(fleet_plots.scatters(rows, pairs), tmp / "scatter.png")
@@ -165,4 +171,4 @@ def format_summary(summary: dict, out: str | Path) -> str:
     return "\n".join(lines)
 
 
-__all__ = ["CHECKPOINT_S", "format_summary", "run_fleet"]
+__all__ = ["CHECKPOINT_S", "DASK_LOG", "earlier_table", "format_summary", "run_fleet"]

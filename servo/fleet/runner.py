@@ -29,8 +29,11 @@ from __future__ import annotations
 import logging
 import os
 import time
+import warnings
+from contextlib import contextmanager
 from dataclasses import dataclass
 from functools import partial
+from pathlib import Path
 from typing import Callable
 
 from servo.errors import ConfigError
@@ -99,6 +102,12 @@ class Progress:
     def __call__(self, rows: list) -> None:
         self.failed += sum(bool(r.get("error")) for r in rows)
         self.reporter.advance(len(rows), f"{self.failed} failed")
+
+    def connected(self, client) -> None:
+        """Say where to watch the cluster: its dashboard's address, when it has one."""
+        link = dashboard_link(client)
+        self.reporter.note(f"Dask dashboard at {link}" if link else "no Dask dashboard (it needs bokeh: "
+                           "pip install 'servo-vcm[dashboard]')")  # fmt: skip
 
 
 def describe(where: Where, n_tasks: int) -> str:
@@ -195,14 +204,57 @@ def _client(where: Where, n_tasks: int):
             why = " ".join((str(exc) or type(exc).__name__).split())
             raise ConfigError(f"fleet: cannot reach the Dask scheduler at {where.scheduler}: {why}") from None
     n = min(local_workers(where), n_tasks)
-    cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=True, dashboard_address=None,
+    cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=True, dashboard_address=dashboard_address(),
                            silence_logs=logging.ERROR)  # fmt: skip
     return Client(cluster), cluster
 
 
+def dashboard_address() -> str | None:
+    """Where a local cluster serves Dask's dashboard: a free port (``":0"``: never a
+    port another cluster holds) when ``bokeh``, which draws it, is installed; else
+    none."""
+    import importlib.util
+
+    return ":0" if importlib.util.find_spec("bokeh") is not None else None
+
+
+def dashboard_link(client) -> str | None:
+    """The address of the dashboard of ``client``'s cluster, or None if it has none."""
+    try:
+        services = client.scheduler_info().get("services", {})
+    except Exception:  # noqa: BLE001  (a cluster that cannot say: no link)
+        return None
+    return client.dashboard_link if "dashboard" in services else None
+
+
+@contextmanager
+def dask_logs(path: str | Path):
+    """While the block runs, the records of ``distributed``'s and ``dask``'s loggers
+    and the Python warnings raised in this process go to the file ``path`` (made at the
+    first record), not to stderr, which carries the command's progress and its error
+    line only.  The loggers' handlers and the warning filters are restored after."""
+    handler = logging.FileHandler(path, delay=True, encoding="utf-8")
+    handler.setFormatter(logging.Formatter("%(asctime)s %(name)s %(levelname)s %(message)s"))
+    saved = []
+    for name in ("distributed", "dask"):
+        lg = logging.getLogger(name)
+        saved.append((lg, lg.handlers[:], lg.propagate))
+        lg.handlers, lg.propagate = [handler], False
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("default")
+            warnings.showwarning = lambda message, category, filename, lineno, file=None, line=None: \
+                logging.getLogger("distributed").warning(warnings.formatwarning(message, category, filename, lineno, line).strip())  # fmt: skip
+            yield
+    finally:
+        for lg, handlers, propagate in saved:
+            lg.handlers, lg.propagate = handlers, propagate
+        handler.close()
+
+
 def map_batches(fn: Callable[[list], list], items: list, where: Where = Where(), default_batch: int = 1,
                 on_results: Callable[[list], None] | None = None, failed: Callable[[list, str], list] | None = None,
-                client=None) -> list:  # fmt: skip
+                client=None, on_client: Callable[[object], None] | None = None) -> list:  # fmt: skip
     """``fn(batch)`` (a list of items -> one result per item, in order) over ``items``:
     on a Dask cluster in batches (:func:`batches`) or in this process one item at a time
     (module doc); the results come back in the items' order, whatever the order of
@@ -211,7 +263,8 @@ def map_batches(fn: Callable[[list], list], items: list, where: Where = Where(),
     results as they complete (progress, checkpoints).  ``failed(batch, why)``: the results
     of a batch that could not run (its workers kept dying; default: raise).  ``client``:
     an already connected ``distributed.Client`` to run on (left open), instead of
-    ``where``'s cluster."""
+    ``where``'s cluster.  ``on_client(client)``: called once connected to a cluster
+    (to say where to watch it: :func:`dashboard_link`)."""
     where.check()
     on_results = on_results or (lambda results: None)
     if not items:
@@ -225,6 +278,8 @@ def map_batches(fn: Callable[[list], list], items: list, where: Where = Where(),
     if own:
         client, cluster = _client(where, len(items))
     try:
+        if on_client is not None:
+            on_client(client)
         n_workers = max(len(client.scheduler_info().get("workers", {})), 1)
         groups = batches(items, where.batch or default_batch, n_workers)
         futures = {client.submit(fn, g, pure=False): i for i, g in enumerate(groups)}
@@ -257,14 +312,16 @@ def _failed_rows(settings: dict, tasks: list[Task], why: str) -> list[dict]:
 
 
 def run(command: str, tasks: list[Task], settings: dict, where: Where = Where(), default_batch: int = 1,
-        on_rows: Callable[[list], None] | None = None, client=None) -> list[dict]:  # fmt: skip
+        on_rows: Callable[[list], None] | None = None, client=None,
+        on_client: Callable[[object], None] | None = None) -> list[dict]:  # fmt: skip
     """Rows of ``tasks`` (:func:`servo.fleet.task.run_batch`), in the tasks' order
     (:func:`map_batches`; a batch whose workers kept dying gets ``worker failure: ...``
     in each of its rows).  ``on_rows(rows)`` is called with each batch's rows as they
     complete (progress, checkpoints)."""
     return map_batches(partial(_rows, command, settings), tasks, where, default_batch, on_rows,
-                       partial(_failed_rows, settings), client)  # fmt: skip
+                       partial(_failed_rows, settings), client, on_client)  # fmt: skip
 
 
-__all__ = ["IN_PROCESS_MAX", "Progress", "Where", "batches", "describe", "local_workers", "map_batches",
+__all__ = ["IN_PROCESS_MAX", "Progress", "Where", "batches", "dashboard_address", "dashboard_link", "dask_logs", "describe",
+           "local_workers", "map_batches",
            "probe_scheduler", "run"]

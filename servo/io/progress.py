@@ -74,6 +74,9 @@ class Quiet:
     def watch(self, done: Callable[[], int]):
         yield self
 
+    def note(self, text: str) -> None:
+        pass
+
     def close(self, failed: bool = False) -> None:
         pass
 
@@ -169,6 +172,17 @@ class Reporter(Quiet):
                     self.done = int(done())
                 except Exception:  # noqa: BLE001  (a counter that cannot be read any more: keep the last)
                     pass
+
+    def note(self, text: str) -> None:
+        """Write ``<label>: <text>`` on a line of its own now (something to act on while
+        the job runs, such as where to watch it), whatever the cadence."""
+        with self._lock:
+            if self._closed:
+                return
+            if self._drawn:
+                self._write("\r\x1b[K")
+                self._drawn = False
+            self._write(f"{self.label}: {text}\n")
 
     def close(self, failed: bool = False) -> None:
         """Stop the thread; clear the terminal line, or write the last plain line
