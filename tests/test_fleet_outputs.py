@@ -311,3 +311,94 @@ def test_fleet_diagnose_decimates_as_servo_diagnose_does_by_default():
     assert opt == Options()  # servo diagnose's defaults: the decimation chosen from the recording
     fixed = fleet_diagnose.options(fleet_diagnose.settings(decimate=6, cutoff_hz=900.0))
     assert (fixed.settings.decimate, fixed.settings.cutoff_hz) == (6, 900.0)
+
+
+# ---------------------------------------------------------------- what the user sees while it runs
+
+
+def test_dask_records_and_warnings_go_to_the_log_not_to_stderr(tmp_path, capfd):
+    import logging
+    import warnings
+
+    from servo.fleet.runner import dask_logs
+
+    before = logging.getLogger("distributed").handlers[:]
+    with dask_logs(tmp_path / "dask.log"):
+        logging.getLogger("distributed.scheduler").warning("Port 8787 is already in use")
+        warnings.warn("Creating scratch directories is taking a surprisingly long time", UserWarning)
+    assert capfd.readouterr().err == ""
+    text = (tmp_path / "dask.log").read_text()
+    assert "Port 8787 is already in use" in text and "scratch directories" in text and "UserWarning" in text
+    assert logging.getLogger("distributed").handlers == before  # restored
+
+
+class _FakeClient:
+    def __init__(self, services):
+        self.services, self.dashboard_link = services, "http://127.0.0.1:40123/status"
+
+    def scheduler_info(self):
+        return {"services": self.services, "workers": {}}
+
+
+def test_the_dashboard_link_is_said_on_stderr_as_soon_as_the_cluster_is_up():
+    import io
+
+    from servo.fleet.runner import Progress
+    from servo.io.progress import QUIET, Reporter
+
+    stream = io.StringIO()
+    p = Progress(Reporter("servo fleet diagnose", stream=stream, tty=False, thread=False), 10)
+    p.connected(_FakeClient({"dashboard": 40123}))
+    p.connected(_FakeClient({}))
+    assert stream.getvalue().splitlines() == [
+        "servo fleet diagnose: Dask dashboard at http://127.0.0.1:40123/status",
+        "servo fleet diagnose: no Dask dashboard (it needs bokeh: pip install 'servo-vcm[dashboard]')"]  # fmt: skip
+    Progress(QUIET, 10).connected(_FakeClient({"dashboard": 1}))  # --quiet: nothing, and no error
+
+
+def _time_left_at_half_way(n_drives: int, workers: int, seed: int, batch: int = 1, spread: float = 0.5
+                           ) -> tuple[float, float]:  # fmt: skip
+    """A fleet of ``n_drives`` on ``workers`` workers, simulated on a fake clock: each
+    worker starts (imports, kernels) in 4-6 s, then runs batches of ``batch`` drives of
+    1 +- ``spread`` s each, one after the other; the time left the progress line says
+    when half the drives are done, and the time the rest took."""
+    import heapq
+    import re
+
+    import numpy as np
+
+    from servo.fleet.runner import Progress
+    from servo.io.progress import Reporter
+
+    rng = np.random.default_rng(seed)
+    now = [0.0]
+    reporter = Reporter("servo fleet diagnose", stream=open(os.devnull, "w"), tty=False, thread=False,
+                        clock=lambda: now[0])  # fmt: skip
+    p = Progress(reporter, n_drives)
+    p.connected(_FakeClient({}))  # the count of workers
+    p.workers = workers
+    start = 5.0 + (rng.uniform(-1.0, 1.0, workers) if spread else np.zeros(workers))
+    free = [(float(start[w]), w) for w in range(workers)]
+    done_at = []
+    for _ in range(0, n_drives, batch):
+        t, w = heapq.heappop(free)
+        end = t + float(rng.uniform(1.0 - spread, 1.0 + spread, batch).sum())
+        done_at.append(end)
+        heapq.heappush(free, (end, w))
+    said = None
+    for k, t in enumerate(sorted(done_at)):
+        now[0] = t
+        p([{"error": None}] * batch)
+        if said is None and (k + 1) * batch >= n_drives / 2:
+            said = float(re.search(r"~([\d.]+) s left", reporter.line()[0]).group(1))
+            half = t
+    return said, max(done_at) - half
+
+
+@pytest.mark.parametrize("n_drives,workers,batch,spread", [
+    (8, 2, 1, 0.0),  # 8 drives of 1 s on 2 workers started together: the first rate counted 3 drives in 1 s
+    (40, 2, 1, 0.5), (40, 4, 1, 0.5), (200, 2, 4, 0.5)])  # fmt: skip
+def test_the_time_left_is_within_30_percent_by_the_half_way_point(n_drives, workers, batch, spread):
+    for seed in range(5):
+        said, took = _time_left_at_half_way(n_drives, workers, seed, batch, spread)
+        assert abs(said - took) <= 0.3 * took, (seed, said, took)

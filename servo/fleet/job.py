@@ -101,7 +101,7 @@ def run_fleet(command: str, tasks: list[Task], settings: dict, out: str | Path, 
     hint = f"continue with --resume {out} --out {out}"
     with staged(out, keep_partial=True, resume=adopt, kept="the drives done so far", hint=hint) as tmp:
         for f in tmp.iterdir():  # an interrupted run's other files: rewritten below, or not at all
-            if f.name not in (table.NAME, DASK_LOG):
+            if f.is_file() and f.name not in (table.NAME, DASK_LOG):
                 f.unlink()
         if kept and hasattr(progress, "start"):
             progress.start(len(todo))

@@ -77,6 +77,9 @@ class Quiet:
     def note(self, text: str) -> None:
         pass
 
+    def rebase(self) -> None:
+        pass
+
     def close(self, failed: bool = False) -> None:
         pass
 
@@ -172,6 +175,14 @@ class Reporter(Quiet):
                     self.done = int(done())
                 except Exception:  # noqa: BLE001  (a counter that cannot be read any more: keep the last)
                     pass
+
+    def rebase(self) -> None:
+        """Count the time left's rate from now: what was done so far is not a rate (the
+        first results of workers that ran side by side since the start, which come back
+        together)."""
+        with self._lock:
+            if self.done > 0:
+                self._first = (self.clock(), self.done)
 
     def note(self, text: str) -> None:
         """Write ``<label>: <text>`` on a line of its own now (something to act on while
