@@ -18,6 +18,8 @@ from servo.fleet.runner import Where, dashboard_link
 from servo.fleet.sources import recording_tasks, sources
 from servo.fleet.synthetic import DEFECTS, synthetic_drives, write_fleet
 
+pytestmark = pytest.mark.slow  # a cluster, a scheduler and 8 diagnoses of 1 s recordings: minutes under load
+
 N_DRIVES, N_DEFECTS = 8, 4  # one of each defect kind, four drives without
 DURATION_S = 1.0  # the concealed-effect scenario's length (the asymmetric friction needs it)
 
