@@ -207,14 +207,14 @@ def test_ctrl_c_or_a_full_disk_leave_nothing_in_the_final_folder(recs, tmp_path,
 
     def disk_full_at_the_end(table, where, *a, **k):
         writes.append(table.num_rows)
-        if table.num_rows == 4:
-            raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC), str(where))
+        if table.num_rows == 4:  # as pyarrow says it, naming no file
+            raise OSError(errno.ENOSPC, "Error writing bytes to file. Detail: [errno 28] No space left on device")
         return real_write(table, where, *a, **k)
 
     monkeypatch.setattr(table_mod.pq, "write_table", disk_full_at_the_end)
     full = tmp_path / "full"
     code, _, err = _identify([glob, "--out", str(full)], capsys)
-    assert code == 2 and err.count("\n") == 1 and "No space left on device" in err and "fleet.parquet" in err, err
+    assert code == 2 and err.count("\n") == 1 and f"{full}.incomplete/fleet.parquet: No space left on device" in err, err
     assert not full.exists()
     assert "the drives done so far kept in" in err and not list((tmp_path / "full.incomplete").glob(".*tmp"))
 
@@ -402,3 +402,18 @@ def test_the_time_left_is_within_30_percent_by_the_half_way_point(n_drives, work
     for seed in range(5):
         said, took = _time_left_at_half_way(n_drives, workers, seed, batch, spread)
         assert abs(said - took) <= 0.3 * took, (seed, said, took)
+
+
+def test_a_synthetic_fleet_on_a_full_disk_is_one_line_naming_the_folder_and_leaves_nothing(tmp_path, capsys,
+                                                                                          monkeypatch):  # fmt: skip
+    import servo.fleet.synthetic as synthetic_mod
+
+    def full(*a, **k):  # what numpy raises writing into a full file system: no file named
+        raise OSError(errno.ENOSPC, "No space left on device")
+
+    monkeypatch.setattr(synthetic_mod.np, "savez", full)
+    out = tmp_path / "syn"
+    assert main(["fleet", "synthetic", "--drives", "2", "--duration", "0.05", "--out", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert err == f"servo: error: {out}.incomplete: No space left on device; nothing written\n", err
+    assert not list(tmp_path.iterdir())

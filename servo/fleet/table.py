@@ -10,6 +10,7 @@ reader, and ``--resume``, never see a half-written file.
 """
 from __future__ import annotations
 
+import os
 from pathlib import Path
 
 import pyarrow as pa
@@ -38,10 +39,18 @@ def to_table(rows: list[dict]) -> pa.Table:
 
 
 def write(path: str | Path, rows: list[dict]) -> pa.Table:
-    """Write ``rows`` as Parquet at ``path``, atomically; returns the table."""
+    """Write ``rows`` as Parquet at ``path``, atomically; returns the table.  An error
+    of the file system (a full disk) names ``path`` (pyarrow's names no file)."""
     table = to_table(rows)
     Path(path).parent.mkdir(parents=True, exist_ok=True)
-    atomic_write(Path(path), lambda tmp: pq.write_table(table, tmp))
+
+    def parquet(tmp):
+        try:
+            pq.write_table(table, tmp)
+        except OSError as exc:
+            raise OSError(exc.errno, os.strerror(exc.errno) if exc.errno else str(exc), str(path)) from None
+
+    atomic_write(Path(path), parquet)
     return table
 
 

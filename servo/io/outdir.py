@@ -16,6 +16,7 @@ fleet's ``--resume``) can tell a dead writer's folder from a live one's.
 """
 from __future__ import annotations
 
+import errno
 import os
 import shutil
 from contextlib import contextmanager
@@ -126,8 +127,10 @@ def staged(final: str | Path, keep_partial: bool = False, resume: bool = False, 
                 raise Interrupted(where) from None
             if keep and isinstance(exc, ServoError):
                 exc.args = (f"{exc}; {where}",)
-            if keep and isinstance(exc, OSError):
-                raise OutputError(f"{exc.filename}: {exc.strerror or exc}; {where}") from None
+            full = isinstance(exc, OSError) and exc.errno in (errno.ENOSPC, errno.EDQUOT)
+            if isinstance(exc, OSError) and (keep or (full and exc.filename is None)):  # name where it was writing
+                raise OutputError(f"{exc.filename or staging}: {os.strerror(exc.errno) if full else exc.strerror or exc}; "
+                                  f"{where}") from None  # fmt: skip
             raise
         try:
             if final.exists():
