@@ -12,7 +12,7 @@ from servo.config import Config
 from servo.diagnose.concealed import concealed_recording
 from servo.diagnose.job import Options, diagnose
 from servo.diagnose.report import build_report
-from servo.errors import ConfigError
+from servo.errors import ConfigError, Interrupted
 from servo.fleet import identify as fleet_identify
 from kernels.compose import LOG_COLUMNS
 from servo.fleet.closedloop import run_scenario
@@ -149,27 +149,28 @@ def test_resume_skips_drives_already_done_by_content_and_settings(small_fleet, t
     fleet.mkdir()
     for name in truth:
         (fleet / f"{name}.npz").write_bytes((d / f"{name}.npz").read_bytes())
-    out = tmp_path / "out"
     s = fleet_identify.settings(force_lag_s=LAG)
+    runs = iter(range(100))
 
-    def go(settings, resume=True):
+    def go(settings, resume=None):
+        out = tmp_path / f"out{next(runs)}"
         tasks = recording_tasks(sources([str(fleet / "*.npz")]), settings)
-        return run_fleet("identify", tasks, settings, out, Where(workers=0), resume=resume, plots=False)
+        return run_fleet("identify", tasks, settings, out, Where(workers=0), resume=resume, plots=False), out
 
-    first = go(s, resume=False)
-    table1 = pq.read_table(out / "fleet.parquet")
+    first, out0 = go(s)
+    table1 = pq.read_table(out0 / "fleet.parquet")
     assert first["resumed"] == 0
-    again = go(s)
-    assert again["resumed"] == 6 and pq.read_table(out / "fleet.parquet").equals(table1)
+    again, out1 = go(s, out0)
+    assert again["resumed"] == 6 and pq.read_table(out1 / "fleet.parquet").equals(table1)
     # one recording changed: only it runs again
     names = sorted(truth)
     (fleet / f"{names[2]}.npz").write_bytes((d / f"{names[0]}.npz").read_bytes())
-    third = go(s)
+    third, out2 = go(s, out1)
     assert third["resumed"] == 5
-    rows = pq.read_table(out / "fleet.parquet").to_pylist()
+    rows = pq.read_table(out2 / "fleet.parquet").to_pylist()
     assert rows[2]["J"] == rows[0]["J"] and rows[2]["sha256"] == rows[0]["sha256"]
     # other settings: nothing is reused
-    assert go(fleet_identify.settings(force_lag_s=0.0))["resumed"] == 0
+    assert go(fleet_identify.settings(force_lag_s=0.0), out2)[0]["resumed"] == 0
 
 
 def test_a_fleet_stopped_half_way_continues_with_resume(small_fleet, tmp_path, monkeypatch):
@@ -186,15 +187,20 @@ def test_a_fleet_stopped_half_way_continues_with_resume(small_fleet, tmp_path, m
         if len(seen) == 3:
             raise KeyboardInterrupt  # Ctrl-C half-way
 
-    with pytest.raises(KeyboardInterrupt):
-        run_fleet("identify", tasks, s, tmp_path / "out", Where(workers=0), progress=stop_after_three)
-    partial = pq.read_table(tmp_path / "out" / "fleet.parquet").to_pylist()
+    out = tmp_path / "out"
+    with pytest.raises(Interrupted) as e:
+        run_fleet("identify", tasks, s, out, Where(workers=0), progress=stop_after_three)
+    assert f"continue with --resume {out} --out {out}" in str(e.value)
+    assert not out.exists()  # nothing partial in the final folder: the drives done wait in OUT.incomplete
+    partial = pq.read_table(tmp_path / "out.incomplete" / "fleet.parquet").to_pylist()
     assert [r["drive"] for r in partial] == sorted(truth)[:3]
-    summary = run_fleet("identify", tasks, s, tmp_path / "out", Where(workers=0), resume=True, plots=False)
+    summary = run_fleet("identify", tasks, s, out, Where(workers=0), resume=out, plots=False)
     assert (summary["resumed"], summary["ok"]) == (3, 6)
+    assert sorted(p.name for p in out.iterdir()) == ["fleet.json", "fleet.parquet", "fleet_report.md"]
+    assert not (tmp_path / "out.incomplete").exists()
     fresh = run_fleet("identify", tasks, s, tmp_path / "fresh", Where(workers=0), plots=False)
     assert fresh["resumed"] == 0
-    assert pq.read_table(tmp_path / "out" / "fleet.parquet").equals(pq.read_table(tmp_path / "fresh" / "fleet.parquet"))
+    assert pq.read_table(out / "fleet.parquet").equals(pq.read_table(tmp_path / "fresh" / "fleet.parquet"))
 
 
 # ---------------------------------------------------------------- diagnosis rows

@@ -14,9 +14,11 @@ import pytest
 
 from servo.fleet import diagnose as fleet_diagnose
 from servo.fleet.job import run_fleet
-from servo.fleet.runner import Where
+from servo.fleet.runner import Where, dashboard_link
 from servo.fleet.sources import recording_tasks, sources
 from servo.fleet.synthetic import DEFECTS, synthetic_drives, write_fleet
+
+pytestmark = pytest.mark.slow  # a cluster, a scheduler and 8 diagnoses of 1 s recordings: minutes under load
 
 N_DRIVES, N_DEFECTS = 8, 4  # one of each defect kind, four drives without
 DURATION_S = 1.0  # the concealed-effect scenario's length (the asymmetric friction needs it)
@@ -45,11 +47,33 @@ def test_the_serial_loop_names_exactly_the_defective_drives_and_their_defects(fl
         assert r["findings"] == (defect or "")
 
 
-@pytest.mark.slow
-def test_a_local_cluster_of_two_workers_gives_the_serial_table_row_for_row(fleet, tmp_path):
+class _Watch:
+    """A fleet's progress callback that opens the dashboard it is told about."""
+
+    def __init__(self):
+        self.rows, self.pages = 0, []
+
+    def __call__(self, rows):
+        self.rows += len(rows)
+
+    def connected(self, client):
+        import urllib.request
+
+        link = dashboard_link(client)
+        with urllib.request.urlopen(link, timeout=30) as page:
+            self.pages.append((link, page.status))
+
+
+def test_a_local_cluster_of_two_workers_gives_the_serial_table_row_for_row(fleet, tmp_path, capfd):
     tasks, s, serial, truth = fleet
-    summary = run_fleet("diagnose", tasks, s, tmp_path, Where(workers=2))
+    watch = _Watch()
+    summary = run_fleet("diagnose", tasks, s, tmp_path / "out", Where(workers=2), progress=watch)
+    tmp_path = tmp_path / "out"
     assert summary["ran_on"] == "a local Dask cluster of 2 worker processes"
+    assert watch.rows == N_DRIVES
+    # the dashboard (the 'dashboard' extra, in the test extra too): a live page at the link given
+    assert len(watch.pages) == 1 and watch.pages[0][0].startswith("http://") and watch.pages[0][1] == 200
+    assert "distributed" not in capfd.readouterr().err  # Dask's records went to the log
     table = pq.read_table(tmp_path / "fleet.parquet")
     assert table.equals(serial)
     assert sorted(summary["flagged"]) == sorted(n for n, d in truth.items() if d)
@@ -71,7 +95,6 @@ def _wait_for(path, seconds=60.0):
         time.sleep(0.1)
 
 
-@pytest.mark.slow
 def test_a_real_scheduler_loses_nothing_when_a_worker_is_killed_mid_run(fleet, tmp_path):
     from distributed import Client
 

@@ -27,10 +27,7 @@ def register(sub) -> None:
     p.add_argument("--alpha", type=float, default=0.05, help="family-wise false-alarm level (default 0.05)")
     p.add_argument("--horizon", type=float, metavar="S", help="simulated-output horizon, s (default 10 row spacings)")
     p.add_argument("--cutoff-hz", type=float, help="Butterworth cutoff on position (default fs/decimation)")
-    p.add_argument("--decimate", metavar="reversals|power|Q", default="reversals",
-                   help="parallel decimation factor Q, or the rule that chooses it from the recording: reversals "
-                   "(default: the largest of 10, 8, 6, 5, 4, 3 whose rows the reversals leave usable) or power (as "
-                   "reversals, among those whose band covers where the position stands 20 dB over its noise)")
+    add_decimate_option(p)
     p.add_argument("--force-unit", default="A", help="unit of the input column for the report (default A; N for EMPS)")
     p.add_argument("--no-plots", action="store_true", help="write report.json and final_model.toml only")
     p.add_argument("--out", metavar="DIR", help="output folder (default servo-out/diagnose-<time>)")
@@ -48,7 +45,16 @@ def handle(args: argparse.Namespace) -> int:
     return 0
 
 
-def _decimate(value: str) -> tuple[str, int | None]:
+def add_decimate_option(p: argparse.ArgumentParser) -> None:
+    """``--decimate reversals|power|Q`` (default reversals): ``servo diagnose``'s, and
+    ``servo fleet diagnose``'s."""
+    p.add_argument("--decimate", metavar="reversals|power|Q", default="reversals",
+                   help="parallel decimation factor Q, or the rule that chooses it from the recording: reversals "
+                   "(default: the largest of 10, 8, 6, 5, 4, 3 whose rows the reversals leave usable) or power (as "
+                   "reversals, among those whose band covers where the position stands 20 dB over its noise)")
+
+
+def parse_decimate(value: str) -> tuple[str, int | None]:
     """``--decimate``: a rule of :data:`servo.diagnose.band.RULES` (``(rule, None)``) or a
     factor ``Q >= 1`` (``(default rule, Q)``)."""
     from servo.diagnose.band import RULES
@@ -77,7 +83,7 @@ def _diagnose(args: argparse.Namespace, stage) -> tuple[dict, Path]:
         raise ConfigError(f"--horizon {args.horizon!r}: expected a positive number of seconds")
     stage("loading the recording")
     rec = recording_from_args(args)
-    rule, q = _decimate(args.decimate)
+    rule, q = parse_decimate(args.decimate)
     settings = None if q is None else RobustSettings(cutoff_hz=args.cutoff_hz, decimate=q)
     opt = Options(baseline=args.baseline, model=args.model, test_fraction=args.test_fraction, blocks=args.blocks,
                   alpha=args.alpha, horizon_s=args.horizon, force_unit=args.force_unit, settings=settings,

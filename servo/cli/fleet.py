@@ -13,6 +13,7 @@ import tomllib
 from pathlib import Path
 
 from servo.cli.common import add_config_options, add_quiet_option, config_from_args, progress_from_args
+from servo.cli.diagnose import add_decimate_option, parse_decimate
 from servo.errors import ConfigError, ServoError
 
 
@@ -23,11 +24,12 @@ def _where_options(p: argparse.ArgumentParser) -> None:
     g.add_argument("--workers", type=int, metavar="N", help="size of the local Dask cluster (default: one per CPU; "
                    "0: in this process; a handful of drives always run in this process)")  # fmt: skip
     g.add_argument("--batch", type=int, metavar="N", help="drives per Dask task (default: the command's)")
-    p.add_argument("--resume", action="store_true", help="keep the drives of the table already in --out whose "
-                   "recording (content hash) and settings match; run only the others")  # fmt: skip
+    p.add_argument("--resume", metavar="DIR", help="take the drives of the earlier fleet in DIR (or of the one "
+                   "interrupted there) whose recording, content, mapping, scales, settings and versions match; run "
+                   "only the others (--out DIR too: continue an interrupted fleet in place)")  # fmt: skip
     p.add_argument("--no-plots", action="store_true", help="write the table, fleet.json and fleet_report.md only")
     add_quiet_option(p)
-    p.add_argument("--out", metavar="DIR", help="output folder (default servo-out/fleet-<command>-<time>)")
+    p.add_argument("--out", metavar="DIR", help="output folder, new or empty (default servo-out/fleet-<command>-<time>)")
 
 
 def _recording_options(p: argparse.ArgumentParser) -> None:
@@ -35,8 +37,7 @@ def _recording_options(p: argparse.ArgumentParser) -> None:
     p.add_argument("--manifest", metavar="FILE", help="CSV with a path column (and drive, columns, scale columns)")
     p.add_argument("--columns", metavar="ROLE=NAME,...", help="map t,u,x,v to names in the files, e.g. u=vir,x=qm")
     p.add_argument("--scale", metavar="ROLE=FACTOR,...", help="scale columns by a number or a scalar variable")
-    p.add_argument("--cutoff-hz", type=float, help="robust path: Butterworth cutoff on position (default fs/10)")
-    p.add_argument("--decimate", type=int, default=10, help="robust path: parallel decimation factor (default 10)")
+    p.add_argument("--cutoff-hz", type=float, help="robust path: Butterworth cutoff on position (default fs/decimation)")
 
 
 def register(sub) -> None:
@@ -57,6 +58,8 @@ def register(sub) -> None:
     q.add_argument("--terms", metavar="T,...", help="terms to identify (default J,B,Fc,K,h0)")
     q.add_argument("--off", metavar="T,...", help="terms to switch off, e.g. K")
     q.add_argument("--force-lag", type=float, metavar="S", default=0.0, help="seconds the recorded force acts late")
+    q.add_argument("--decimate", type=int, default=10, help="robust path: parallel decimation factor (default 10, "
+                   "as servo identify's; 1 = none)")  # fmt: skip
     _where_options(q)
     q.set_defaults(handler=_reported(identify))
 
@@ -69,6 +72,7 @@ def register(sub) -> None:
     q.add_argument("--alpha", type=float, default=0.05, help="family-wise false-alarm level per drive (default 0.05)")
     q.add_argument("--horizon", type=float, metavar="S", help="simulated-output horizon, s (default 10 row spacings)")
     q.add_argument("--force-unit", default="A", help="unit of the input column (default A)")
+    add_decimate_option(q)  # servo diagnose's, default included
     _where_options(q)
     q.set_defaults(handler=_reported(diagnose))
 
@@ -169,8 +173,9 @@ def diagnose(args: argparse.Namespace) -> tuple[str, ServoError | None]:
     if args.blocks < 4:
         raise ConfigError(f"--blocks {args.blocks}: at least 4 cross-validation blocks are needed")
     from_terms(args.baseline)  # an unknown term is one line now, not an error in every row
+    rule, q = parse_decimate(args.decimate)
     settings = diagnose.settings(args.baseline, args.test_fraction, args.blocks, args.alpha, args.horizon,
-                                 args.cutoff_hz, args.decimate, args.force_unit)  # fmt: skip
+                                 args.cutoff_hz, q, args.force_unit, rule)  # fmt: skip
     return _run(args, "diagnose", recording_tasks(_sources(args), settings), settings)
 
 
@@ -197,11 +202,13 @@ def _specs(args) -> dict:
 
 def simulate(args: argparse.Namespace) -> tuple[str, ServoError | None]:
     from servo.config import from_dict, to_dict
+    from servo.fleet.task import check_size
     from servo.fleet import simulate
     from servo.fleet.spec import draw_drives, parse_specs
 
     if args.drives < 1:
         raise ConfigError(f"--drives {args.drives}: expected at least 1")
+    check_size(args.drives)
     if args.duration is not None and not args.duration > 0:
         raise ConfigError(f"--duration {args.duration!r}: expected a positive number of seconds")
     cfg = config_from_args(args, run={"duration_s": args.duration})
@@ -222,9 +229,11 @@ def simulate(args: argparse.Namespace) -> tuple[str, ServoError | None]:
 
 def synthetic(args: argparse.Namespace) -> tuple[str, ServoError | None]:
     from servo.fleet.synthetic import synthetic_drives, write_fleet
+    from servo.fleet.task import check_size
 
     if not args.duration > 0:
         raise ConfigError(f"--duration {args.duration!r}: expected a positive number of seconds")
+    check_size(args.drives)
     k = args.defects if args.defects is not None else max(1, round(0.05 * args.drives))
     drives = synthetic_drives(args.drives, k, args.seed)
     manifest = write_fleet(args.out, drives, args.duration)

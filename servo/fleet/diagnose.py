@@ -30,18 +30,24 @@ FLAGGING_VERDICTS = ("unexplained", "out_of_scope")
 
 
 def settings(baseline: str | None = None, test_fraction: float = 0.25, blocks: int = 10, alpha: float = 0.05,
-             horizon_s: float | None = None, cutoff_hz: float | None = None, decimate: int = 10,
-             force_unit: str = "A") -> dict:  # fmt: skip
-    """The settings of a fleet diagnosis (JSON-able; part of the resume key)."""
+             horizon_s: float | None = None, cutoff_hz: float | None = None, decimate: int | None = None,
+             force_unit: str = "A", band: str = "reversals") -> dict:  # fmt: skip
+    """The settings of a fleet diagnosis (JSON-able; part of the resume key).  As
+    ``servo diagnose``'s: ``decimate`` a fixed factor, or None (the default) for the
+    decimation chosen from each recording by the rule ``band``
+    (:mod:`servo.diagnose.band`)."""
     return {"command": "diagnose", "baseline": baseline, "test_fraction": test_fraction, "blocks": blocks,
-            "alpha": alpha, "horizon_s": horizon_s, "cutoff_hz": cutoff_hz, "decimate": decimate,
+            "alpha": alpha, "horizon_s": horizon_s, "cutoff_hz": cutoff_hz, "decimate": decimate, "band": band,
             "force_unit": force_unit}  # fmt: skip
 
 
 def options(s: dict) -> Options:
+    """The :class:`servo.diagnose.job.Options` of fleet ``settings`` (those ``servo
+    diagnose`` builds from the same options)."""
+    fixed = None if s["decimate"] is None else RobustSettings(cutoff_hz=s["cutoff_hz"], decimate=s["decimate"])
     return Options(baseline=s["baseline"], test_fraction=s["test_fraction"], blocks=s["blocks"], alpha=s["alpha"],
-                   horizon_s=s["horizon_s"], force_unit=s["force_unit"],
-                   settings=RobustSettings(cutoff_hz=s["cutoff_hz"], decimate=s["decimate"]))  # fmt: skip
+                   horizon_s=s["horizon_s"], force_unit=s["force_unit"], settings=fixed, cutoff_hz=s["cutoff_hz"],
+                   band=s["band"])  # fmt: skip
 
 
 def flag(names: list[str], verdict, verdict_text: str | None = None) -> tuple[bool, str | None]:

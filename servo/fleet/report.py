@@ -89,8 +89,12 @@ def format_report(summary: dict, rows: list[dict], scored: list[str], found: lis
         out.append("")
     out += ["## Population", "", *_population(rows, scored), ""]
     out += [f"## Robust outliers ({len(found)})", "",
-            f"Robust score z = (value - median) / ({MAD_TO_SD} MAD) over the drives that succeeded; listed when "
-            f"|z| > {THRESHOLD}.  A column with MAD 0 is not scored.", ""]  # fmt: skip
+            f"Robust score z = (value - median) / ({MAD_TO_SD} MAD) over the drives that succeeded, with the MAD of "
+            f"the drive's side of the median; listed when |z| > {THRESHOLD}.  Scored: continuous figures only (the estimates and held-out errors, the RMS "
+            f"errors of a simulation).", ""]  # fmt: skip
+    if s.get("not_scored"):
+        out += ["Not scored (quantised, fewer than 90 % distinct values, or a MAD of 0): "
+                + ", ".join(f"`{c}`" for c in s["not_scored"]), ""]  # fmt: skip
     if found:
         lines = ["| drive | column | value | median | z |", "|---|---|---|---|---|"]
         lines += [f"| {o.drive} | `{o.column}` | {_g(o.value)} | {_g(o.median)} | {o.z:+.1f} |" for o in found[:MAX_LISTED]]

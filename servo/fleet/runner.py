@@ -28,8 +28,12 @@ from __future__ import annotations
 
 import logging
 import os
+import time
+import warnings
+from contextlib import contextmanager
 from dataclasses import dataclass
 from functools import partial
+from pathlib import Path
 from typing import Callable
 
 from servo.errors import ConfigError
@@ -84,20 +88,40 @@ class Progress:
     """A fleet's progress on a reporter (:class:`servo.io.progress.Reporter`: stderr,
     rate-limited, nothing with ``--quiet``): items done/total (``unit``: drives), how
     many failed (a row or result with an ``error``), time left.  Called with each
-    batch's rows."""
+    batch's rows.
+
+    The time left is the remaining items at the rate since every worker's first batch
+    came back (:meth:`servo.io.progress.Reporter.rebase` at the ``workers``-th batch):
+    the workers start their first batches together, so those come back together, and a
+    rate counted from the first of them credits the others' work to the time after it
+    (on 8 drives and 2 workers, a time left a third short at half-way)."""
 
     def __init__(self, reporter, total: int, unit: str = "drives"):
-        self.reporter, self.unit, self.failed = reporter, unit, 0
+        self.reporter, self.unit, self.failed, self.workers = reporter, unit, 0, 1
         self.start(total)
 
     def start(self, total: int) -> None:
         """(Re)start the count: ``total`` items to run (fewer after ``--resume``)."""
-        self.total = total
+        self.total, self.batches = total, 0
         self.reporter.stage("", total, self.unit)
 
     def __call__(self, rows: list) -> None:
         self.failed += sum(bool(r.get("error")) for r in rows)
         self.reporter.advance(len(rows), f"{self.failed} failed")
+        self.batches += 1
+        if self.batches == self.workers:
+            self.reporter.rebase()
+
+    def connected(self, client) -> None:
+        """Say where to watch the cluster (its dashboard's address, when it has one),
+        and count its workers (for the time left)."""
+        link = dashboard_link(client)
+        try:
+            self.workers = max(len(client.scheduler_info().get("workers", {})), 1)
+        except Exception:  # noqa: BLE001  (a cluster that cannot say: one worker)
+            self.workers = 1
+        self.reporter.note(f"Dask dashboard at {link}" if link else "no Dask dashboard (it needs bokeh: "
+                           "pip install 'servo-vcm[dashboard]')")  # fmt: skip
 
 
 def describe(where: Where, n_tasks: int) -> str:
@@ -120,25 +144,131 @@ def _in_process(fn, items: list, on_results) -> list:
     return out
 
 
+#: the most a Dask handshake may claim to hold (a real one is a few hundred bytes)
+HANDSHAKE_MAX_BYTES = 1 << 16
+
+
+def _recv(sock, n: int) -> bytes:
+    out = b""
+    while len(out) < n:
+        got = sock.recv(n - len(out))
+        if not got:
+            break
+        out += got
+    return out
+
+
+def probe_scheduler(address: str, timeout_s: float | None = None) -> None:
+    """Check that ``address`` (``tcp://HOST:PORT`` or ``HOST:PORT``) speaks Dask's
+    protocol before ``distributed`` trusts it: a Dask scheduler sends its handshake as
+    soon as a connection opens (an 8-byte length, then frames: their count, their
+    lengths, a msgpack map), so read that within ``timeout_s`` (default
+    :data:`CONNECT_TIMEOUT_S`) and refuse, in one line,
+    an endpoint that sends nothing (an HTTP server, a dashboard's port), closes, or
+    sends something else (a text banner: ``distributed`` would take its first 8 bytes
+    for a length of exbibytes).  Other protocols (``tls://``, ``ucx://``...) are left
+    to ``distributed``."""
+    import socket
+    import struct
+
+    timeout_s = CONNECT_TIMEOUT_S if timeout_s is None else timeout_s
+    scheme, sep, rest = address.partition("://")
+    if not sep:
+        scheme, rest = "tcp", address
+    if scheme != "tcp":
+        return
+    host, _, port = rest.rpartition(":")
+    host = host.strip("[]")
+    where = f"fleet: --scheduler {address}"
+    try:
+        port_n = int(port.split("/")[0])
+    except ValueError:
+        raise ConfigError(f"{where}: expected tcp://HOST:PORT") from None
+    deadline = time.monotonic() + timeout_s
+    try:
+        with socket.create_connection((host, port_n), timeout=timeout_s) as sock:
+            sock.settimeout(max(deadline - time.monotonic(), 0.01))
+            head = _recv(sock, 8)
+            if len(head) == 8:
+                (n,) = struct.unpack("<Q", head)
+                if 16 <= n <= HANDSHAKE_MAX_BYTES:
+                    body = _recv(sock, n)
+                    (frames,) = struct.unpack_from("<Q", body) if len(body) >= 8 else (0,)
+                    if len(body) == n and 1 <= frames <= 16 and 8 * (frames + 1) <= n:
+                        return
+    except socket.timeout:
+        raise ConfigError(f"{where}: not a Dask scheduler (no Dask handshake within {timeout_s:g} s: an HTTP server "
+                          "or a dashboard's port?)") from None  # fmt: skip
+    except OSError as exc:
+        raise ConfigError(f"fleet: cannot reach the Dask scheduler at {address}: {exc.strerror or exc}") from None
+    shown = " ".join(head.decode("ascii", "replace").split())[:24] if head else ""
+    said = f"it sent {shown!r}" if shown else "it closed the connection"
+    raise ConfigError(f"{where}: not a Dask scheduler ({said}, not a Dask handshake)")
+
+
 def _client(where: Where, n_tasks: int):
     """A connected ``distributed.Client`` and the local cluster it owns (or None)."""
     from distributed import Client, LocalCluster
 
     if where.scheduler is not None:
+        probe_scheduler(where.scheduler)
         try:
             return Client(where.scheduler, timeout=CONNECT_TIMEOUT_S), None
         except (OSError, TimeoutError, ValueError) as exc:
             why = " ".join((str(exc) or type(exc).__name__).split())
             raise ConfigError(f"fleet: cannot reach the Dask scheduler at {where.scheduler}: {why}") from None
     n = min(local_workers(where), n_tasks)
-    cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=True, dashboard_address=None,
+    cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=True, dashboard_address=dashboard_address(),
                            silence_logs=logging.ERROR)  # fmt: skip
     return Client(cluster), cluster
 
 
+def dashboard_address() -> str | None:
+    """Where a local cluster serves Dask's dashboard: a free port (``":0"``: never a
+    port another cluster holds) when ``bokeh``, which draws it, is installed; else
+    none."""
+    import importlib.util
+
+    return ":0" if importlib.util.find_spec("bokeh") is not None else None
+
+
+def dashboard_link(client) -> str | None:
+    """The address of the dashboard of ``client``'s cluster, or None if it has none."""
+    try:
+        services = client.scheduler_info().get("services", {})
+    except Exception:  # noqa: BLE001  (a cluster that cannot say: no link)
+        return None
+    return client.dashboard_link if "dashboard" in services else None
+
+
+@contextmanager
+def dask_logs(path: str | Path):
+    """While the block runs, the records of ``distributed``'s and ``dask``'s loggers
+    and the Python warnings raised in this process go to the file ``path`` (made at the
+    first record), not to stderr, which carries the command's progress and its error
+    line only.  The loggers' handlers and the warning filters are restored after."""
+    handler = logging.FileHandler(path, delay=True, encoding="utf-8")
+    handler.setFormatter(logging.Formatter("%(asctime)s %(name)s %(levelname)s %(message)s"))
+    saved = []
+    for name in ("distributed", "dask"):
+        lg = logging.getLogger(name)
+        saved.append((lg, lg.handlers[:], lg.propagate))
+        lg.handlers, lg.propagate = [handler], False
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("default")
+            warnings.showwarning = lambda message, category, filename, lineno, file=None, line=None: \
+                logging.getLogger("distributed").warning(warnings.formatwarning(message, category, filename, lineno, line).strip())  # fmt: skip
+            yield
+    finally:
+        for lg, handlers, propagate in saved:
+            lg.handlers, lg.propagate = handlers, propagate
+        handler.close()
+
+
 def map_batches(fn: Callable[[list], list], items: list, where: Where = Where(), default_batch: int = 1,
                 on_results: Callable[[list], None] | None = None, failed: Callable[[list, str], list] | None = None,
-                client=None) -> list:  # fmt: skip
+                client=None, on_client: Callable[[object], None] | None = None) -> list:  # fmt: skip
     """``fn(batch)`` (a list of items -> one result per item, in order) over ``items``:
     on a Dask cluster in batches (:func:`batches`) or in this process one item at a time
     (module doc); the results come back in the items' order, whatever the order of
@@ -147,7 +277,8 @@ def map_batches(fn: Callable[[list], list], items: list, where: Where = Where(),
     results as they complete (progress, checkpoints).  ``failed(batch, why)``: the results
     of a batch that could not run (its workers kept dying; default: raise).  ``client``:
     an already connected ``distributed.Client`` to run on (left open), instead of
-    ``where``'s cluster."""
+    ``where``'s cluster.  ``on_client(client)``: called once connected to a cluster
+    (to say where to watch it: :func:`dashboard_link`)."""
     where.check()
     on_results = on_results or (lambda results: None)
     if not items:
@@ -161,6 +292,8 @@ def map_batches(fn: Callable[[list], list], items: list, where: Where = Where(),
     if own:
         client, cluster = _client(where, len(items))
     try:
+        if on_client is not None:
+            on_client(client)
         n_workers = max(len(client.scheduler_info().get("workers", {})), 1)
         groups = batches(items, where.batch or default_batch, n_workers)
         futures = {client.submit(fn, g, pure=False): i for i, g in enumerate(groups)}
@@ -193,13 +326,16 @@ def _failed_rows(settings: dict, tasks: list[Task], why: str) -> list[dict]:
 
 
 def run(command: str, tasks: list[Task], settings: dict, where: Where = Where(), default_batch: int = 1,
-        on_rows: Callable[[list], None] | None = None, client=None) -> list[dict]:  # fmt: skip
+        on_rows: Callable[[list], None] | None = None, client=None,
+        on_client: Callable[[object], None] | None = None) -> list[dict]:  # fmt: skip
     """Rows of ``tasks`` (:func:`servo.fleet.task.run_batch`), in the tasks' order
     (:func:`map_batches`; a batch whose workers kept dying gets ``worker failure: ...``
     in each of its rows).  ``on_rows(rows)`` is called with each batch's rows as they
     complete (progress, checkpoints)."""
     return map_batches(partial(_rows, command, settings), tasks, where, default_batch, on_rows,
-                       partial(_failed_rows, settings), client)  # fmt: skip
+                       partial(_failed_rows, settings), client, on_client)  # fmt: skip
 
 
-__all__ = ["IN_PROCESS_MAX", "Progress", "Where", "batches", "describe", "local_workers", "map_batches", "run"]
+__all__ = ["IN_PROCESS_MAX", "Progress", "Where", "batches", "dashboard_address", "dashboard_link", "dask_logs", "describe",
+           "local_workers", "map_batches",
+           "probe_scheduler", "run"]

@@ -13,7 +13,7 @@ import hashlib
 from servo.config import from_dict
 from servo.controllers.plugins import load_plugins
 from servo.fleet.closedloop import compare
-from servo.fleet.task import Task, canonical, task_key
+from servo.fleet.task import Task, canonical, code_versions, task_key
 
 #: drives per Dask task (a drive's two runs take a few tens of milliseconds)
 BATCH = 16
@@ -35,10 +35,11 @@ def drive_tasks(drives: list[dict], s: dict) -> list[Task]:
     """One task per drawn drive, named ``drive-00000``...; its content hash is that of
     its drawn fields."""
     width = max(5, len(str(len(drives) - 1)))
+    versions = code_versions()
     out = []
     for i, d in enumerate(drives):
         h = hashlib.sha256(canonical(d).encode()).hexdigest()
-        out.append(Task(f"drive-{i:0{width}d}", task_key(h, s), f"simulated:{s['seed']}:{i}", h, d))
+        out.append(Task(f"drive-{i:0{width}d}", task_key(h, s, versions=versions), f"simulated:{s['seed']}:{i}", h, d))
     return out
 
 
@@ -57,12 +58,19 @@ def run(drive: dict, s: dict) -> dict:
     return out
 
 
-def scored(columns: list[str]) -> list[str]:
-    """Columns scored for outliers and plotted as histograms: the main figures of both
-    runs, tracking error RMS, each step's overshoot and settling, the disturbance
+def figures(columns: list[str]) -> list[str]:
+    """Columns plotted as histograms and summarised in the report: the main figures of
+    both runs, tracking error RMS, each step's overshoot and settling, the disturbance
     segment's RMS (not the drawn fields: they are what was asked for)."""
     ends = ("_error_rms_m", "_overshoot_pct", "_settling_ms", "_rms_disturbance_m")
     return [c for c in columns if c.startswith(("comp_", "uncomp_")) and c.endswith(ends)]
+
+
+def scored(columns: list[str]) -> list[str]:
+    """Columns scored for outliers: the continuous figures of :func:`figures`, the RMS
+    errors (a step's overshoot and settling time are quantised, by the position
+    sensor's quantum and the sample period, and jump when a peak crosses the band)."""
+    return [c for c in figures(columns) if c.endswith(("_error_rms_m", "_rms_disturbance_m"))]
 
 
 def pairs(columns: list[str]) -> list[tuple[str, str]]:
@@ -75,4 +83,4 @@ def pairs(columns: list[str]) -> list[tuple[str, str]]:
     return out
 
 
-__all__ = ["BATCH", "config_of", "drive_tasks", "pairs", "run", "scored", "settings"]
+__all__ = ["BATCH", "config_of", "drive_tasks", "figures", "pairs", "run", "scored", "settings"]

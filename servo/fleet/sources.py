@@ -7,18 +7,19 @@ drive's name in the table; default the file's stem), ``columns`` and ``scale`` (
 the manifest's folder.  Paths are made absolute, so that workers on other machines of a
 shared file system find them: the workers read the recordings, the scheduler never
 carries their data.  The content hash (SHA-256 of the file's bytes) is read here, by the
-client, to key ``--resume``.
+client, to key ``--resume`` with the mapping, the scales and the settings.
 """
 from __future__ import annotations
 
 import csv
 import glob
 import hashlib
+import itertools
 from dataclasses import dataclass
 from pathlib import Path
 
 from servo.errors import ConfigError, RecordingError
-from servo.fleet.task import Task, task_key
+from servo.fleet.task import MAX_DRIVES, Task, check_size, code_versions, task_key
 from servo.io.recording import parse_mapping
 
 HASH_BLOCK = 1 << 20
@@ -70,11 +71,12 @@ def read_manifest(path: str | Path) -> list[Source]:
     path = Path(path)
     try:
         with open(path, newline="", encoding="utf-8") as f:
-            rows = list(csv.DictReader(f))
+            rows = list(itertools.islice(csv.DictReader(f), MAX_DRIVES + 1))  # no more than the budget is read
     except (OSError, UnicodeDecodeError, csv.Error) as exc:
         raise ConfigError(f"fleet: manifest {path}: cannot read it: {exc}") from None
     if not rows or "path" not in rows[0]:
         raise ConfigError(f"fleet: manifest {path}: expected a header row with a 'path' column and one row per recording")
+    check_size(len(rows), f"manifest {path}", more=True)
     out = []
     for i, row in enumerate(rows, 2):
         p = (row.get("path") or "").strip()
@@ -100,7 +102,9 @@ def sources(patterns: list[str], manifest: str | None = None, columns: str | Non
     parse_mapping(columns, "--columns")
     parse_mapping(scale, "--scale")
     items = read_manifest(manifest) if manifest else []
-    items += [Source(p.stem, str(p.resolve()), columns or "", scale or "") for p in expand(patterns)]
+    paths = expand(patterns)
+    check_size(len(items) + len(paths), "recordings")
+    items += [Source(p.stem, str(p.resolve()), columns or "", scale or "") for p in paths]
     if not items:
         raise ConfigError("fleet: no recordings: give paths, globs or --manifest FILE")
     seen: dict[str, str] = {}
@@ -113,8 +117,11 @@ def sources(patterns: list[str], manifest: str | None = None, columns: str | Non
 
 
 def recording_tasks(items: list[Source], settings: dict) -> list[Task]:
-    """One task per recording, keyed by its content hash and ``settings``."""
-    return [Task(s.drive, task_key(s.sha256, settings), s.path, s.sha256, s) for s in items]
+    """One task per recording, keyed (:func:`servo.fleet.task.task_key`) by its content
+    hash, ``settings``, its column mapping and scales, and the code's versions."""
+    versions = code_versions()
+    return [Task(s.drive, task_key(s.sha256, settings, {"columns": s.columns, "scale": s.scale}, versions), s.path,
+                 s.sha256, s) for s in items]  # fmt: skip
 
 
 __all__ = ["Source", "recording_tasks", "expand", "file_sha256", "read_manifest", "sources"]

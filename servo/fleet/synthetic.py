@@ -26,6 +26,7 @@ from servo.errors import ConfigError
 from servo.runtime.closedloop import simulate
 from servo.io import progress
 from servo.io.atomic import atomic_write, write_json
+from servo.io.outdir import staged
 from servo.io.recording import Recording
 
 #: relative standard deviation of each baseline field across the fleet
@@ -88,10 +89,15 @@ def _write_npz(path: Path, rec: Recording) -> None:
 
 def write_fleet(out: str | Path, drives: list[SyntheticDrive], duration_s: float = 0.5) -> Path:
     """Write each drive's recording (``<name>.npz``, columns t, u, x), ``manifest.csv``
-    (drive, path) and ``truth.json`` (each drive's fields and defect) into ``out``;
+    (drive, path) and ``truth.json`` (each drive's fields and defect) into the new (or
+    empty) folder ``out``, staged (:func:`servo.io.outdir.staged`: complete or absent);
     returns the manifest's path."""
-    out = Path(out)
-    out.mkdir(parents=True, exist_ok=True)
+    with staged(out) as tmp:
+        _write_fleet(tmp, drives, duration_s)
+    return Path(out) / "manifest.csv"
+
+
+def _write_fleet(out: Path, drives: list[SyntheticDrive], duration_s: float) -> None:
     for sd in progress.each(drives, "recording", lambda sd: sd.name, "drives"):
         _write_npz(out / f"{sd.name}.npz", record(sd, duration_s))
     text = io.StringIO()
@@ -102,7 +108,6 @@ def write_fleet(out: str | Path, drives: list[SyntheticDrive], duration_s: float
     atomic_write(out / "manifest.csv", lambda tmp: Path(tmp).write_text(text.getvalue()))
     truth = {sd.name: {"defect": sd.defect, "size": sd.size, "seed": sd.seed, "drive": sd.drive} for sd in drives}
     write_json(out / "truth.json", {"duration_s": duration_s, "spread": SPREAD, "drives": truth})
-    return out / "manifest.csv"
 
 
 __all__ = ["DEFECTS", "SPREAD", "SyntheticDrive", "record", "synthetic_drives", "write_fleet"]

@@ -10,6 +10,7 @@ reader, and ``--resume``, never see a half-written file.
 """
 from __future__ import annotations
 
+import os
 from pathlib import Path
 
 import pyarrow as pa
@@ -38,10 +39,18 @@ def to_table(rows: list[dict]) -> pa.Table:
 
 
 def write(path: str | Path, rows: list[dict]) -> pa.Table:
-    """Write ``rows`` as Parquet at ``path``, atomically; returns the table."""
+    """Write ``rows`` as Parquet at ``path``, atomically; returns the table.  An error
+    of the file system (a full disk) names ``path`` (pyarrow's names no file)."""
     table = to_table(rows)
     Path(path).parent.mkdir(parents=True, exist_ok=True)
-    atomic_write(Path(path), lambda tmp: pq.write_table(table, tmp))
+
+    def parquet(tmp):
+        try:
+            pq.write_table(table, tmp)
+        except OSError as exc:
+            raise OSError(exc.errno, os.strerror(exc.errno) if exc.errno else str(exc), str(path)) from None
+
+    atomic_write(Path(path), parquet)
     return table
 
 
@@ -58,16 +67,18 @@ def rows_of(table: pa.Table) -> list[dict]:
     return table.to_pylist()
 
 
-def done_rows(path: str | Path) -> dict[str, dict]:
-    """For ``--resume``: key -> row of every drive of an earlier table that succeeded
-    (``status`` ok); empty if there is no table yet."""
+def done_rows(path: str | Path) -> dict[tuple[str, str], dict]:
+    """For ``--resume``: (source, key) -> row of every drive of an earlier table that
+    succeeded (``status`` ok); empty if there is no table yet.  A row belongs to its
+    recording's path (or simulated drive) as well as to its key: two recordings with
+    the same bytes are two drives."""
     path = Path(path)
     if not path.exists():
         return {}
     table = read(path)
-    if "key" not in table.column_names or "status" not in table.column_names:
-        raise ConfigError(f"fleet: {path}: not a fleet table (no key and status columns)")
-    return {r["key"]: r for r in rows_of(table) if r["status"] == "ok"}
+    if not {"key", "status", "source"} <= set(table.column_names):
+        raise ConfigError(f"fleet: {path}: not a fleet table (no source, key and status columns)")
+    return {(r["source"], r["key"]): r for r in rows_of(table) if r["status"] == "ok"}
 
 
 __all__ = ["NAME", "columns_of", "done_rows", "read", "rows_of", "to_table", "write"]

@@ -17,7 +17,7 @@ from dataclasses import dataclass
 from typing import Any
 
 from servo._version import __version__
-from servo.errors import ServoError
+from servo.errors import ConfigError, ServoError
 
 #: command -> module with ``run(payload, settings) -> dict`` (imported by the worker)
 ADAPTERS = {
@@ -25,6 +25,9 @@ ADAPTERS = {
     "diagnose": "servo.fleet.diagnose",
     "simulate": "servo.fleet.simulate",
 }
+#: the most drives a fleet may hold: the client keeps every row in memory, a few kB each
+#: (a ``simulate`` row, the widest, ~6 kB with its table), so about 1 GB at the limit
+MAX_DRIVES = 100_000
 #: first columns of every table, in this order; the command's columns follow, sorted
 LEADING = ("drive", "status", "error", "source", "sha256", "key")
 #: last columns of every table
@@ -43,14 +46,37 @@ class Task:
     payload: Any
 
 
+def check_size(n: int, what: str = "--drives", more: bool = False) -> None:
+    """Refuse, in one line naming the value and the limit, a fleet of ``n`` drives
+    (``more``: at least ``n``) beyond :data:`MAX_DRIVES`, before anything is drawn, read
+    or allocated."""
+    if n > MAX_DRIVES:
+        raise ConfigError(f"fleet: {what}: {'over ' * more}{n - more} drives, at most {MAX_DRIVES} per fleet (its rows "
+                          "are held in memory, ~1 GB at the limit); split the fleet")  # fmt: skip
+
+
 def canonical(obj) -> str:
     """Deterministic JSON text of settings (sorted keys, no spaces)."""
     return json.dumps(obj, sort_keys=True, separators=(",", ":"), default=str)
 
 
-def task_key(sha256: str, settings: dict) -> str:
-    """The resume key: content hash and settings, hashed together (hex, 32 chars)."""
-    return hashlib.sha256(f"{sha256}\n{canonical(settings)}".encode()).hexdigest()[:32]
+def code_versions() -> dict:
+    """The versions of the code that computes a row: this package's and those of the
+    libraries whose versions change numbers (:data:`servo.io.provenance.LIBRARIES`)."""
+    from servo.io.provenance import LIBRARIES, library_versions, package_version
+
+    return {"servo": package_version(), **library_versions(LIBRARIES)}
+
+
+def task_key(sha256: str, settings: dict, options: dict | None = None, versions: dict | None = None) -> str:
+    """The resume key of one drive (hex, 32 chars): everything that shapes its row,
+    hashed together: the content hash of its input, the command's ``settings``, the
+    drive's own ``options`` (a recording's column mapping and scales) and the
+    ``versions`` of the code (default :func:`code_versions`).  A row is reused only
+    under an equal key: a changed input, setting, mapping, scale or version runs again."""
+    what = {"content": sha256, "settings": settings, "options": options or {},
+            "versions": code_versions() if versions is None else versions}  # fmt: skip
+    return hashlib.sha256(canonical(what).encode()).hexdigest()[:32]
 
 
 def error_line(exc: BaseException) -> str:
@@ -88,4 +114,5 @@ def run_batch(command: str, tasks: list, settings: dict) -> list[dict]:
     return [run_task(command, t, settings) for t in tasks]
 
 
-__all__ = ["ADAPTERS", "LEADING", "TRAILING", "Task", "canonical", "error_line", "failed_row", "run_batch", "run_task", "task_key"]
+__all__ = ["ADAPTERS", "LEADING", "MAX_DRIVES", "check_size", "TRAILING", "Task", "canonical", "error_line", "failed_row", "run_batch", "run_task", "task_key",
+           "code_versions"]

@@ -74,6 +74,12 @@ class Quiet:
     def watch(self, done: Callable[[], int]):
         yield self
 
+    def note(self, text: str) -> None:
+        pass
+
+    def rebase(self) -> None:
+        pass
+
     def close(self, failed: bool = False) -> None:
         pass
 
@@ -169,6 +175,25 @@ class Reporter(Quiet):
                     self.done = int(done())
                 except Exception:  # noqa: BLE001  (a counter that cannot be read any more: keep the last)
                     pass
+
+    def rebase(self) -> None:
+        """Count the time left's rate from now: what was done so far is not a rate (the
+        first results of workers that ran side by side since the start, which come back
+        together)."""
+        with self._lock:
+            if self.done > 0:
+                self._first = (self.clock(), self.done)
+
+    def note(self, text: str) -> None:
+        """Write ``<label>: <text>`` on a line of its own now (something to act on while
+        the job runs, such as where to watch it), whatever the cadence."""
+        with self._lock:
+            if self._closed:
+                return
+            if self._drawn:
+                self._write("\r\x1b[K")
+                self._drawn = False
+            self._write(f"{self.label}: {text}\n")
 
     def close(self, failed: bool = False) -> None:
         """Stop the thread; clear the terminal line, or write the last plain line
