@@ -144,7 +144,8 @@ class ControllerConfig:
 class CompensatorConfig:
     """The paper's compensator, eq. (8-9); defaults are the default drive's exact values."""
 
-    enabled: bool = P(True, "-", "add the compensation current u_c")
+    enabled: bool = P(True, "-", "add the compensation current u_c (false: servo run and servo loop run without it, "
+                      "and refuse --compensation on)")
     B: float = P(2.0e-3, "A*s/m", "viscous friction estimate", None, None)
     Fc: float = P(1.0e-3, "A", "Coulomb friction estimate (large motion, eq. 3)", None, None)
     K: float = P(0.1, "A/m", "bias stiffness estimate (eq. 2)", None, None)

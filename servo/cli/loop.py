@@ -21,8 +21,9 @@ def register(sub) -> None:
         "load_frequency_responses, convertible to control.FrequencyResponseData), loop.csv, loop.png, "
         "sensitivity.png and summary.json. docs/loop.md explains the signs and the estimator.",
     )
-    p.add_argument("--compensator", choices=("on", "off", "both"), default="both",
-                   help="measure with the compensator, without, or both (default both)")  # fmt: skip
+    p.add_argument("--compensator", choices=("on", "off", "both"), default=None,
+                   help="measure with the compensator, without, or both (default: both when [compensator] "
+                        "enabled, else off)")  # fmt: skip
     p.add_argument("--levels", default="0.2", metavar="MA,...", help="excitation amplitudes in mA (default 0.2)")
     p.add_argument("--f-min", type=float, default=20.0, help="lowest frequency, Hz (default 20)")
     p.add_argument("--f-max", type=float, default=2000.0, help="highest frequency, Hz (default 2000)")

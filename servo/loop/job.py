@@ -33,8 +33,8 @@ from servo.loop.design import LoopDesign, current_loop_design, loop_design
 from servo.loop.margins import margins
 from servo.loop.measure import RESPONSES, LoopMeasurement, LoopSettings, measure
 from servo.loop.plots import plot_loop, plot_sensitivity
+from servo.runtime.controller import compensation_runs
 
-COMPENSATOR_CHOICES = {"on": (True,), "off": (False,), "both": (True, False)}
 #: points of a design written to the files and plotted
 FILE_POINTS = 400
 #: points of a design for its margins
@@ -145,12 +145,14 @@ def analyse(cfg: Config, s: LoopSettings, runs: list[LoopMeasurement]) -> tuple[
     return file_designs, summary
 
 
-def run_loop(cfg: Config, out: Path, s: LoopSettings, compensator: str = "both", make_driver: Callable | None = None,
+def run_loop(cfg: Config, out: Path, s: LoopSettings, compensator: str | None = None, make_driver: Callable | None = None,
              where: str = "the simulated drive", provenance: dict | None = None) -> dict:  # fmt: skip
     """Every run, the analysis, then the files of the module docstring into ``out``;
-    returns the summary (``provenance`` recorded as given)."""
+    returns the summary (``provenance`` recorded as given).  ``compensator``: ``on``,
+    ``off``, ``both``, or None: what ``[compensator] enabled`` says
+    (:func:`~servo.runtime.controller.compensation_runs`)."""
     s = s.check(cfg)
-    comps = COMPENSATOR_CHOICES[compensator]
+    comps = compensation_runs(cfg, compensator)
     runs = measure_all(cfg, s, comps, make_driver)
     file_designs, summary = analyse(cfg, s, runs)
     responses: dict[str, FrequencyResponse] = {}
@@ -171,7 +173,7 @@ def run_loop(cfg: Config, out: Path, s: LoopSettings, compensator: str = "both",
     plot_sensitivity(runs, list(file_designs.values()), out / "sensitivity.png")
     summary = {
         "where": where,
-        "settings": {**s.__dict__, "levels": list(s.levels), "compensator": compensator},
+        "settings": {**s.__dict__, "levels": list(s.levels), "compensator": {(True,): "on", (False,): "off"}.get(comps, "both")},
         "sign_conventions": {k: v[3] for k, v in RESPONSES.items()},
         **summary,
     }
@@ -230,4 +232,4 @@ def format_summary(summary: dict, out: Path) -> str:
     return "\n".join(lines)
 
 
-__all__ = ["COMPENSATOR_CHOICES", "agreement", "analyse", "designs", "format_summary", "measure_all", "run_loop"]
+__all__ = ["agreement", "analyse", "designs", "format_summary", "measure_all", "run_loop"]

@@ -33,7 +33,7 @@ from servo.run.metrics import tick_timing
 from servo.run.reduce import PesReport, PlotRows, RunFigures
 from servo.run.realtime import REALTIME_LOG_BLOCK, RealtimeOptions, check_realtime, grant_line, lateness_line, make_pacer, plot_lateness, report
 from servo.run.startup import process_age_s
-from servo.runtime.controller import Controller
+from servo.runtime.controller import Controller, compensation_runs
 from servo.runtime.driver import Driver
 from servo.runtime.loop import LoopResult, log_rows, run_closed_loop
 from servo.runtime.pacing import realtime_section
@@ -42,7 +42,6 @@ from servo.runtime.simdriver import SimDriver
 
 #: Rows per journal block of a simulated run (~0.8 MB): each block is one write and one fsync.
 LOG_BLOCK = 8192
-LABELS = {"on": ("compensated",), "off": ("uncompensated",), "compare": ("compensated", "uncompensated")}
 
 
 def default_out_dir() -> Path:
@@ -106,7 +105,8 @@ def run_simulated(cfg: Config, out_dir: Path, compensated: bool, fast: bool,
 def summarise(cfg: Config, figures: dict, result: LoopResult) -> dict:
     """The summary of one run: its figures (:meth:`RunFigures.result`), compute time,
     and what the link and the pacer report."""
-    out = {**figures, "wall_s": result.wall_s, "per_sample_us": result.wall_s / result.n_ticks * 1e6}
+    out = {**figures, "wall_s": result.wall_s, "per_sample_us": result.wall_s / result.n_ticks * 1e6,
+           "estimator_error_rms_m": result.error_rms}  # the on-line estimate, every run.estimator_every ticks
     if result.timing is not None:
         out.update(tick_timing(result.timing, cfg.dt))
     if result.link is not None:
@@ -124,7 +124,7 @@ def output_bytes(cfg: Config, runs: int, log_formats: tuple[str, ...]) -> float:
     return float(runs * values * per_value)
 
 
-def run_job(cfg: Config, out_dir: Path, compensation: str = "compare", fast: bool | None = None,
+def run_job(cfg: Config, out_dir: Path, compensation: str | None = None, fast: bool | None = None,
             make_driver: Callable[[Config, Inputs], Driver] | None = None, where: str | None = None,
             realtime: RealtimeOptions | None = None, log_formats: tuple[str, ...] = FORMATS,
             provenance: dict | None = None) -> dict:  # fmt: skip
@@ -133,6 +133,8 @@ def run_job(cfg: Config, out_dir: Path, compensation: str = "compare", fast: boo
     simulated drive (``where`` describes it, e.g. the serial URL).  ``realtime``: pace
     every tick of the simulated drive on the wall clock (implies the tick path; asking for
     the fast path as well, or pacing a board, which is its own clock, is an error).
+    ``compensation``: ``on``, ``off``, ``compare`` (both), or None: what ``[compensator]
+    enabled`` says (:func:`~servo.runtime.controller.compensation_runs`).
     ``log_formats``: ``npz`` and/or ``csv``; ``provenance``
     (:func:`servo.io.provenance.provenance`) is recorded in the summary.  Memory does
     not grow with the run's length; the disk its logs need is checked first (one line if
@@ -144,7 +146,9 @@ def run_job(cfg: Config, out_dir: Path, compensation: str = "compare", fast: boo
         fast = False
     fast = cfg.run.fast_path if fast is None else fast
     out_dir = Path(out_dir)
-    labels = LABELS[compensation]
+    if cfg.scenario.kind == "hdd_benchmark":
+        PesReport(cfg)  # its settings checked before anything runs
+    labels = tuple("compensated" if on else "uncompensated" for on in compensation_runs(cfg, compensation))
     check_disk(out_dir, output_bytes(cfg, len(labels), log_formats), "the run logs",
                "shorten --duration, raise run.log_every, or write one format (--log-format npz)")  # fmt: skip
     out_dir.mkdir(parents=True, exist_ok=True)

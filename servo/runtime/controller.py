@@ -17,6 +17,7 @@ from kernels.compose import LOG_COLUMNS, LOG_UNITS
 from kernels.stage import STAGE_PARAMS
 from servo.config import Config
 from servo.controllers import get_kind
+from servo.errors import ConfigError
 
 
 def stage_params(cfg: Config, compensation: bool | None = None) -> np.ndarray:
@@ -47,6 +48,26 @@ def stage_params(cfg: Config, compensation: bool | None = None) -> np.ndarray:
     n = len(k.periodic_amplitudes)
     p["per_sin"][0, :n], p["per_cos"][0, :n] = harmonic_coefficients(k.periodic_amplitudes, k.periodic_phases)
     return p
+
+
+#: What ``--compensation``/``--compensator`` may ask for: the compensator settings to run.
+COMPENSATION_CHOICES = {"on": (True,), "off": (False,), "compare": (True, False), "both": (True, False)}
+
+
+def compensation_runs(cfg: Config, requested: str | None = None) -> tuple[bool, ...]:
+    """The compensator settings a command runs (True: with the compensator), in order.
+
+    ``requested`` (``on``, ``off``, ``compare``/``both``) comes from the command line;
+    None follows ``[compensator] enabled``: with and without the compensator to compare
+    when it is enabled, without it when not.  Asking for the compensator that the
+    config turns off is a :class:`ConfigError` (one line), not a silent override."""
+    if requested is None:
+        return COMPENSATION_CHOICES["compare"] if cfg.compensator.enabled else (False,)
+    runs = COMPENSATION_CHOICES[requested]
+    if True in runs and not cfg.compensator.enabled:
+        raise ConfigError(f"the compensator is asked for ({requested}) but [compensator] enabled = false turns it off: "
+                          "set compensator.enabled = true, or ask for off")  # fmt: skip
+    return runs
 
 
 class Controller:
