@@ -8,6 +8,20 @@ core (:mod:`kernels`).  The packages' layers, bottom up, are listed (and checked
 from servo._version import __version__
 
 
+def _kernel_cache() -> None:
+    """Where the compiled kernels are cached: ``$SERVO_NUMBA_CACHE`` if set, else the
+    default of :mod:`kernels._cache` (inside the Python environment)."""
+    import os
+
+    from kernels import _cache
+
+    if os.environ.get("SERVO_NUMBA_CACHE"):
+        _cache.configure(os.environ["SERVO_NUMBA_CACHE"])
+
+
+_kernel_cache()
+
+
 def __getattr__(name: str):
     """``servo.load_run``, imported when first used (``import servo`` stays light)."""
     if name == "load_run":
