@@ -82,3 +82,13 @@ def test_an_output_path_the_os_refuses_is_one_line_naming_it_and_exit_2(command,
     assert r.stderr.count("\n") == 1 and r.stderr.startswith("servo: error: "), r.stderr
     assert str(blocker) in r.stderr and ("Not a directory" in r.stderr or "File exists" in r.stderr), r.stderr
     assert blocker.read_text() == "keep me"
+
+
+@pytest.mark.parametrize("command", ["identify", "hysteresis", "frf", "run", "diagnose", "loop", "warmup"])
+def test_every_long_command_takes_quiet(command):
+    """One flag vocabulary: --quiet on every command that may print progress (identify,
+    hysteresis and frf once refused it)."""
+    from servo.cli import build_parser
+
+    sub = build_parser()._subparsers._group_actions[0].choices[command]
+    assert "--quiet" in sub.format_help()

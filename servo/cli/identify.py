@@ -6,7 +6,9 @@ import argparse
 import time
 from pathlib import Path
 
-from servo.cli.common import add_config_options, add_recording_options, config_from_args, recording_from_args
+from servo.cli.common import (
+    add_config_options, add_quiet_option, add_recording_options, config_from_args, progress_from_args, recording_from_args,
+)
 from servo.errors import ConfigError
 
 
@@ -45,6 +47,7 @@ def register(sub) -> None:
     p.add_argument("--holding-hz", type=float, default=5.0, help="--simulate: holding loop bandwidth (default 5)")
     add_config_options(p)
     p.add_argument("--out", metavar="DIR", help="output folder (default servo-out/identify-<time>)")
+    add_quiet_option(p)
     p.set_defaults(handler=handle)
 
 
@@ -57,6 +60,13 @@ def _trim(text: str) -> tuple[int, int]:
 
 
 def handle(args: argparse.Namespace) -> int:
+    from servo.io.progress import reporting
+
+    with reporting(progress_from_args(args, "servo identify")):  # --quiet: no progress or compile lines
+        return _handle(args)
+
+
+def _handle(args: argparse.Namespace) -> int:
     from servo.io.outdir import staged
     from servo.identify.regressors import RobustSettings, parse_terms
     from servo.identify.job import format_summary, run_identify
