@@ -17,11 +17,11 @@ import pytest
 from servo.config import SECTIONS, Config, documented
 from servo.controllers import KINDS
 from servo.errors import ConfigError
-from servo.experiments.sim import MemoryLog
+from servo.runtime.closedloop import MemoryLog
 from servo.runtime.controller import Controller, compensation_runs
 from servo.runtime.loop import log_rows, run_closed_loop
 from servo.runtime.simdriver import SimDriver
-from servo.runtime.scenario import scenario_inputs
+from servo.scenarios import scenario_inputs
 from tests.helpers import run_doc_command
 
 #: The run every field is tried on: the default scenario (steps, then the disturbance).

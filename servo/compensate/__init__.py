@@ -5,3 +5,7 @@ config) as the drive's physics; :mod:`~servo.compensate.propose` mirrors each
 cancellable term by its compensator term and bounds its authority;
 :mod:`~servo.compensate.job` writes the section.  ``docs/compensate.md`` explains it.
 """
+
+from servo._callable import make_callable  # noqa: E402
+
+make_callable(__name__, "servo.compensate.job:compensate")  # servo.compensate(...): the notebook entry point

@@ -21,6 +21,7 @@ from servo.frf.estimate import WelchSettings, h1, instrumental
 from servo.io.atomic import write_json
 from servo.io.frequency_response import FrequencyResponse, save_csv, save_h5, save_mat, save_npz
 from servo.io.plotting import save_figure
+from servo.io.provenance import or_default
 from servo.io.recording import Recording
 
 #: coherence from which a point counts as measured (the summary's band, the plot's faint points)
@@ -83,6 +84,7 @@ def write_frf(resp: FrequencyResponse, rec: Recording, out: Path, extra: dict | 
 
     out = Path(out)
     summary = {**summarize(resp, rec), **(extra or {})}
+    summary["provenance"] = or_default(summary.get("provenance"))
     fig = plot_frf(resp, coherence_min=COHERENCE_MIN)
     out.mkdir(parents=True, exist_ok=True)
     label = resp.meta["label"]

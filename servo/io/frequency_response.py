@@ -77,6 +77,20 @@ class FrequencyResponse:
             raise FrequencyResponseError(f"frequency response: f_hz has {n} points, H {self.H.size}, coherence "
                                          f"{self.coherence.size}, rel_std {self.rel_std.size}")  # fmt: skip
 
+    def __repr__(self) -> str:
+        n = self.f_hz.size
+        if n == 0:
+            return f"<FrequencyResponse, no points, {self.unit or 'no unit'}>"
+        coh = self.coherence >= 0.9
+        good = f", coherence >= 0.9 at {int(coh.sum())}" if np.isfinite(self.coherence).any() else ""
+        return (f"<FrequencyResponse {self.meta.get('label', '')!s}: {n} points, {self.f_hz[0]:.4g}-{self.f_hz[-1]:.4g} Hz, "
+                f"|H| {np.nanmin(np.abs(self.H)):.3g}-{np.nanmax(np.abs(self.H)):.3g} {self.unit}{good}>").replace(" :", ":")
+
+    def _repr_html_(self) -> str:
+        from html import escape
+
+        return f"<code>{escape(repr(self))}</code>"
+
     @property
     def mag_db(self) -> np.ndarray:
         """``20*log10(|H|)`` (dB re 1 ``unit``)."""

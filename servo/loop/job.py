@@ -32,6 +32,7 @@ from servo.io.frequency_response import FrequencyResponse, save_csv, save_npz
 from servo.loop.design import LoopDesign, current_loop_design, loop_design
 from servo.loop.margins import margins
 from servo.loop.measure import RESPONSES, LoopMeasurement, LoopSettings, measure
+from servo.io.provenance import or_default
 from servo.loop.plots import plot_loop, plot_sensitivity
 from servo.runtime.controller import compensation_runs
 
@@ -177,8 +178,7 @@ def run_loop(cfg: Config, out: Path, s: LoopSettings, compensator: str | None = 
         "sign_conventions": {k: v[3] for k, v in RESPONSES.items()},
         **summary,
     }
-    if provenance is not None:
-        summary["provenance"] = provenance
+    summary["provenance"] = or_default(provenance, cfg)
     summary["files"] = sorted(["frd.npz", "loop.csv", "loop.png", "sensitivity.png", "summary.json"])
     write_json(out / "summary.json", summary)
     return summary

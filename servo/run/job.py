@@ -26,6 +26,7 @@ from servo.config import Config, to_toml
 from servo.controllers import get_kind
 from servo.io import progress
 from servo.io.atomic import atomic_write, write_json
+from servo.io.provenance import or_default
 from servo.io.resources import check_disk
 from servo.io.runlog import FORMATS, RunLog
 from servo.run import plots
@@ -178,7 +179,7 @@ def run_job(cfg: Config, out_dir: Path, compensation: str | None = None, fast: b
         "startup_s": startup,
         "kernels_compiled": _cache.compiled_here(),
         "runs": runs,
-        "provenance": provenance,
+        "provenance": or_default(provenance, cfg),
         "files": sorted({p.name for p in out_dir.iterdir() if not p.name.startswith(".")} | {"summary.json"}),
     }
     write_json(out_dir / "summary.json", summary)

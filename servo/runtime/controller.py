@@ -92,6 +92,11 @@ class Controller:
         self._tick, self._log_row = self.kernels.servo_tick, self.kernels.log_row  # until warm_up
         self.log_units = {**LOG_UNITS, **self.kind.log_units}
 
+    def __repr__(self) -> str:
+        comp = "on" if self.stage_params["comp_on"][0] else "off"
+        dt = float(self.stage_params["dt"][0])
+        return f"<Controller {self.kind.name} at {1 / dt / 1e3:g} kHz, compensator {comp}, u_max {float(self.stage_params['u_max'][0]):g} A>"
+
     def records(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """``(stage_state, stage_params, state, params)``: views of the four records."""
         return self.stage_state, self.stage_params, self.state, self.params
