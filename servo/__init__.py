@@ -21,38 +21,52 @@ def _kernel_cache() -> None:
 _kernel_cache()
 
 
-#: What a notebook needs, imported on first use (``import servo`` imports none of it):
-#: name -> (module, attribute; None for the module itself).
-API = {
-    "load_recording": ("servo.io.recording", "load_recording"),  # CSV, NPZ, MAT, HDF5 -> Recording
-    "Recording": ("servo.io.recording", "Recording"),  # arrays you have -> Recording
-    "load_run": ("servo.io.runfolder", "load_run"),  # a servo run folder -> RunFolder
-    "simulate": ("servo.run.memory", "simulate"),  # servo run in memory -> RunFolder
-    "identify": ("servo.identify", None),  # servo.identify(rec, ...): paper eq. 3-5
-    "diagnose": ("servo.diagnose", None),  # servo.diagnose(rec, Options(...)) -> Diagnosis
-    "compensate": ("servo.compensate", None),  # servo.compensate(report, base) -> a [compensator]
-    "frf": ("servo.frf", None),  # servo.frf(rec, closed_loop=...) -> FrequencyResponse
-    "loop": ("servo.loop", None),  # servo.loop(cfg) -> control.StateSpace C*P
-    "lti": ("servo.lti", None),  # python-control objects of every linear model
-    "Config": ("servo.config", "Config"),  # Config().replace(drive={...}, run={...})
-    "load_config": ("servo.config", "load_config"),  # a TOML file -> Config
-}
+#: What a notebook needs, imported on first use (``import servo`` imports none of it).
+API = ("load_recording", "Recording", "load_run", "simulate", "identify", "diagnose", "compensate", "frf", "loop",
+       "lti", "Config", "load_config")
 
 
 def __getattr__(name: str):
     """The names of :data:`API`, imported when first used (``import servo`` stays
-    light); ``servo.__version__`` (:func:`servo._version.package_version`)."""
-    import importlib
+    light); ``servo.__version__`` (:func:`servo._version.package_version`).
 
+    * ``load_recording(path, columns=..., scale=...)`` -> a ``Recording`` (CSV, NPZ, MAT,
+      HDF5); ``Recording(t, u, x)`` from arrays you have;
+    * ``load_run(folder)`` -> a ``servo run`` folder; ``simulate(cfg, ...)`` the same run
+      in memory;
+    * ``identify(rec, ...)``, ``diagnose(rec, ...)``, ``compensate(report, base)``,
+      ``frf(rec, ...)``, ``loop(cfg, f_hz)``: the analysis packages, callable (their
+      main function);
+    * ``lti``: python-control objects of every linear model (``lti.loop(cfg)``);
+    * ``Config`` (``Config().replace(drive={...})``), ``load_config(path)``.
+    """
     if name == "__version__":
         from servo._version import package_version
 
         return package_version()
-    if name in API:
-        module, attr = API[name]
-        mod = importlib.import_module(module)
-        return mod if attr is None else getattr(mod, attr)
-    raise AttributeError(f"module 'servo' has no attribute {name!r}")
+    if name in ("load_recording", "Recording"):
+        from servo.io import recording as module
+    elif name == "load_run":
+        from servo.io import runfolder as module
+    elif name == "simulate":
+        from servo.run import memory as module
+    elif name in ("Config", "load_config"):
+        from servo import config as module
+    elif name == "identify":
+        import servo.identify as module
+    elif name == "diagnose":
+        import servo.diagnose as module
+    elif name == "compensate":
+        import servo.compensate as module
+    elif name == "frf":
+        import servo.frf as module
+    elif name == "loop":
+        import servo.loop as module
+    elif name == "lti":
+        import servo.lti as module
+    else:
+        raise AttributeError(f"module 'servo' has no attribute {name!r}")
+    return module if name in ("identify", "diagnose", "compensate", "frf", "loop", "lti") else getattr(module, name)
 
 
 def __dir__() -> list[str]:
