@@ -20,6 +20,7 @@ from __future__ import annotations
 import dataclasses
 import difflib
 import math
+import textwrap
 import tomllib
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -389,8 +390,8 @@ def to_toml(cfg: Config | None = None, comments: bool = True) -> str:
     out = []
     for name, section in _all_sections(cfg):
         cls = type(section)
-        if comments:
-            out.append(f"# {cls.__doc__.splitlines()[0]}")
+        if comments:  # the docstring's first paragraph, whole
+            out += [f"# {line}" for line in textwrap.wrap(section_doc(cls), 86)]
         out.append(f"[{name}]")
         for f in documented(cls):
             m = f.metadata
@@ -400,6 +401,11 @@ def to_toml(cfg: Config | None = None, comments: bool = True) -> str:
             out.append(f"{f.name} = {_toml_value(getattr(section, f.name))}")
         out.append("")
     return "\n".join(out)
+
+
+def section_doc(cls) -> str:
+    """The first paragraph of a section's docstring, on one line."""
+    return " ".join(cls.__doc__.strip().split("\n\n")[0].split())
 
 
 def _all_sections(cfg: Config):

@@ -31,7 +31,8 @@ def register(sub) -> None:
                    help="parallel decimation factor Q, or the rule that chooses it from the recording: reversals "
                    "(default: the largest of 10, 8, 6, 5, 4, 3 whose rows the reversals leave usable) or power (as "
                    "reversals, among those whose band covers where the position stands 20 dB over its noise)")
-    p.add_argument("--force-unit", default="A", help="unit of the input column for the report (default A; N for EMPS)")
+    p.add_argument("--force-unit", help="unit of the input column for the report (default: the unit the file "
+                   "declares, u [N], else A; N for EMPS)")  # fmt: skip
     p.add_argument("--no-plots", action="store_true", help="write report.json and final_model.toml only")
     p.add_argument("--out", metavar="DIR", help="output folder (default servo-out/diagnose-<time>)")
     add_quiet_option(p)

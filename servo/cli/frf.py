@@ -27,7 +27,8 @@ def register(sub) -> None:
     p.add_argument("--detrend", choices=("constant", "linear"), default="constant", help="per segment (default constant)")
     p.add_argument("--f-min", type=float, default=0.0, help="lowest frequency written, Hz (default: the first line)")
     p.add_argument("--f-max", type=float, default=float("inf"), help="highest frequency written, Hz (default: Nyquist)")
-    p.add_argument("--force-unit", default="A", help="unit of u, for the response's unit m/UNIT (default A)")
+    p.add_argument("--force-unit", help="unit of u, for the response's unit m/UNIT (default: the unit the file "
+                   "declares, u [N], else A)")  # fmt: skip
     p.add_argument("--out", metavar="DIR", help="output folder (default servo-out/frf-<time>)")
     add_quiet_option(p)
     p.set_defaults(handler=handle)
