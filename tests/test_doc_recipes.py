@@ -98,3 +98,93 @@ def test_hysteresis_simulate_reproduces_its_page(tmp_path, monkeypatch):
     assert _close(d["rel_error_pct"], residual)
     K, half = re.search(r"K = ([0-9.]+) A/m \([^)]+\), half-height ([0-9.]+) mA", page).groups()
     assert _close(s["average_slope"]["params"]["K"], K) and _close(s["average_slope"]["params"]["Fc"] * 1e3, half)
+
+
+DESIGN_ROWS = {"design, `1/(J s^2)`": "nominal 1/(J s^2)",
+               "design, pivot small-signal, no compensator": "drive model, pivot small-signal, no comp."}  # fmt: skip
+
+
+def _loop_table(page: str, title: str) -> list[list[str]]:
+    """The rows (cells) of the first Markdown table after ``title`` on ``page``."""
+    text = page[page.index(title):]
+    rows = []
+    for line in text.splitlines()[1:]:
+        if line.startswith("|"):
+            cells = [c.strip() for c in line.strip("|").split("|")]
+            if not set(cells[0]) <= set("-") and cells[0] not in ("", "loop"):
+                rows.append(cells)
+        elif rows:
+            break
+    return rows
+
+
+def _check_loop_rows(summary: dict, rows: list[list[str]]) -> None:
+    import re
+
+    measured = {e["label"]: e["margins"] for e in summary["runs"]}
+    for cells in rows:
+        label = cells[0]
+        m = summary["designs"][DESIGN_ROWS[label]] if label in DESIGN_ROWS else measured[label]
+        fc = re.match(r"([0-9.]+) Hz", cells[1]).group(1)
+        pm = re.match(r"([0-9.]+) deg", cells[2]).group(1)
+        assert _close(m["crossover_hz"], fc) and _close(m["phase_margin_deg"], pm), (label, m)
+        if len(cells) > 3:
+            if cells[3] == "none in band":
+                assert m["gain_margin_db"] is None, label
+            else:
+                gm, f180 = re.match(r"([-0-9.]+) dB at ([0-9.]+) Hz", cells[3]).groups()
+                assert _close(m["gain_margin_db"], gm) and _close(m["phase_crossover_hz"], f180), (label, m)
+
+
+@pytest.mark.slow
+def test_loop_page_table_is_what_servo_loop_measures(tmp_path):
+    """docs/loop.md, "Measured (default drive, `servo loop --levels 0.2,4`)": every row's
+    crossover, phase margin and gain margin, to the digits written."""
+    page = (ROOT / "docs" / "loop.md").read_text()
+    (command,) = [c for c in doc_commands("docs/loop.md") if c.startswith("servo loop --levels 0.2,4")]
+    assert run_doc_command(f"{command} --quiet --out {tmp_path / 'loop'}") == 0
+    summary = json.loads((tmp_path / "loop" / "summary.json").read_text())
+    rows = _loop_table(page, "## Measured (default drive")
+    assert len(rows) == 6
+    _check_loop_rows(summary, rows)
+    # "without it the crossover moves by +28 % at 0.2 mA and +20 % at 4 mA"
+    assert [round(100 * s["shift_rel"]) for s in summary["crossover_shift"]] == [28, 20]
+
+
+@pytest.mark.slow
+def test_controllers_page_track_loop_is_the_design(tmp_path):
+    """docs/controllers.md, "The paper's claim": the track kind's loop table."""
+    page = (ROOT / "docs" / "controllers.md").read_text()
+    (command,) = [c for c in doc_commands("docs/controllers.md") if c.startswith("servo loop")]
+    assert run_doc_command(f"{command} --quiet --out {tmp_path / 'loop'}") == 0
+    summary = json.loads((tmp_path / "loop" / "summary.json").read_text())
+    rows = _loop_table(page, "## The paper's claim")
+    assert len(rows) == 5
+    for cells in rows:  # "187.0 Hz (+25 %)": the crossover, then its shift
+        cells[1] = cells[1].split(" (")[0]
+    _check_loop_rows(summary, rows)
+
+
+@pytest.mark.slow
+def test_controllers_page_plugin_command_runs_the_plugin(tmp_path, monkeypatch):
+    """docs/controllers.md: `servo run --plugin my_pd ...` with the page's module in the
+    current folder runs the PD kind with the gain the command sets."""
+    import re
+
+    from servo.controllers import KINDS
+
+    page = (ROOT / "docs" / "controllers.md").read_text()
+    (tmp_path / "my_pd.py").write_text(re.findall(r"^```python\n(.*?)^```", page, flags=re.S | re.M)[0])
+    (command,) = [c for c in doc_commands("docs/controllers.md") if "--plugin my_pd" in c]
+    monkeypatch.chdir(tmp_path)
+    before = dict(KINDS)
+    try:
+        assert run_doc_command(f"{command} --fast --quiet --out {tmp_path / 'pd'}") == 0
+        import servo
+
+        run = servo.load_run(tmp_path / "pd")
+    finally:
+        KINDS.clear()
+        KINDS.update(before)
+    assert run.config.controller.kind == "pd" and run.config.controller.pd.kp == 300
+    assert "de_dt" in run.logs["compensated"] and set(run.labels) == {"compensated", "uncompensated"}
