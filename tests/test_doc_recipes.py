@@ -188,3 +188,24 @@ def test_controllers_page_plugin_command_runs_the_plugin(tmp_path, monkeypatch):
         KINDS.update(before)
     assert run.config.controller.kind == "pd" and run.config.controller.pd.kp == 300
     assert "de_dt" in run.logs["compensated"] and set(run.labels) == {"compensated", "uncompensated"}
+
+
+@pytest.mark.slow
+def test_hdd_page_runs_give_its_pes_table(tmp_path):
+    """docs/hdd.md, "Through the runtime": both example configs, as written, print the
+    page's PES 3 sigma, RRO p-p and NRRO 3 sigma (to the digits written)."""
+    import re
+
+    page = (ROOT / "docs" / "hdd.md").read_text()
+    commands = [c for c in doc_commands("docs/hdd.md") if c.startswith("servo run --config examples/hdd-")]
+    lines = {k: next(line for line in page.splitlines() if line.startswith("|") and f"(`{k}`)" in line)
+             for k in ("nss", "track")}  # fmt: skip
+    rows = {k: re.findall(r"\| ([0-9.]+) %", line) for k, line in lines.items()}
+    assert len(commands) == 2 and all(len(r) == 3 for r in rows.values())
+    for i, command in enumerate(commands):
+        kind = "nss" if "nss" in command else "track"
+        out = tmp_path / f"r{i}"
+        assert run_doc_command(f"{command} --quiet --out {out}") == 0
+        pes = json.loads((out / "summary.json").read_text())["runs"]["uncompensated"]["pes_tracks"]
+        for key, text in zip(("sigma3", "rro_pp", "nrro_3sigma"), rows[kind]):
+            assert _close(pes[key] * 100, text), (kind, key, pes[key] * 100, text)
