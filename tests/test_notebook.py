@@ -51,3 +51,14 @@ def test_docs_api_md_runs_as_a_notebook():
     for i, c in enumerate(cells, start=1):
         errors = [o for o in c.outputs if o["output_type"] == "error"]
         assert not errors, f"docs/api.md block {i}: {errors}"
+
+
+def test_import_servo_imports_no_subpackage_and_offers_the_api():
+    import subprocess
+    import sys
+
+    code = ("import sys, servo; loaded = sorted(m for m in sys.modules if m.startswith(('servo.', 'numba', 'numpy')));"
+            "print(loaded); assert loaded == [], loaded; "
+            "names = [n for n in servo.API if not callable(getattr(servo, n)) and n != 'lti']; assert names == [], names")  # fmt: skip
+    r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, cwd=ROOT)
+    assert r.returncode == 0, r.stdout + r.stderr
