@@ -3,70 +3,124 @@
 Numba's on-disk cache (``cache=True``) checks only the timestamp of the file that defines
 each function.  A kernel that calls (and inlines) a kernel of another file keeps its
 cached machine code when only the callee's file changes: after editing ``dahl.py`` the
-cached controller tick would still run the old Dahl model.  Keying the cache directory
-on a hash of the kernels' source makes any edit start a fresh cache: a kernel declared
-with :func:`kernel` is cached under the hash of every ``*.py`` of ``kernels/`` and of the
-folder that declares it (a package above declares kernels that inline these, never the
-reverse), so this module needs to know nothing of the packages that use it.
+cached controller tick would still run the old Dahl model.  Each kernel's cache directory
+is therefore keyed on a hash of every source file of this package (``kernels/``) and of
+the folder that defines the kernel (a controller kind's kernels, elsewhere, call into
+``kernels/`` and into their neighbours): any edit there starts a fresh cache.
 
-The directory is ``$SERVO_NUMBA_CACHE`` or ``~/.cache/servo-numba`` (``$XDG_CACHE_HOME``
-if set), then ``<hash>/``.  ``NUMBA_CACHE_DIR``, if the user set it, is respected as is.
-Kernels are declared with :func:`kernel`, which points Numba's cache there only while it
-compiles or loads them: importing the kernels leaves Numba's configuration unchanged.
+The directory is ``<base>/<hash>/``.  ``base`` is what the application sets with
+:func:`configure`, else ``<sys.prefix>/var/cache/kernels-numba`` (inside the Python
+environment, so it goes with it), else, when that is not writable, the user's cache
+folder (``$XDG_CACHE_HOME`` or ``~/.cache``, then ``kernels-numba``).  ``NUMBA_CACHE_DIR``,
+if the user set it, is respected as is.  Kernels are declared with :func:`kernel`, which
+points Numba's cache there only while it compiles or loads them: importing the kernels
+leaves Numba's configuration unchanged.
+
+Compiling every kernel takes 10-20 s on an idle machine: :func:`watch` lets an
+application see each kernel as it is compiled or loaded (and say so).  Importing this
+module does not import Numba.
 """
 from __future__ import annotations
 
 import hashlib
+import inspect
 import os
+import sys
+import time
 from contextlib import contextmanager
 from pathlib import Path
-
-from numba import njit
-from numba.core import config
+from typing import Callable
 
 HERE = Path(__file__).resolve().parent
 
-
-#: Every kernel declared with :func:`kernel` in this process (for :func:`compiled_here`).
+_base: Path | None = None
+_hashes: dict[Path, str] = {}
+_watchers: list[Callable[[str, bool | None, float], None]] = []
+#: Every kernel :func:`kernel` declared in this process (for :func:`compiled_here`).
 DECLARED: list = []
 
 
-def source_hash(folders) -> str:
+def configure(base: str | Path | None) -> None:
+    """Set the folder the keyed cache directories go into (None: the default of the
+    module docstring).  Call it before the first kernel is imported."""
+    global _base
+    _base = None if base is None else Path(base)
+
+
+def default_base() -> Path:
+    """``<sys.prefix>/var/cache/kernels-numba`` when it can be written, else the user's
+    cache folder."""
+    inside = Path(sys.prefix) / "var" / "cache" / "kernels-numba"
+    try:
+        inside.mkdir(parents=True, exist_ok=True)
+        if os.access(inside, os.W_OK):
+            return inside
+    except OSError:
+        pass
+    xdg = os.environ.get("XDG_CACHE_HOME")
+    return (Path(xdg) if xdg else Path.home() / ".cache") / "kernels-numba"
+
+
+def base_dir() -> Path:
+    """The folder the keyed cache directories are in."""
+    return _base if _base is not None else default_base()
+
+
+def source_hash(folders=(HERE,)) -> str:
     """First 16 hex digits of the SHA-256 of every ``*.py`` in ``folders`` (name, content)."""
     h = hashlib.sha256()
-    for folder in folders:
-        for path in sorted(folder.glob("*.py")):
+    for folder in [folders] if isinstance(folders, (str, Path)) else folders:
+        for path in sorted(Path(folder).glob("*.py")):
             h.update(path.name.encode())
             h.update(path.read_bytes())
     return h.hexdigest()[:16]
 
 
-def cache_dir(folder: Path = HERE) -> Path:
-    """The cache directory of the kernels declared in ``folder``."""
-    base = os.environ.get("SERVO_NUMBA_CACHE")
-    if not base:
-        xdg = os.environ.get("XDG_CACHE_HOME")
-        base = Path(xdg) / "servo-numba" if xdg else Path.home() / ".cache" / "servo-numba"
-    return Path(base) / source_hash(dict.fromkeys((HERE, Path(folder).resolve())))
+def _folders(where: Path | None) -> tuple[Path, ...]:
+    return (HERE,) if where is None or where == HERE else (HERE, where)
+
+
+def cache_dir(where: str | Path | None = None) -> Path:
+    """The keyed cache directory of the kernels defined in folder ``where`` (default:
+    this package's own)."""
+    where = None if where is None else Path(where).resolve()
+    key = where or HERE
+    if key not in _hashes:
+        _hashes[key] = source_hash(_folders(where))
+    return base_dir() / _hashes[key]
 
 
 def compiled_here() -> bool:
-    """Whether this process compiled any kernel declared with :func:`kernel` (those of
-    ``kernels/``, of the controller kinds, the composed loops) rather than loading it
-    from the cache (the first run after an install, an edit, or a checkout at a new path:
-    Numba's index is keyed by the source file's path and time as well)."""
+    """Whether this process compiled any kernel (declared with :func:`kernel`, composed
+    ones included) rather than loading it from the cache (the first run after an install,
+    an edit, or a checkout at a new path: Numba's index is keyed by the source file's
+    path and time as well)."""
     return any(sum(k.stats.cache_misses.values()) > 0 for k in DECLARED)
 
 
 @contextmanager
-def keyed_cache(folder: Path = HERE):
-    """Numba's cache directory set to :func:`cache_dir` of ``folder`` for the block, and restored after:
+def watch(callback: Callable[[str, bool | None, float], None]):
+    """Within the block, ``callback(name, compiled, seconds)`` is called around each
+    kernel declared: with ``compiled=None`` before it is compiled or loaded, then with
+    True (it was compiled) or False (loaded from the cache) and the seconds it took."""
+    _watchers.append(callback)
+    try:
+        yield
+    finally:
+        _watchers.remove(callback)
+
+
+@contextmanager
+def keyed_cache(where: Path | None = None):
+    """Numba's cache directory set to :func:`cache_dir` for the block, and restored after:
     the kernels' cache locations are fixed when they are decorated, and Numba's global
     configuration is left as the user had it."""
+    from numba.core import config
+
     if os.environ.get("NUMBA_CACHE_DIR"):
         yield
         return
-    path = cache_dir(folder)
+    path = cache_dir(where)
     try:
         path.mkdir(parents=True, exist_ok=True)
     except OSError:  # no writable cache folder: Numba's default, beside the sources
@@ -86,15 +140,23 @@ def kernel(signature, **options):
     with it, so it has an explicit signature and is ready before any loop runs.  A cache
     that cannot be written (a full disk, a file-size limit) costs a compilation in the
     next process, never the command."""
+    from numba import njit
 
     def decorate(fn):
-        with keyed_cache(Path(fn.__code__.co_filename).resolve().parent):
+        name = f"{fn.__module__}.{fn.__qualname__}"
+        for w in list(_watchers):
+            w(name, None, 0.0)
+        t0 = time.perf_counter()
+        with keyed_cache(Path(inspect.getfile(fn)).resolve().parent):
             try:
-                dispatcher = njit(signature, cache=True, **options)(fn)
+                out = njit(signature, cache=True, **options)(fn)
             except OSError:  # compiled, but its cache could not be written (a full disk): compile uncached
-                dispatcher = njit(signature, **options)(fn)
-        DECLARED.append(dispatcher)
-        return dispatcher
+                out = njit(signature, **options)(fn)
+        DECLARED.append(out)
+        compiled = sum(out.stats.cache_misses.values()) > 0
+        for w in list(_watchers):
+            w(name, compiled, time.perf_counter() - t0)
+        return out
 
     return decorate
 

@@ -20,6 +20,7 @@ from __future__ import annotations
 import dataclasses
 import difflib
 import math
+import textwrap
 import tomllib
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -152,7 +153,8 @@ class ControllerConfig:
 class CompensatorConfig:
     """The paper's compensator, eq. (8-9); defaults are the default drive's exact values."""
 
-    enabled: bool = P(True, "-", "add the compensation current u_c")
+    enabled: bool = P(True, "-", "add the compensation current u_c (false: servo run and servo loop run without it, "
+                      "and refuse --compensation on)")
     B: float = P(2.0e-3, "A*s/m", "viscous friction estimate", None, None)
     Fc: float = P(1.0e-3, "A", "Coulomb friction estimate (large motion, eq. 3)", None, None)
     K: float = P(0.1, "A/m", "bias stiffness estimate (eq. 2)", None, None)
@@ -443,8 +445,8 @@ def to_toml(cfg: Config | None = None, comments: bool = True) -> str:
     out = []
     for name, section in _all_sections(cfg):
         cls = type(section)
-        if comments:
-            out.append(f"# {cls.__doc__.splitlines()[0]}")
+        if comments:  # the docstring's first paragraph, whole
+            out += [f"# {line}" for line in textwrap.wrap(section_doc(cls), 86)]
         out.append(f"[{name}]")
         for f in documented(cls):
             m = f.metadata
@@ -454,6 +456,11 @@ def to_toml(cfg: Config | None = None, comments: bool = True) -> str:
             out.append(f"{f.name} = {_toml_value(getattr(section, f.name))}")
         out.append("")
     return "\n".join(out)
+
+
+def section_doc(cls) -> str:
+    """The first paragraph of a section's docstring, on one line."""
+    return " ".join(cls.__doc__.strip().split("\n\n")[0].split())
 
 
 def _all_sections(cfg: Config):

@@ -36,3 +36,37 @@ def simulate_open_loop(cfg: Config, u: np.ndarray, d: np.ndarray | None = None):
         plant_step(p.state, p.params, p.q, p.mab, p.ubuf, u[k], 0.0 if d is None else d[k])
         record(k + 1)
     return out, p
+
+
+def doc_commands(page: str | Path) -> list[str]:
+    """The shell commands a docs page shows (indented lines starting with ``servo``,
+    backslash continuations joined), in order: the recipes tests run as written."""
+    path = Path(page)
+    if not path.is_absolute():
+        path = Path(__file__).resolve().parents[1] / path
+    out, pending = [], ""
+    for line in path.read_text().splitlines():
+        text = line.strip()
+        if pending:
+            pending += " " + text.rstrip("\\").strip()
+            if not text.endswith("\\"):
+                out.append(pending)
+                pending = ""
+        elif line.startswith("    ") and text.startswith("servo "):
+            if text.endswith("\\"):
+                pending = text.rstrip("\\").strip()
+            else:
+                out.append(text.split("  #")[0].split(" # ")[0].strip())
+    return out
+
+
+def run_doc_command(command: str) -> int:
+    """Run one documented ``servo ...`` command line in this process (the shell's
+    quoting undone by :func:`shlex.split`); its exit code."""
+    import shlex
+
+    from servo.cli import main
+
+    argv = shlex.split(command)
+    assert argv[0] == "servo", command
+    return main(argv[1:])

@@ -86,3 +86,34 @@ def test_an_output_path_the_os_refuses_is_one_line_naming_it_and_exit_2(command,
     assert r.stderr.count("\n") == 1 and r.stderr.startswith("servo: error: "), r.stderr
     assert str(blocker) in r.stderr and ("Not a directory" in r.stderr or "File exists" in r.stderr), r.stderr
     assert blocker.read_text() == "keep me"
+
+
+@pytest.mark.parametrize("command", ["identify", "hysteresis", "frf", "run", "diagnose", "loop", "warmup"])
+def test_every_long_command_takes_quiet(command):
+    """One flag vocabulary: --quiet on every command that may print progress (identify,
+    hysteresis and frf once refused it)."""
+    from servo.cli import build_parser
+
+    sub = build_parser()._subparsers._group_actions[0].choices[command]
+    assert "--quiet" in sub.format_help()
+
+
+def test_printed_units_follow_the_recording(tmp_path):
+    """A recording whose header says u [N] printed its estimates in A (J in A*s^2/m)."""
+    import numpy as np
+
+    t = np.arange(4000) * 1e-3
+    x = 1e-3 * np.sin(2 * np.pi * 2 * t) + 2e-4 * np.sin(2 * np.pi * 7 * t)
+    a = np.gradient(np.gradient(x, t), t)
+    v = np.gradient(x, t)
+    u = 2.0 * a + 5.0 * v + 0.3 * np.sign(v) + 0.01 * np.random.default_rng(0).standard_normal(t.size)
+    rec = tmp_path / "rec.csv"
+    np.savetxt(rec, np.column_stack([t, u, x]), delimiter=",", header="t [s],u [N],x [m]", comments="")
+    r = servo("identify", str(rec), "--quiet", "--out", str(tmp_path / "id"))
+    assert r.returncode == 0, r.stderr
+    assert "N*s^2/m" in r.stdout and "A*s^2/m" not in r.stdout
+    r = servo("frf", str(rec), "--quiet", "--out", str(tmp_path / "frf"))
+    assert r.returncode == 0, r.stderr
+    import json
+
+    assert json.loads((tmp_path / "frf" / "summary.json").read_text())["unit"] == "m/N"

@@ -119,3 +119,32 @@ def test_values_beyond_any_physical_magnitude_are_refused(key, value):
     section, name = key.split(".")
     with pytest.raises(ConfigError, match=rf"config: {key} = .* (is beyond any physical value|is out of range)"):
         from_dict({section: {name: value}})
+
+
+def test_servo_config_section_comments_are_whole_sentences():
+    """They were cut at the first line break of the docstring, mid-sentence."""
+    from servo.config import SECTIONS, to_toml
+
+    text = to_toml()
+    for name, cls in SECTIONS.items():
+        lines = text.split(f"\n[{name}]\n")[0].splitlines()
+        comment = []
+        for line in reversed(lines):
+            if not line.startswith("# ") or not line.strip("# "):
+                break
+            comment.insert(0, line[2:])
+        joined = " ".join(comment)
+        assert joined.endswith((".", ")")), (name, joined)
+        assert joined == " ".join(cls.__doc__.strip().split("\n\n")[0].split())
+
+
+def test_help_shows_no_doubled_percent_signs():
+    import contextlib
+    import io
+
+    from servo.cli import main
+
+    out = io.StringIO()
+    with contextlib.redirect_stdout(out), contextlib.suppress(SystemExit):
+        main(["fleet", "simulate", "--help"])
+    assert "%%" not in out.getvalue() and "10%)" in out.getvalue()

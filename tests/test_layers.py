@@ -22,7 +22,7 @@ TOP_LEVEL = ("kernels", "servo", "hil", "studies")
 
 #: bottom up; a package imports only packages of the layers below its own
 LAYERS = [
-    ["kernels", "servo.errors", "servo._version", "servo.design"],
+    ["kernels", "servo.errors", "servo._version", "servo._callable", "servo.design"],
     ["servo.fields", "servo.hdd"],  # config fields; the HDD benchmark's plant and signals
     ["servo.controllers", "servo.scenarios"],  # controller kinds, scenario kinds
     ["servo.config"],
@@ -30,7 +30,7 @@ LAYERS = [
     ["servo.runtime", "servo.identify", "servo.frf"],
     ["servo.run", "servo.diagnose", "servo.loop", "hil"],
     ["servo.compensate", "servo.fleet"],
-    ["servo.experiments"],
+    ["servo.experiments", "servo.lti"],  # python-control objects of every model
     ["servo.cli"],
     ["servo.__main__", "servo"],  # the facade: servo/__init__.py
     ["studies"],  # research harnesses, not installed

@@ -1,5 +1,6 @@
 """servo.load_run: a run folder back with named columns, units, config and summary."""
 import json
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -42,3 +43,27 @@ def test_an_interrupted_folder_loads_without_a_summary_and_bad_folders_are_one_l
     (tmp_path / "r" / "log_compensated.npz").write_bytes(b"not a zip")
     with pytest.raises(RecordingError, match="not a readable run log"):
         servo.load_run(tmp_path / "r")
+
+
+def test_a_run_of_a_plug_in_controller_loads(tmp_path, monkeypatch):
+    """load_run once failed with "controller.kind must be one of pi, track, nss"."""
+    import re
+
+    from servo.cli import main
+    from servo.controllers import KINDS
+
+    doc = (Path(__file__).resolve().parents[1] / "docs" / "controllers.md").read_text()
+    (tmp_path / "my_pd.py").write_text(re.findall(r"^```python\n(.*?)^```", doc, flags=re.S | re.M)[0])
+    monkeypatch.chdir(tmp_path)
+    before = dict(KINDS)
+    try:
+        assert main(["run", "--plugin", "my_pd", "--set", "controller.kind=pd", "--duration", "0.02", "--fast",
+                     "--compensation", "on", "--quiet", "--out", "r"]) == 0  # fmt: skip
+        KINDS.clear()
+        KINDS.update(before)  # a fresh session: the plug-in not registered, nor loaded
+        monkeypatch.setattr("servo.controllers.plugins._LOADED", set())
+        run = servo.load_run(tmp_path / "r")
+        assert run.config.controller.kind == "pd" and "de_dt" in run.logs["compensated"]
+    finally:
+        KINDS.clear()
+        KINDS.update(before)

@@ -7,6 +7,7 @@ import json
 import subprocess
 import sys
 from importlib import metadata
+from pathlib import Path
 
 import numba
 import numpy as np
@@ -22,7 +23,7 @@ from servo.io.recording import Recording, save_recording_csv
 def test_version_option():
     r = subprocess.run([sys.executable, "-m", "servo", "--version"], capture_output=True, text=True, timeout=120)
     assert r.returncode == 0, r.stderr
-    assert r.stdout.strip() == f"servo {metadata.version('servo-vcm')}" == f"servo {servo.__version__}"
+    assert r.stdout.strip() == f"servo {servo.__version__}"
 
 
 def test_provenance_records_versions_config_inputs_and_cpu(tmp_path):
@@ -72,3 +73,53 @@ def test_identify_frf_and_diagnose_summaries_carry_it(tmp_path, capsys):
         assert prov["inputs"] == {str(rec): digest}
         assert prov["libraries"]["numpy"] == np.__version__
     capsys.readouterr()
+
+
+def test_the_version_and_commit_come_from_git_in_a_checkout():
+    """The version was a static 0.1.0 and no output named the commit."""
+    from servo._version import source_revision
+
+    root = Path(servo.__file__).resolve().parents[1]
+    head = subprocess.run(["git", "-C", str(root), "rev-parse", "HEAD"], capture_output=True, text=True).stdout.strip()
+    rev = source_revision()
+    assert rev["from"] == "checkout" and rev["commit"] == head and isinstance(rev["dirty"], bool)
+    assert f"+g{head[:12]}" in servo.__version__
+    p = provenance()
+    assert p["source"]["commit"] == head and p["servo_version"] == servo.__version__
+    for lib in ("dask", "distributed", "pyarrow", "pyserial", "numba", "scipy", "control"):
+        assert p["libraries"][lib] == metadata.version(lib)
+
+
+def test_without_git_the_version_is_the_fallback(monkeypatch):
+    from servo import _version as prov
+
+    monkeypatch.setattr(prov, "_git", lambda *a: None)
+    monkeypatch.setattr(prov, "_installed", lambda: None)
+    assert prov.package_version() == prov.FALLBACK_VERSION
+    assert prov.source_revision() == {"commit": None, "dirty": None, "from": "unknown"}
+
+
+def test_a_run_started_from_python_records_its_provenance(tmp_path):
+    """run_job called from Python wrote "provenance": null."""
+    from servo.run.job import run_job
+
+    s = run_job(Config().replace(run={"duration_s": 0.01}), tmp_path / "r", compensation="on", fast=True,
+                log_formats=("npz",))  # fmt: skip
+    on_disk = json.loads((tmp_path / "r" / "summary.json").read_text())["provenance"]
+    assert s["provenance"] == on_disk and on_disk["source"]["commit"] and on_disk["config_sha256"] == config_hash(
+        Config().replace(run={"duration_s": 0.01}))
+    assert on_disk["libraries"]["pyarrow"] == metadata.version("pyarrow")
+
+
+def test_schema_metadata_carries_provenance_and_units_into_parquet(tmp_path):
+    import pyarrow as pa
+    import pyarrow.parquet as pq
+
+    from servo.io.provenance import schema_metadata
+
+    p = provenance(Config())
+    t = pa.table({"J": [1e-3]}, schema=pa.schema([("J", pa.float64())], metadata=schema_metadata(p, {"J": "A*s^2/m"})))
+    pq.write_table(t, tmp_path / "t.parquet")
+    md = pq.read_schema(tmp_path / "t.parquet").metadata
+    assert json.loads(md[b"servo.provenance"]) == json.loads(json.dumps(p))
+    assert json.loads(md[b"servo.units"]) == {"J": "A*s^2/m"}

@@ -20,7 +20,7 @@ import tomllib
 from servo.errors import ConfigError, Interrupted, ServoError
 
 COMMANDS = ("run", "config", "identify", "hysteresis", "bode", "frf", "paper", "emulate", "diagnose", "compensate", "recover",
-            "fleet", "loop", "demo")
+            "fleet", "loop", "demo", "warmup")
 
 
 class UsageError(ServoError):
@@ -110,7 +110,10 @@ def main(argv: list[str] | None = None) -> int:
         if args.command is None:
             parser.print_help()
             return 2
-        return int(args.handler(args) or 0)
+        from servo.runtime.warmup import announce
+
+        with announce(f"servo {args.command}", quiet=bool(getattr(args, "quiet", False))):  # kernels compiling
+            return int(args.handler(args) or 0)
     except Interrupted as exc:  # a command that says what it kept
         print(f"servo: interrupted; {exc}", file=sys.stderr)
         return exc.exit_code

@@ -41,10 +41,15 @@ def add_recording_options(p: argparse.ArgumentParser, optional: bool = False) ->
 
 
 def recording_from_args(args: argparse.Namespace):
-    """Load and validate the recording of :func:`add_recording_options`."""
+    """Load and validate the recording of :func:`add_recording_options`.  A command with
+    ``--force-unit`` not given takes the unit the file declares for ``u`` (a CSV header
+    ``u [N]``), else A: what it prints follows the data."""
     from servo.io.recording import load_recording, parse_mapping
 
-    return load_recording(args.recording, parse_mapping(args.columns, "--columns"), parse_mapping(args.scale, "--scale"))
+    rec = load_recording(args.recording, parse_mapping(args.columns, "--columns"), parse_mapping(args.scale, "--scale"))
+    if getattr(args, "force_unit", "") is None:
+        args.force_unit = ((rec.meta or {}).get("units") or {}).get("u") or "A"
+    return rec
 
 
 def levels_from_arg(text: str, option: str = "--levels") -> tuple:

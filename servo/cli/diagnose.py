@@ -28,7 +28,8 @@ def register(sub) -> None:
     p.add_argument("--horizon", type=float, metavar="S", help="simulated-output horizon, s (default 10 row spacings)")
     p.add_argument("--cutoff-hz", type=float, help="Butterworth cutoff on position (default fs/decimation)")
     add_decimate_option(p)
-    p.add_argument("--force-unit", default="A", help="unit of the input column for the report (default A; N for EMPS)")
+    p.add_argument("--force-unit", help="unit of the input column for the report (default: the unit the file "
+                   "declares, u [N], else A; N for EMPS)")  # fmt: skip
     p.add_argument("--no-plots", action="store_true", help="write report.json and final_model.toml only")
     p.add_argument("--out", metavar="DIR", help="output folder (default servo-out/diagnose-<time>)")
     add_quiet_option(p)

@@ -78,7 +78,7 @@ def register(sub) -> None:
 
     q = fs.add_parser("simulate", help="Monte Carlo: drives drawn from distributions, compensator on and off",
                       description="Draw --drives drives from distributions over [drive] fields (--vary "
-                      "drive.Fc='normal(1e-3, 10%%)', uniform(LO, HI), lognormal(MEDIAN, S)) and run each through "
+                      "drive.Fc='normal(1e-3, 10%)', uniform(LO, HI), lognormal(MEDIAN, S)) and run each through "
                       "the servo run scenario on the all-compiled fast path, with and without the compensator; one "
                       "row each with step, settling and tracking figures.")  # fmt: skip
     q.add_argument("--drives", type=int, default=100, help="drives to draw (default 100)")

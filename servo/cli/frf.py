@@ -5,7 +5,7 @@ import argparse
 import time
 from pathlib import Path
 
-from servo.cli.common import add_recording_options, recording_from_args
+from servo.cli.common import add_quiet_option, add_recording_options, progress_from_args, recording_from_args
 from servo.errors import ConfigError
 
 
@@ -27,12 +27,21 @@ def register(sub) -> None:
     p.add_argument("--detrend", choices=("constant", "linear"), default="constant", help="per segment (default constant)")
     p.add_argument("--f-min", type=float, default=0.0, help="lowest frequency written, Hz (default: the first line)")
     p.add_argument("--f-max", type=float, default=float("inf"), help="highest frequency written, Hz (default: Nyquist)")
-    p.add_argument("--force-unit", default="A", help="unit of u, for the response's unit m/UNIT (default A)")
+    p.add_argument("--force-unit", help="unit of u, for the response's unit m/UNIT (default: the unit the file "
+                   "declares, u [N], else A)")  # fmt: skip
     p.add_argument("--out", metavar="DIR", help="output folder (default servo-out/frf-<time>)")
+    add_quiet_option(p)
     p.set_defaults(handler=handle)
 
 
 def handle(args: argparse.Namespace) -> int:
+    from servo.io.progress import reporting
+
+    with reporting(progress_from_args(args, "servo frf")):  # --quiet: no progress or compile lines
+        return _handle(args)
+
+
+def _handle(args: argparse.Namespace) -> int:
     from servo.frf.estimate import WelchSettings
     from servo.frf.job import estimate_frf, format_summary, write_frf
 

@@ -6,7 +6,9 @@ import argparse
 import time
 from pathlib import Path
 
-from servo.cli.common import add_config_options, add_recording_options, config_from_args, recording_from_args
+from servo.cli.common import (
+    add_config_options, add_quiet_option, add_recording_options, config_from_args, progress_from_args, recording_from_args,
+)
 from servo.errors import ConfigError
 
 
@@ -32,10 +34,18 @@ def register(sub) -> None:
     p.add_argument("--large-hz", type=float, default=0.5, help="--simulate: large-loop frequency (default 0.5)")
     add_config_options(p)
     p.add_argument("--out", metavar="DIR", help="output folder (default servo-out/hysteresis-<time>)")
+    add_quiet_option(p)
     p.set_defaults(handler=handle)
 
 
 def handle(args: argparse.Namespace) -> int:
+    from servo.io.progress import reporting
+
+    with reporting(progress_from_args(args, "servo hysteresis")):  # --quiet: no progress or compile lines
+        return _handle(args)
+
+
+def _handle(args: argparse.Namespace) -> int:
     from servo.io.outdir import staged
     from servo.experiments.hysteresis import HysteresisExperiment
     from servo.experiments.hysteresis_report import format_summary, run_hysteresis_recording, run_hysteresis_simulated

@@ -6,7 +6,9 @@ import argparse
 import time
 from pathlib import Path
 
-from servo.cli.common import add_config_options, add_recording_options, config_from_args, recording_from_args
+from servo.cli.common import (
+    add_config_options, add_quiet_option, add_recording_options, config_from_args, progress_from_args, recording_from_args,
+)
 from servo.errors import ConfigError
 
 
@@ -37,7 +39,8 @@ def register(sub) -> None:
                    help="seconds by which the recorded force acts late (input delay; with --path robust add half a "
                    "sample for a zero-order-held command). Default 0; with --simulate, the drive's input delay "
                    "(+ half a sample on the robust path)")  # fmt: skip
-    p.add_argument("--force-unit", default="A", help="unit of the force column, for the report (default A; N for EMPS)")
+    p.add_argument("--force-unit", help="unit of the force column, for the report (default: the unit the file "
+                   "declares, u [N], else A; N for EMPS)")  # fmt: skip
     p.add_argument("--simulate", action="store_true", help="run the square-wave experiment on the simulated drive instead")
     p.add_argument("--amplitude", type=float, default=0.02, help="--simulate: square-wave amplitude, A (default 0.02)")
     p.add_argument("--hz", type=float, default=25.0, help="--simulate: square-wave frequency (default 25)")
@@ -45,6 +48,7 @@ def register(sub) -> None:
     p.add_argument("--holding-hz", type=float, default=5.0, help="--simulate: holding loop bandwidth (default 5)")
     add_config_options(p)
     p.add_argument("--out", metavar="DIR", help="output folder (default servo-out/identify-<time>)")
+    add_quiet_option(p)
     p.set_defaults(handler=handle)
 
 
@@ -57,6 +61,13 @@ def _trim(text: str) -> tuple[int, int]:
 
 
 def handle(args: argparse.Namespace) -> int:
+    from servo.io.progress import reporting
+
+    with reporting(progress_from_args(args, "servo identify")):  # --quiet: no progress or compile lines
+        return _handle(args)
+
+
+def _handle(args: argparse.Namespace) -> int:
     from servo.io.outdir import staged
     from servo.identify.regressors import RobustSettings, parse_terms
     from servo.identify.job import format_summary, run_identify
@@ -103,7 +114,7 @@ def handle(args: argparse.Namespace) -> int:
 
     prov = provenance(cfg if args.simulate else None, [] if args.simulate else [args.recording], args.argv)
     with staged(out) as tmp:  # the folder appears complete, or not at all
-        summary = run_identify(rec, tmp, paths, terms, settings, args.force_unit, reference, lag, prov)
+        summary = run_identify(rec, tmp, paths, terms, settings, args.force_unit or "A", reference, lag, prov)
         if args.simulate:
             from servo.identify.job import paper_path_note
 

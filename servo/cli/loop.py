@@ -23,8 +23,9 @@ def register(sub) -> None:
         "load_frequency_responses, convertible to control.FrequencyResponseData), loop.csv, loop.png, "
         "sensitivity.png and summary.json. docs/loop.md explains the signs and the estimator.",
     )
-    p.add_argument("--compensator", choices=("on", "off", "both"), default="both",
-                   help="measure with the compensator, without, or both (default both)")  # fmt: skip
+    p.add_argument("--compensator", choices=("on", "off", "both"), default=None,
+                   help="measure with the compensator, without, or both (default: both when [compensator] "
+                        "enabled, else off)")  # fmt: skip
     p.add_argument("--levels", default="0.2", metavar="MA,...", help="excitation amplitudes in mA (default 0.2)")
     p.add_argument("--f-min", type=float, default=20.0, help="lowest frequency, Hz (default 20)")
     p.add_argument("--f-max", type=float, default=None,
@@ -58,11 +59,12 @@ def handle(args: argparse.Namespace) -> int:
     from servo.io.outdir import check_output, staged
     from servo.io.provenance import provenance
     from servo.io.progress import reporting
-    from servo.loop.job import COMPENSATOR_CHOICES, check_designs_stable, format_summary, run_loop
+    from servo.loop.job import check_designs_stable, format_summary, run_loop
+    from servo.runtime.controller import compensation_runs
 
     cfg = config_from_args(args)
     s = settings_from_args(args).check(cfg)
-    checked = check_designs_stable(cfg, COMPENSATOR_CHOICES[args.compensator])  # an unstable design: nothing runs
+    checked = check_designs_stable(cfg, compensation_runs(cfg, args.compensator))  # an unstable design: nothing runs
     out = Path(args.out) if args.out else Path("servo-out") / time.strftime("loop-%Y%m%d-%H%M%S")
     check_output(out)
     prov = provenance(cfg, [], getattr(args, "argv", None))

@@ -24,8 +24,9 @@ def register(sub) -> None:
                    "written as DIR.incomplete/ and renamed when complete")  # fmt: skip
     p.add_argument("--log-format", choices=("npz", "csv", "both"), default="both",
                    help="run log files to write (default both)")  # fmt: skip
-    p.add_argument("--compensation", choices=("on", "off", "compare"), default="compare",
-                   help="run with the compensator, without, or both and compare (default)")  # fmt: skip
+    p.add_argument("--compensation", choices=("on", "off", "compare"), default=None,
+                   help="run with the compensator, without, or both and compare (default: compare when "
+                        "[compensator] enabled, else off)")  # fmt: skip
     p.add_argument("--fast", action=argparse.BooleanOptionalAction, default=None,
                    help="all-compiled fast path instead of tick by tick (default: run.fast_path)")  # fmt: skip
     add_quiet_option(p)

@@ -8,3 +8,7 @@ cancellable term by its compensator term and bounds its authority;
 :mod:`~servo.compensate.check` checks the proposal in closed loop on the model;
 :mod:`~servo.compensate.job` writes the folder.  ``docs/compensate.md`` explains it.
 """
+
+from servo._callable import make_callable  # noqa: E402
+
+make_callable(__name__, "servo.compensate.job:compensate")  # servo.compensate(...): the notebook entry point

@@ -64,6 +64,14 @@ class ControllerKind:
         raise NotImplementedError
 
     @classmethod
+    def to_control(cls, section, cfg):
+        """The controller as a discrete python-control system at ``cfg.dt`` (s) from the
+        position error (m) to ``u_n`` (A), whose frequency response is :meth:`response`
+        (:func:`servo.lti.controller`).  Optional: a kind without one cannot be exported
+        or analysed with python-control."""
+        raise NotImplementedError
+
+    @classmethod
     def check(cls, section, cfg) -> None:
         """Raise :class:`~servo.errors.ConfigError` if ``section`` does not fit ``cfg``."""
 

@@ -96,3 +96,21 @@ class PI(ControllerKind):
             a = np.exp(-2 * np.pi * c.velocity_cutoff_hz * dt)
             rate = (1 - a) * (1 - zi) / dt / (1 - a * zi)
         return s.kp + s.ki * dt * zi / (1 - zi) + s.kd * rate
+
+    @classmethod
+    def to_control(cls, s: PISection, cfg):
+        """``kp + ki*dt/(z - 1) + kd*D(z)``: :meth:`response` exactly when the rate comes
+        from the estimator (``D = (1 - a)(z - 1)/(dt (z - a))``); a measured velocity
+        (``j*w``, not a function of ``z``) is read as the backward difference
+        ``(z - 1)/(dt z)``, whose phase lags it by ``w*dt/2`` (0.5 deg at 150 Hz, 50 kHz)."""
+        import control
+
+        dt = cfg.dt
+        z = control.tf([1.0, 0.0], [1.0], dt)
+        c = cfg.controller
+        if c.velocity_source == "auto" and cfg.drive.measures_velocity:
+            rate = (z - 1) / (dt * z)
+        else:
+            a = np.exp(-2 * np.pi * c.velocity_cutoff_hz * dt)
+            rate = (1 - a) * (z - 1) / (dt * (z - a))
+        return control.minreal(s.kp + s.ki * dt / (z - 1) + s.kd * rate, verbose=False)

@@ -149,6 +149,29 @@ class TwoRate(ControllerKind):
         """The design's ``slow * hold * fast`` (:meth:`servo.design.Design.response`)."""
         return cls.designed(section, cfg).response(f_hz)
 
+    @classmethod
+    def to_control(cls, section, cfg):
+        """``slow(z^N) * hold(z) * fast(z)`` at the tick period, ``N = pes_every``: the
+        slow cascade with its delays stretched to ``N`` ticks, the hold's
+        ``(1/N) sum_{k<N} z^-k``, the fast cascade (:meth:`response`, exactly; with
+        ``N = 2`` the images the hold makes are left out, as there)."""
+        import control
+        from scipy import signal
+
+        from servo.design.loop import cascade_ss, series
+
+        d = cls.designed(section, cfg)
+        n = d.pes_every
+        out = cascade_ss(np.zeros((0, 6)))
+        for row in np.asarray(d.slow_sos).reshape(-1, 6):
+            b, a = np.zeros(2 * n + 1), np.zeros(2 * n + 1)
+            b[::n], a[::n] = row[:3], row[3:]
+            out = series(out, tuple(np.atleast_2d(m) for m in signal.tf2ss(b, a)))
+        if n > 1:
+            out = series(out, tuple(np.atleast_2d(m) for m in signal.tf2ss(np.full(n, 1.0 / n), np.eye(1, n, 0)[0])))
+        out = series(out, cascade_ss(d.fast_sos))
+        return control.ss(*out, cfg.dt)
+
 
 @dataclass
 class TrackSection:

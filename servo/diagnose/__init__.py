@@ -12,3 +12,7 @@ explains the method.
 # terms in modules of their own register themselves into the vocabulary of
 # servo.diagnose.terms on import; importing any module of the package imports them first
 import servo.diagnose.sensor_lag  # noqa: E402,F401
+
+from servo._callable import make_callable  # noqa: E402
+
+make_callable(__name__, "servo.diagnose.job:diagnose")  # servo.diagnose(...): the notebook entry point

@@ -153,6 +153,25 @@ class Diagnosis:
     #: the model terms that path added (fitted on the frequency response, not the rows)
     frf_terms: list = field(default_factory=list)
 
+    def _lines(self) -> list[str]:
+        found = ", ".join(f.physics for f in self.findings) or "nothing beyond the baseline"
+        err = self.errors.get("test_force_rel_pct")
+        lines = [f"{self.rec.source}: {self.rec.n} samples; found {found}"]
+        if self.verdict.get("verdict"):
+            lines.append(f"verdict: {self.verdict['verdict']}")
+        if isinstance(err, dict) and err:
+            lines.append("held-out force error: " + ", ".join(f"{k} {v:.3g} %" for k, v in err.items()
+                                                               if isinstance(v, (int, float))))  # fmt: skip
+        return lines
+
+    def __repr__(self) -> str:
+        return "<Diagnosis " + "; ".join(self._lines()) + ">"
+
+    def _repr_html_(self) -> str:
+        from html import escape
+
+        return "<b>Diagnosis</b><ul>" + "".join(f"<li>{escape(x)}</li>" for x in self._lines()) + "</ul>"
+
 
 def heldout_residual(design: Design, model: Model, blocks, test_rows: np.ndarray) -> np.ndarray:
     """Residual rows of ``model`` where each training block is predicted by the fit on

@@ -23,6 +23,7 @@ from servo.experiments.bode_plots import plot_bode
 from servo.io.atomic import write_json
 from servo.io.frequency_response import save_npz
 from servo.io.progress import QUIET, current
+from servo.io.provenance import or_default
 from servo.io.runlog import write_csv
 
 
@@ -97,8 +98,7 @@ def run_bode(cfg: Config, out: Path, s: SweepSettings, with_second: bool = True,
         f"{name}, compensation {'on' if comp else 'off'}": int(sum(np.count_nonzero(sw.coherence < 0.9) for sw in sweeps))
         for (name, comp), sweeps in res.items()
     }
-    if provenance is not None:
-        summary["provenance"] = provenance
+    summary["provenance"] = or_default(provenance, cfg)
     summary["files"] = sorted(files + ["summary.json"])
     write_json(out / "summary.json", summary)
     return summary

@@ -17,6 +17,7 @@ from servo.experiments.hysteresis_plots import plot_large_loop, plot_small_loop
 from servo.identify.dahl_fit import DahlFit, fit_dahl
 from servo.identify.regressors import IdentificationError
 from servo.io.atomic import write_json
+from servo.io.provenance import or_default
 from servo.io.recording import Recording, save_recording_csv
 from servo.io.runlog import write_csv
 
@@ -87,8 +88,7 @@ def run_hysteresis_simulated(cfg: Config, out: Path, exp: HysteresisExperiment, 
 
 
 def _finish(out: Path, summary: dict, files: list[str], provenance: dict | None = None) -> dict:
-    if provenance is not None:
-        summary["provenance"] = provenance
+    summary["provenance"] = or_default(provenance)
     summary["files"] = sorted(files + ["summary.json"])
     write_json(out / "summary.json", summary)
     return summary

@@ -12,7 +12,7 @@ import math
 from pathlib import Path
 
 import numpy as np
-from matplotlib.figure import Figure
+from servo.io.plotting import Figure
 from matplotlib.ticker import MaxNLocator
 
 from servo.fleet.outliers import MIN_DRIVES, THRESHOLD, robust_z

@@ -6,6 +6,7 @@ Files written into one folder (all computed before the first is written):
   (``load_frequency_responses(path)`` -> ``{label: FrequencyResponse}``, and
   ``.to_control()`` for python-control);
 * ``frf.csv`` -- the same as a table (f_hz, re, im, mag_db, phase_deg, coherence, rel_std);
+* ``frf.mat``, ``frf.h5`` -- the same for MATLAB (scipy.io) and HDF5 (h5py);
 * ``frf.png`` -- magnitude with its +-2 std band, phase, coherence;
 * ``summary.json`` -- settings, segments, the coherent band, provenance.
 """
@@ -18,8 +19,9 @@ import numpy as np
 from servo.errors import RecordingError
 from servo.frf.estimate import WelchSettings, h1, instrumental
 from servo.io.atomic import write_json
-from servo.io.frequency_response import FrequencyResponse, save_csv, save_npz
+from servo.io.frequency_response import FrequencyResponse, save_csv, save_h5, save_mat, save_npz
 from servo.io.plotting import save_figure
+from servo.io.provenance import or_default
 from servo.io.recording import Recording
 
 #: coherence from which a point counts as measured (the summary's band, the plot's faint points)
@@ -82,13 +84,16 @@ def write_frf(resp: FrequencyResponse, rec: Recording, out: Path, extra: dict | 
 
     out = Path(out)
     summary = {**summarize(resp, rec), **(extra or {})}
+    summary["provenance"] = or_default(summary.get("provenance"))
     fig = plot_frf(resp, coherence_min=COHERENCE_MIN)
     out.mkdir(parents=True, exist_ok=True)
     label = resp.meta["label"]
     save_npz(out / "frf.npz", {label: resp})
     save_csv(out / "frf.csv", {label: resp})
+    save_mat(out / "frf.mat", {label: resp})
+    save_h5(out / "frf.h5", {label: resp})
     save_figure(fig, out / "frf.png")
-    summary["files"] = ["frf.csv", "frf.npz", "frf.png", "summary.json"]
+    summary["files"] = ["frf.csv", "frf.h5", "frf.mat", "frf.npz", "frf.png", "summary.json"]
     write_json(out / "summary.json", summary)
     return summary
 

@@ -27,3 +27,7 @@ __all__ = [
     "matlab_decimate",
     "paper_regression", "parse_terms", "regressor", "robust_regression", "units",
 ]
+
+from servo._callable import make_callable  # noqa: E402
+
+make_callable(__name__, "servo.identify.identification:identify")  # servo.identify(...): the notebook entry point

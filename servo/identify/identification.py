@@ -19,6 +19,11 @@ class Identification:
     regression: Regression
     fit: LSResult
 
+    def __repr__(self) -> str:
+        f = self.fit
+        terms = ", ".join(f"{t} = {p:.4g}" for t, p in zip(f.terms, f.params))
+        return f"<Identification ({self.regression.path} path): {terms}; error {f.rel_error_pct:.3g} %, {f.n_rows} rows>"
+
     def as_dict(self, force_unit: str = "A") -> dict:
         r = self.regression
         return {"path": r.path, "settings": r.settings, "row_dt_s": r.dt, **self.fit.as_dict(force_unit)}

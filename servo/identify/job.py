@@ -17,6 +17,7 @@ from servo.identify.identification import Identification, identify
 from servo.identify.plots import estimated_acceleration, plot_acceleration, plot_force_fit
 from servo.identify.regressors import RobustSettings, units
 from servo.io.atomic import atomic_write, write_json
+from servo.io.provenance import or_default
 from servo.io.recording import Recording
 from servo.io.runlog import write_csv
 
@@ -77,8 +78,7 @@ def run_identify(rec: Recording, out: Path, paths, terms, settings: RobustSettin
                 name: {t: 100 * (r.fit[t] - ref[t]) / abs(ref[t]) for t in r.fit.terms if ref.get(t)}
                 for name, ref in refs.items()
             }
-    if provenance is not None:
-        summary["provenance"] = provenance
+    summary["provenance"] = or_default(provenance)
     summary["files"] = sorted(files + ["summary.json"])
     write_json(out / "summary.json", summary)
     return summary

@@ -10,6 +10,10 @@ standard deviation of its random error relative to ``|H|``.  ``servo frf`` and
     from servo.io.frequency_response import load_frequency_responses
     frf = load_frequency_responses("out/frf.npz")        # {label: FrequencyResponse}
     G = frf["u -> x"].to_control()                       # control.FrequencyResponseData
+    FrequencyResponse.from_control(G, unit="m/A")        # and back
+
+:func:`save_mat` (MATLAB, scipy.io) and :func:`save_h5` (HDF5) write the same and the
+same loader reads them.
 
 NPZ layout (``numpy.load(path)`` works without this module and without pickles):
 
@@ -73,6 +77,20 @@ class FrequencyResponse:
             raise FrequencyResponseError(f"frequency response: f_hz has {n} points, H {self.H.size}, coherence "
                                          f"{self.coherence.size}, rel_std {self.rel_std.size}")  # fmt: skip
 
+    def __repr__(self) -> str:
+        n = self.f_hz.size
+        if n == 0:
+            return f"<FrequencyResponse, no points, {self.unit or 'no unit'}>"
+        coh = self.coherence >= 0.9
+        good = f", coherence >= 0.9 at {int(coh.sum())}" if np.isfinite(self.coherence).any() else ""
+        return (f"<FrequencyResponse {self.meta.get('label', '')!s}: {n} points, {self.f_hz[0]:.4g}-{self.f_hz[-1]:.4g} Hz, "
+                f"|H| {np.nanmin(np.abs(self.H)):.3g}-{np.nanmax(np.abs(self.H)):.3g} {self.unit}{good}>").replace(" :", ":")
+
+    def _repr_html_(self) -> str:
+        from html import escape
+
+        return f"<code>{escape(repr(self))}</code>"
+
     @property
     def mag_db(self) -> np.ndarray:
         """``20*log10(|H|)`` (dB re 1 ``unit``)."""
@@ -93,6 +111,16 @@ class FrequencyResponse:
         import control
 
         return control.FrequencyResponseData(self.H, 2 * np.pi * self.f_hz)
+
+    @classmethod
+    def from_control(cls, frd, unit: str = "", meta: dict | None = None) -> "FrequencyResponse":
+        """A SISO :class:`control.FrequencyResponseData` (omega in rad/s) as a response
+        (no coherence, no error estimate)."""
+        w = np.asarray(frd.omega, float)
+        H = np.asarray(getattr(frd, "frdata", None) if hasattr(frd, "frdata") else frd.fresp, complex).reshape(-1, w.size)
+        if H.shape[0] != 1:
+            raise FrequencyResponseError(f"frequency response: a single-input single-output system, got {H.shape[0]} channels")
+        return cls(w / (2 * np.pi), H[0], unit=unit, meta=dict(meta or {}))
 
     def band(self, f_min: float = 0.0, f_max: float = np.inf) -> "FrequencyResponse":
         """The points with ``f_min <= f_hz <= f_max`` (Hz); per-point lists in ``meta``
@@ -146,23 +174,64 @@ def save_csv(path: str | Path, responses: dict[str, FrequencyResponse] | Frequen
     return path
 
 
+def save_mat(path: str | Path, responses: dict[str, FrequencyResponse] | FrequencyResponse) -> Path:
+    """Write ``{label: FrequencyResponse}`` as MATLAB ``.mat`` (scipy.io), atomically:
+    ``format``, ``labels`` (a cell array) and one struct ``r<i>`` per label with
+    ``f_hz``, ``H`` (complex), ``coherence``, ``rel_std``, ``unit``, ``meta`` (JSON):
+    ``frd(r0.H, 2*pi*r0.f_hz)`` in MATLAB."""
+    from scipy.io import savemat
+
+    resp = _as_dict(responses)
+    doc = {"format": FORMAT, "labels": np.array(list(resp), dtype=object)}
+    for i, r in enumerate(resp.values()):
+        doc[f"r{i}"] = {"f_hz": r.f_hz, "H": r.H, "coherence": r.coherence, "rel_std": r.rel_std, "unit": r.unit,
+                        "meta": strict_json(r.meta)}  # fmt: skip
+    path = Path(path)
+    atomic_write(path, lambda tmp: savemat(tmp, doc))
+    return path
+
+
+def save_h5(path: str | Path, responses: dict[str, FrequencyResponse] | FrequencyResponse) -> Path:
+    """Write ``{label: FrequencyResponse}`` as HDF5 (h5py), atomically: attribute
+    ``format``; one group ``<i>`` per label with attributes ``label``, ``unit``, ``meta``
+    (JSON) and datasets ``f_hz``, ``H`` (complex), ``coherence``, ``rel_std``."""
+    import h5py
+
+    def write(tmp):
+        with h5py.File(tmp, "w") as f:
+            f.attrs["format"] = FORMAT
+            for i, (label, r) in enumerate(_as_dict(responses).items()):
+                g = f.create_group(str(i))
+                g.attrs["label"], g.attrs["unit"], g.attrs["meta"] = label, r.unit, strict_json(r.meta)
+                for name in ("f_hz", "H", "coherence", "rel_std"):
+                    g.create_dataset(name, data=getattr(r, name))
+
+    path = Path(path)
+    atomic_write(path, write)
+    return path
+
+
 def load_frequency_responses(path: str | Path) -> dict[str, FrequencyResponse]:
-    """Read a file written by :func:`save_npz` or :func:`save_csv`: ``{label:
-    FrequencyResponse}`` in the written order.  A file that is not one is one
-    :class:`FrequencyResponseError` line."""
+    """Read a file written by :func:`save_npz`, :func:`save_csv`, :func:`save_mat` or
+    :func:`save_h5`: ``{label: FrequencyResponse}`` in the written order.  A file that
+    is not one is one :class:`FrequencyResponseError` line."""
     path = Path(path)
     try:
         if path.suffix.lower() == ".npz":
             return _load_npz(path)
         if path.suffix.lower() == ".csv":
             return _load_csv(path)
+        if path.suffix.lower() == ".mat":
+            return _load_mat(path)
+        if path.suffix.lower() in (".h5", ".hdf5"):
+            return _load_h5(path)
     except FrequencyResponseError:
         raise
     except FileNotFoundError:
         raise FrequencyResponseError(f"frequency response: no such file: {path}") from None
     except Exception as exc:
         raise FrequencyResponseError(f"frequency response: cannot read {path}: {first_line(exc)}") from None
-    raise FrequencyResponseError(f"frequency response: {path}: unknown format {path.suffix!r} (use .npz or .csv)")
+    raise FrequencyResponseError(f"frequency response: {path}: unknown format {path.suffix!r} (use .npz, .csv, .mat or .h5)")
 
 
 def _load_npz(path: Path) -> dict[str, FrequencyResponse]:
@@ -175,6 +244,41 @@ def _load_npz(path: Path) -> dict[str, FrequencyResponse]:
             m = dict(meta.get(label, {}))
             unit = m.pop("unit", "")
             out[label] = FrequencyResponse(z[f"f_hz_{i}"], z[f"H_{i}"], z[f"coherence_{i}"], z[f"rel_std_{i}"], unit, m)
+        return out
+
+
+def _load_mat(path: Path) -> dict[str, FrequencyResponse]:
+    from scipy.io import loadmat
+
+    m = loadmat(path, squeeze_me=True, chars_as_strings=True)
+    if str(m.get("format", "")) != FORMAT:
+        raise FrequencyResponseError(f"frequency response: {path} is not a {FORMAT} file")
+    out = {}
+    for i, label in enumerate(np.atleast_1d(m["labels"])):
+        r = m[f"r{i}"]
+
+        def field_(name):  # a struct's field comes back as a 0-d object array holding the value
+            v = r[name]
+            return v.item() if isinstance(v, np.ndarray) and v.dtype == object and v.shape == () else v
+
+        arrays = [np.atleast_1d(field_(n)) for n in ("f_hz", "H", "coherence", "rel_std")]
+        unit, meta = field_("unit"), field_("meta")
+        out[str(label)] = FrequencyResponse(*arrays, unit=str(unit) if np.size(unit) else "",
+                                            meta=json.loads(str(meta)) if np.size(meta) else {})  # fmt: skip
+    return out
+
+
+def _load_h5(path: Path) -> dict[str, FrequencyResponse]:
+    import h5py
+
+    with h5py.File(path, "r") as f:
+        if f.attrs.get("format") != FORMAT:
+            raise FrequencyResponseError(f"frequency response: {path} is not a {FORMAT} file")
+        out = {}
+        for i in range(len(f)):
+            g = f[str(i)]
+            out[str(g.attrs["label"])] = FrequencyResponse(g["f_hz"][()], g["H"][()], g["coherence"][()], g["rel_std"][()],
+                                                           str(g.attrs["unit"]), json.loads(g.attrs["meta"]))  # fmt: skip
         return out
 
 
@@ -197,4 +301,5 @@ def _load_csv(path: Path) -> dict[str, FrequencyResponse]:
     return out
 
 
-__all__ = ["FORMAT", "FrequencyResponse", "FrequencyResponseError", "load_frequency_responses", "save_csv", "save_npz"]
+__all__ = ["FORMAT", "FrequencyResponse", "FrequencyResponseError", "load_frequency_responses", "save_csv", "save_h5",
+           "save_mat", "save_npz"]

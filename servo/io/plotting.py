@@ -5,17 +5,30 @@ Every plot function of the package builds a :class:`matplotlib.figure.Figure` di
 the package or calling a plot function never selects a backend, never registers a figure
 with ``pyplot`` (no figure piles up in a long session, none is shown twice in a
 notebook) and works headless; a notebook displays the returned figure as the cell's
-value, ``fig.savefig(...)`` writes it anywhere.  Only the command line selects the Agg
+value (:class:`Figure` has ``_repr_png_``, so a fresh Jupyter kernel draws it too), ``fig.savefig(...)`` writes it anywhere.  Only the command line selects the Agg
 backend (:func:`servo.cli.main`).
 """
 from __future__ import annotations
 
 from pathlib import Path
 
+import io
+
 from matplotlib import colormaps
-from matplotlib.figure import Figure
+from matplotlib import figure as _mpl_figure
 
 from servo.io.atomic import atomic_write
+
+
+class Figure(_mpl_figure.Figure):
+    """A :class:`matplotlib.figure.Figure` that shows itself in a notebook: Jupyter
+    calls :meth:`_repr_png_` on the value of a cell, so the figure is drawn even in a
+    fresh kernel where ``pyplot`` (and with it the inline backend) was never imported."""
+
+    def _repr_png_(self) -> bytes:
+        buf = io.BytesIO()
+        self.savefig(buf, format="png", dpi=100, bbox_inches="tight")
+        return buf.getvalue()
 
 
 def subplots(nrows: int = 1, ncols: int = 1, *, figsize=None, **kw):
@@ -51,4 +64,4 @@ def finish(fig: Figure, path: str | Path | None = None, dpi: int = 110) -> Figur
     return fig
 
 
-__all__ = ["colors", "figure", "finish", "save_figure", "subplots"]
+__all__ = ["Figure", "colors", "figure", "finish", "save_figure", "subplots"]

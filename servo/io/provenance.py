@@ -1,31 +1,31 @@
 """Provenance: what a result was computed with, for the ``summary.json`` of every job.
 
-docs/run.md's "same on every rerun" holds for one config, one input, one set of
-library versions and one CPU (Numba compiles for the host); :func:`provenance` records
-exactly those, so a summary says what it can be compared with.
+docs/run.md's "same on every rerun" holds for one code, one config, one input,
+one set of library versions and one CPU (Numba compiles for the host);
+:func:`provenance` records exactly those, so a summary says what it can be compared
+with.  The code is pinned by its version, which comes from the VCS (setuptools-scm at
+install, ``git describe`` in a checkout that was not installed; ``FALLBACK_VERSION``
+with neither), and by the git commit (:func:`~servo._version.source_revision`: of the checkout the
+package runs from, or the one pip installed it from), with a flag for uncommitted
+changes.  A job run from Python records it as well as one run from the command line
+(:func:`or_default`); a table writes it in its schema (:func:`schema_metadata`).
 """
 from __future__ import annotations
 
 import hashlib
+import json
 import platform
 import sys
 import time
 from importlib import metadata
 from pathlib import Path
 
-#: distributions whose versions change numbers (or the files' format)
-LIBRARIES = ("numpy", "numba", "llvmlite", "scipy", "control", "matplotlib", "h5py")
+from servo._version import FALLBACK_VERSION, package_version, source_revision
 
-
-def package_version() -> str:
-    """The installed version of this package (``servo-vcm``), or ``servo.__version__``
-    when run from a source tree that was not installed."""
-    try:
-        return metadata.version("servo-vcm")
-    except metadata.PackageNotFoundError:
-        from servo._version import __version__
-
-        return __version__
+#: distributions whose versions change numbers or the files' format: every dependency
+#: (the fleet's Dask scheduling and Parquet tables, the serial link's framing included)
+LIBRARIES = ("numpy", "numba", "llvmlite", "scipy", "control", "matplotlib", "h5py", "dask", "distributed",
+             "pyarrow", "pyserial", "cobs", "threadpoolctl")
 
 
 def library_versions(names=LIBRARIES) -> dict[str, str | None]:
@@ -71,13 +71,14 @@ def config_hash(cfg) -> str:
 
 
 def provenance(config=None, inputs=(), argv: list[str] | None = None) -> dict:
-    """The provenance dict: package version, command line (``argv``, default
-    ``sys.argv``), config hash (when the job used a :class:`~servo.config.Config`),
-    SHA-256 of each input file, Python, the library versions, CPU model, OS, and the
-    UTC time it was made."""
+    """The provenance dict: package version and git commit (:func:`source_revision`),
+    command line (``argv``, default ``sys.argv``: the interpreter's, from Python), config
+    hash (when the job used a :class:`~servo.config.Config`), SHA-256 of each input file,
+    Python, the library versions, CPU model, OS, and the UTC time it was made."""
     argv = list(sys.argv if argv is None else argv)
     out = {
         "servo_version": package_version(),
+        "source": source_revision(),
         "command": argv,
         "config_sha256": None if config is None else config_hash(config),
         "inputs": {str(p): sha256_file(p) for p in inputs if p is not None and Path(p).is_file()},
@@ -90,4 +91,21 @@ def provenance(config=None, inputs=(), argv: list[str] | None = None) -> dict:
     return out
 
 
-__all__ = ["LIBRARIES", "config_hash", "cpu_model", "library_versions", "package_version", "provenance", "sha256_file"]
+def or_default(given: dict | None, config=None, inputs=()) -> dict:
+    """``given`` (what the command line made), else :func:`provenance` of a job started
+    from Python (its ``command`` is the interpreter's ``sys.argv``)."""
+    return given if given is not None else provenance(config, inputs)
+
+
+def schema_metadata(prov: dict, units: dict[str, str] | None = None) -> dict[bytes, bytes]:
+    """Key-value metadata for a table's schema (``pyarrow.schema(..., metadata=...)``,
+    Parquet keeps it): ``servo.provenance`` (JSON of ``prov``) and ``servo.units`` (JSON
+    ``{column: unit}``)."""
+    out = {b"servo.provenance": json.dumps(prov, sort_keys=True).encode()}
+    if units is not None:
+        out[b"servo.units"] = json.dumps(units, sort_keys=True).encode()
+    return out
+
+
+__all__ = ["FALLBACK_VERSION", "LIBRARIES", "config_hash", "cpu_model", "library_versions", "or_default",
+           "package_version", "provenance", "schema_metadata", "sha256_file", "source_revision"]

@@ -29,7 +29,7 @@ class RunFolder:
     the same bits); ``summary``: ``summary.json`` as a dict, None for an interrupted run.
     """
 
-    path: Path
+    path: Path | None
     logs: dict[str, dict[str, np.ndarray]]
     config: Config | None
     summary: dict | None
@@ -39,6 +39,29 @@ class RunFolder:
     @property
     def labels(self) -> list[str]:
         return list(self.logs)
+
+    def _figures(self) -> list[tuple[str, str]]:
+        """(label, one line of its figures) per run."""
+        out = []
+        for label, log in self.logs.items():
+            n = len(next(iter(log.values()))) if log else 0
+            runs = (self.summary or {}).get("runs") or {}
+            rms = runs.get(label, {}).get("error_rms_m")
+            out.append((label, f"{n} rows" + (f", tracking error RMS {rms * 1e9:.1f} nm" if rms is not None else "")))
+        return out
+
+    def __repr__(self) -> str:
+        where = "in memory" if self.path is None else str(self.path)
+        kind = self.config.controller.kind if self.config is not None else "?"
+        runs = "; ".join(f"{label}: {text}" for label, text in self._figures())
+        return f"<servo run ({where}), controller {kind}: {runs}>"
+
+    def _repr_html_(self) -> str:
+        from html import escape
+
+        rows = "".join(f"<tr><td>{escape(k)}</td><td>{escape(v)}</td></tr>" for k, v in self._figures())
+        head = escape(repr(self).split(":")[0].lstrip("<"))
+        return f"<b>{head}</b><table>{rows}</table>"
 
     def rows(self, label: str) -> np.ndarray:
         """The log of run ``label`` as one array (rows, len(LOG_COLUMNS)), in the column
@@ -60,8 +83,18 @@ def _read_log(npz: Path, csv: Path) -> tuple[dict[str, np.ndarray], dict]:
     return dict(table), meta if isinstance(meta, dict) else {}
 
 
-def load_run(path: str | Path) -> RunFolder:
-    """Load the ``servo run`` output folder ``path`` (see :class:`RunFolder`)."""
+def run_plugins(summary: dict | None) -> list[str]:
+    """The ``--plugin`` modules of the command that made a run (its provenance)."""
+    argv = ((summary or {}).get("provenance") or {}).get("command") or []
+    return [argv[i + 1] for i, a in enumerate(argv[:-1]) if a == "--plugin"] + [
+        a.split("=", 1)[1] for a in argv if a.startswith("--plugin=")]
+
+
+def load_run(path: str | Path, plugins: list[str] | None = None) -> RunFolder:
+    """Load the ``servo run`` output folder ``path`` (see :class:`RunFolder`).  A run of
+    a plug-in controller kind needs its module to read its config: ``plugins`` (module
+    names or ``.py`` paths, as ``--plugin`` takes them), by default the ones the run's
+    command line loaded (from the current folder, as it did)."""
     path = Path(path)
     if not path.is_dir():
         raise RecordingError(f"{path}: no such run folder")
@@ -77,13 +110,18 @@ def load_run(path: str | Path) -> RunFolder:
     missing = [c for log in logs.values() for c in LOG_COLUMNS if c not in log]
     if missing:
         raise RecordingError(f"{path}: a run log lacks the columns {sorted(set(missing))}")
-    config = load_config(path / "config.toml") if (path / "config.toml").exists() else None
     summary_path = path / "summary.json"
     try:
         summary = json.loads(summary_path.read_text()) if summary_path.exists() else None
     except ValueError as exc:
         raise RecordingError(f"{summary_path}: not JSON ({exc})") from None
+    config = None
+    if (path / "config.toml").exists():
+        from servo.controllers.plugins import load_plugins
+
+        load_plugins(run_plugins(summary) if plugins is None else plugins)
+        config = load_config(path / "config.toml")
     return RunFolder(path, logs, config, summary, metas)
 
 
-__all__ = ["RunFolder", "load_run"]
+__all__ = ["RunFolder", "load_run", "run_plugins"]

@@ -36,10 +36,11 @@ from servo.loop.design import (LoopDesign, compensator_response, controller_resp
                                loop_design, sampled_plant)
 from servo.design.margins import margins
 from servo.loop.measure import RESPONSES, LoopMeasurement, LoopSettings, measure
+from servo.io.provenance import or_default
 from servo.loop.plots import plot_loop, plot_sensitivity
 from servo.loop.quality import uncertainty, warnings_for
+from servo.runtime.controller import compensation_runs
 
-COMPENSATOR_CHOICES = {"on": (True,), "off": (False,), "both": (True, False)}
 #: points of a design written to the files and plotted
 FILE_POINTS = 400
 #: points of a design for its curves and the agreement (on the measured band)
@@ -194,13 +195,15 @@ def analyse(cfg: Config, s: LoopSettings, runs: list[LoopMeasurement], checked: 
     return file_designs, summary
 
 
-def run_loop(cfg: Config, out: Path, s: LoopSettings, compensator: str = "both", make_driver: Callable | None = None,
+def run_loop(cfg: Config, out: Path, s: LoopSettings, compensator: str | None = None, make_driver: Callable | None = None,
              where: str = "the simulated drive", provenance: dict | None = None, checked: dict | None = None) -> dict:  # fmt: skip
     """Every run, the analysis, then the files of the module docstring into ``out``;
-    returns the summary (``provenance`` recorded as given).  The designs are checked
+    returns the summary (``provenance`` recorded as given).  ``compensator``: ``on``,
+    ``off``, ``both``, or None: what ``[compensator] enabled`` says
+    (:func:`~servo.runtime.controller.compensation_runs`).  The designs are checked
     stable before anything runs (``checked``: the caller did, :func:`check_designs_stable`)."""
     s = s.check(cfg)
-    comps = COMPENSATOR_CHOICES[compensator]
+    comps = compensation_runs(cfg, compensator)
     checked = checked or check_designs_stable(cfg, comps)
     runs = measure_all(cfg, s, comps, make_driver)
     file_designs, summary = analyse(cfg, s, runs, checked)
@@ -222,12 +225,11 @@ def run_loop(cfg: Config, out: Path, s: LoopSettings, compensator: str = "both",
     plot_sensitivity(runs, list(file_designs.values()), out / "sensitivity.png")
     summary = {
         "where": where,
-        "settings": {**s.__dict__, "levels": list(s.levels), "compensator": compensator},
+        "settings": {**s.__dict__, "levels": list(s.levels), "compensator": {(True,): "on", (False,): "off"}.get(comps, "both")},
         "sign_conventions": {k: v[3] for k, v in RESPONSES.items()},
         **summary,
     }
-    if provenance is not None:
-        summary["provenance"] = provenance
+    summary["provenance"] = or_default(provenance, cfg)
     summary["files"] = sorted(["frd.npz", "loop.csv", "loop.png", "sensitivity.png", "summary.json"])
     write_json(out / "summary.json", summary)
     return summary
@@ -287,5 +289,5 @@ def format_summary(summary: dict, out: Path) -> str:
     return "\n".join(lines)
 
 
-__all__ = ["COMPENSATOR_CHOICES", "agreement", "analyse", "check_designs_stable", "design_margins", "designs",
-           "format_summary", "full_band", "measure_all", "run_loop"]
+__all__ = ["agreement", "analyse", "check_designs_stable", "design_margins", "designs", "format_summary", "full_band",
+           "measure_all", "run_loop"]

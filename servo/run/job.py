@@ -26,13 +26,14 @@ from servo.config import Config, to_toml
 from servo.controllers import get_kind
 from servo.io import progress
 from servo.io.atomic import atomic_write, write_json
+from servo.io.provenance import or_default
 from servo.io.resources import check_disk
 from servo.io.runlog import FORMATS, RunLog
 from servo.run.metrics import tick_timing
 from servo.run.reduce import PesReport, PlotRows, RunFigures
 from servo.run.realtime import REALTIME_LOG_BLOCK, RealtimeOptions, check_realtime, grant_line, lateness_line, make_pacer, plot_lateness, report
 from servo.run.startup import process_age_s
-from servo.runtime.controller import Controller
+from servo.runtime.controller import Controller, compensation_runs
 from servo.runtime.driver import Driver
 from servo.runtime.loop import LoopResult, log_rows, run_closed_loop
 from servo.runtime.pacing import realtime_section
@@ -42,7 +43,6 @@ from servo.runtime.simplant import build_plant
 
 #: Rows per journal block of a simulated run (~0.8 MB): each block is one write and one fsync.
 LOG_BLOCK = 8192
-LABELS = {"on": ("compensated",), "off": ("uncompensated",), "compare": ("compensated", "uncompensated")}
 
 
 def default_out_dir() -> Path:
@@ -55,6 +55,8 @@ def prepare(cfg: Config, simulated: bool = True) -> Inputs:
     be refused for when it runs (an excitation no signal meets, the HDD benchmark at a
     rate it does not divide, a holding current beyond the limit), raised before any
     file or folder is made."""
+    if cfg.scenario.kind == "hdd_benchmark":
+        PesReport(cfg)  # its settings checked before anything runs
     inputs = scenario_inputs(cfg)
     if simulated:
         build_plant(cfg.drive, cfg.dt)
@@ -119,7 +121,8 @@ def run_simulated(cfg: Config, out_dir: Path, compensated: bool, fast: bool,
 def summarise(cfg: Config, figures: dict, result: LoopResult) -> dict:
     """The summary of one run: its figures (:meth:`RunFigures.result`), compute time,
     and what the link and the pacer report."""
-    out = {**figures, "wall_s": result.wall_s, "per_sample_us": result.wall_s / result.n_ticks * 1e6}
+    out = {**figures, "wall_s": result.wall_s, "per_sample_us": result.wall_s / result.n_ticks * 1e6,
+           "estimator_error_rms_m": result.error_rms}  # the on-line estimate, every run.estimator_every ticks
     if result.timing is not None:
         out.update(tick_timing(result.timing, cfg.dt))
     if result.link is not None:
@@ -137,7 +140,7 @@ def output_bytes(cfg: Config, runs: int, log_formats: tuple[str, ...]) -> float:
     return float(runs * values * per_value)
 
 
-def run_job(cfg: Config, out_dir: Path, compensation: str = "compare", fast: bool | None = None,
+def run_job(cfg: Config, out_dir: Path, compensation: str | None = None, fast: bool | None = None,
             make_driver: Callable[[Config, Inputs], Driver] | None = None, where: str | None = None,
             realtime: RealtimeOptions | None = None, log_formats: tuple[str, ...] = FORMATS,
             provenance: dict | None = None, inputs: Inputs | None = None) -> dict:  # fmt: skip
@@ -146,6 +149,8 @@ def run_job(cfg: Config, out_dir: Path, compensation: str = "compare", fast: boo
     simulated drive (``where`` describes it, e.g. the serial URL).  ``realtime``: pace
     every tick of the simulated drive on the wall clock (implies the tick path; asking for
     the fast path as well, or pacing a board, which is its own clock, is an error).
+    ``compensation``: ``on``, ``off``, ``compare`` (both), or None: what ``[compensator]
+    enabled`` says (:func:`~servo.runtime.controller.compensation_runs`).
     ``log_formats``: ``npz`` and/or ``csv``; ``provenance``
     (:func:`servo.io.provenance.provenance`) is recorded in the summary; ``inputs``: the
     run's inputs as :func:`prepare` built them (built here when None).  Memory does
@@ -158,7 +163,7 @@ def run_job(cfg: Config, out_dir: Path, compensation: str = "compare", fast: boo
         fast = False
     fast = cfg.run.fast_path if fast is None else fast
     out_dir = Path(out_dir)
-    labels = LABELS[compensation]
+    labels = tuple("compensated" if on else "uncompensated" for on in compensation_runs(cfg, compensation))
     inputs = prepare(cfg, make_driver is None) if inputs is None else inputs  # before anything is written
     check_disk(out_dir, output_bytes(cfg, len(labels), log_formats), "the run logs",
                "shorten --duration, raise run.log_every, or write one format (--log-format npz)")  # fmt: skip
@@ -191,7 +196,7 @@ def run_job(cfg: Config, out_dir: Path, compensation: str = "compare", fast: boo
         "startup_s": startup,
         "kernels_compiled": _cache.compiled_here(),
         "runs": runs,
-        "provenance": provenance,
+        "provenance": or_default(provenance, cfg),
         "files": sorted({p.name for p in out_dir.iterdir() if not p.name.startswith(".")} | {"summary.json"}),
     }
     write_json(out_dir / "summary.json", summary)

@@ -40,6 +40,12 @@ class PesReport:
         fs_pes = cfg.run.sample_rate_hz / self.pes_every
         self.track = b.Tp
         self.acc = PesAccumulator(b.sectors, fs_pes, skip=int(round(0.01 * fs_pes)))
+        need = self.acc.skip + max(2 * self.acc.spr, self.acc.nperseg)  # two revolutions, one spectrum segment
+        have = cfg.n_ticks // self.pes_every
+        if have < need:
+            raise ConfigError(f"config: scenario.kind = hdd_benchmark needs run.duration_s >= "
+                              f"{need * self.pes_every / cfg.run.sample_rate_hz:.3g} s (10 ms settling, then two "
+                              f"revolutions and one spectrum segment of PES); it is {cfg.run.duration_s:g} s")  # fmt: skip
 
     def __call__(self, chunk: np.ndarray) -> None:
         tick, e = chunk[:, COL["tick"]], chunk[:, COL["e"]]

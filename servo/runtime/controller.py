@@ -17,6 +17,7 @@ from kernels.compose import LOG_COLUMNS, LOG_UNITS
 from kernels.stage import STAGE_PARAMS
 from servo.config import Config
 from servo.controllers import get_kind
+from servo.errors import ConfigError
 
 
 def stage_params(cfg: Config, compensation: bool | None = None) -> np.ndarray:
@@ -49,6 +50,26 @@ def stage_params(cfg: Config, compensation: bool | None = None) -> np.ndarray:
     return p
 
 
+#: What ``--compensation``/``--compensator`` may ask for: the compensator settings to run.
+COMPENSATION_CHOICES = {"on": (True,), "off": (False,), "compare": (True, False), "both": (True, False)}
+
+
+def compensation_runs(cfg: Config, requested: str | None = None) -> tuple[bool, ...]:
+    """The compensator settings a command runs (True: with the compensator), in order.
+
+    ``requested`` (``on``, ``off``, ``compare``/``both``) comes from the command line;
+    None follows ``[compensator] enabled``: with and without the compensator to compare
+    when it is enabled, without it when not.  Asking for the compensator that the
+    config turns off is a :class:`ConfigError` (one line), not a silent override."""
+    if requested is None:
+        return COMPENSATION_CHOICES["compare"] if cfg.compensator.enabled else (False,)
+    runs = COMPENSATION_CHOICES[requested]
+    if True in runs and not cfg.compensator.enabled:
+        raise ConfigError(f"the compensator is asked for ({requested}) but [compensator] enabled = false turns it off: "
+                          "set compensator.enabled = true, or ask for off")  # fmt: skip
+    return runs
+
+
 class Controller:
     """State and parameters of the configured controller on its stage; :meth:`start`,
     then :meth:`tick` once per sample.
@@ -70,6 +91,11 @@ class Controller:
         self.log_columns = LOG_COLUMNS + tuple(self.kind.log_columns)
         self._tick, self._log_row = self.kernels.servo_tick, self.kernels.log_row  # until warm_up
         self.log_units = {**LOG_UNITS, **self.kind.log_units}
+
+    def __repr__(self) -> str:
+        comp = "on" if self.stage_params["comp_on"][0] else "off"
+        dt = float(self.stage_params["dt"][0])
+        return f"<Controller {self.kind.name} at {1 / dt / 1e3:g} kHz, compensator {comp}, u_max {float(self.stage_params['u_max'][0]):g} A>"
 
     def records(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """``(stage_state, stage_params, state, params)``: views of the four records."""

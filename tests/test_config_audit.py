@@ -1,0 +1,197 @@
+"""No silently ignored settings: every config field, set to a value other than its
+default, changes what a run does or is refused with one line saying why; the few that act
+only on a board or on another path name the module that reads them.
+
+And ``[compensator] enabled = false`` acts on ``servo run`` and ``servo loop``: their
+default follows it, and asking for the compensator it turns off is one line."""
+from __future__ import annotations
+
+import dataclasses
+import importlib
+import inspect
+import json
+
+import numpy as np
+import pytest
+
+from servo.config import SECTIONS, Config, documented
+from servo.controllers import KINDS
+from servo.errors import ConfigError
+from servo.runtime.closedloop import MemoryLog
+from servo.runtime.controller import Controller, compensation_runs
+from servo.runtime.loop import log_rows, run_closed_loop
+from servo.runtime.simdriver import SimDriver
+from servo.scenarios import scenario_inputs
+from tests.helpers import run_doc_command
+
+#: The run every field is tried on: the default scenario (steps, then the disturbance).
+BASE = {"run": {"duration_s": 0.42}}
+
+#: Fields that do not act on a simulated run, and the module that reads them.
+ELSEWHERE = {
+    "link.batch": "hil.serialdriver",  # the serial link's frames
+    "link.timeout_s": "hil.serialdriver",
+    "link.watchdog_s": "hil.serialdriver",  # sent to the board in its config message
+    "link.late_limit_ticks": "hil.serialdriver",
+    "link.baudrate": "hil.serialdriver",
+    "run.fast_path": "servo.run.job",  # the same bits on either path, by design
+}
+
+#: Values for fields whose automatic choice would not exercise them.
+VALUE = {
+    "scenario.kind": "hdd_benchmark",
+    "scenario.excitation": "chirp",
+    "scenario.disturbance_start": 0.2,
+    "scenario.excitation_start": 0.1,
+    "drive.initial_position": 1e-3,
+    "drive.stroke": 0.5e-6,
+    "drive.current_limit": 2e-3,
+    "controller.current_limit": 2e-3,
+    "compensator.authority": 1e-4,
+    "compensator.periodic_amplitudes": [1e-4],
+    "compensator.periodic_phases": [0.5],
+    "compensator.fast_on_speed": 0.05,
+    "compensator.kf_authority": 0.05,
+    "controller.pi.holding_limit": 2e-3,
+}
+
+#: Fields that can only change together with another (lists of the same length).
+CHANGE = {"compensator.periodic_amplitudes": {"compensator": {"periodic_amplitudes": [1e-4], "periodic_phases": [0.0]}}}
+
+#: What a changed field needs beside it to act (its companion switched on).
+WITH = {
+    "scenario.hdd_version": {"scenario": {"kind": "hdd_benchmark"}},
+    "scenario.excitation_amplitude": {"scenario": {"excitation": "chirp"}},
+    "scenario.excitation_f_min": {"scenario": {"excitation": "chirp"}},
+    "scenario.excitation_f_max": {"scenario": {"excitation": "chirp"}},
+    "scenario.excitation_period": {"scenario": {"excitation": "multisine"}},
+    "scenario.excitation_start": {"scenario": {"excitation": "chirp"}},
+    "drive.cogging_period": {"drive": {"cogging": 1e-4}},
+    "drive.cogging_phase": {"drive": {"cogging": 1e-4}},
+    "drive.stribeck_velocity": {"drive": {"Fs": 2e-3}},
+    "compensator.stribeck_velocity": {"compensator": {"coulomb": 1e-3, "coulomb_static": 2e-3}},
+    "compensator.coulomb_asymmetry": {"compensator": {"coulomb": 1e-3}},
+    "compensator.periodic_phases": {"compensator": {"periodic_amplitudes": [1e-4], "periodic_phases": [0.0]}},
+    "compensator.periodic_period": {"compensator": {"periodic_amplitudes": [1e-4], "periodic_phases": [0.0]}},
+    "compensator.kf_stroke": {"compensator": {"kf_linear": 0.2}},
+    "compensator.kf_authority": {"compensator": {"kf_linear": 0.5}, "scenario": {"step_positions": [0.3e-6, 0.0, 5e-3, 0.0]}},
+    "run.excitation_every": {"scenario": {"excitation": "chirp"}},
+    "drive.fc_asymmetry": {"drive": {"Fc": 1e-3, "Fs": 1e-3}},
+    "controller.velocity_cutoff_hz": {"controller": {"velocity_source": "estimated"}},
+    "drive.velocity_noise": {"controller": {"velocity_source": "auto"}},
+}
+
+
+def other_value(f: dataclasses.Field, default):
+    """A valid value other than ``default`` for a :func:`~servo.config.P` field."""
+    m = f.metadata
+    if isinstance(default, bool):
+        return not default
+    if isinstance(default, str):
+        choices = m["choices"]() if callable(m["choices"]) else m["choices"]
+        return next(c for c in choices if c != default)
+    if isinstance(default, list):
+        return [v * 1.3 for v in default] if default else [1e-4]
+    lo, hi = m["lo"], m["hi"]
+    if isinstance(default, int):
+        v = default + 1
+    else:
+        v = default * 1.3 if default else (hi / 2 if hi is not None else 1e-3)
+    if hi is not None and v > hi:
+        v = default * 0.7 if isinstance(default, float) else default - 1
+    return v
+
+
+def fields_to_audit():
+    out = []
+    for name, cls in SECTIONS.items():
+        default = getattr(Config(), name)
+        for f in documented(cls):
+            out.append((f"{name}.{f.name}", f, getattr(default, f.name), None))
+    for kind, k in KINDS.items():
+        section = k.Section()
+        for f in documented(type(section)):
+            out.append((f"controller.{kind}.{f.name}", f, getattr(section, f.name), kind))
+    return out
+
+
+def _log(cfg: Config) -> np.ndarray:
+    """The run's log, then its on-line error estimate (``servo run``'s summary) as a row."""
+    inputs = scenario_inputs(cfg)
+    controller = Controller(cfg)
+    log = MemoryLog(log_rows(cfg), controller.log_columns)
+    with SimDriver(cfg, inputs) as driver:
+        result = run_closed_loop(cfg, driver, controller, inputs, log, fast=True, timing=False)
+    estimate = np.full((1, log.data.shape[1]), result.error_rms)
+    return np.vstack([log.data[: log.rows], estimate])
+
+
+def _merge(a: dict, b: dict) -> dict:
+    out = {k: dict(v) for k, v in a.items()}
+    for k, v in b.items():
+        out.setdefault(k, {}).update(v)
+    return out
+
+
+AUDIT = fields_to_audit()
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("key, f, default, kind", AUDIT, ids=[a[0] for a in AUDIT])
+def test_every_config_field_acts_or_is_refused_with_a_reason(key, f, default, kind):
+    if key in ELSEWHERE:
+        source = inspect.getsource(importlib.import_module(ELSEWHERE[key]))
+        assert f.name in source, f"{key}: {ELSEWHERE[key]} does not read it"
+        return
+    value = VALUE.get(key, other_value(f, default))
+    section, _, name = key.partition(".")
+    base = _merge(BASE, WITH.get(key, {}))
+    if kind is not None:
+        base = _merge(base, {"controller": {"kind": kind}})
+        change = {"controller": {kind: {f.name: value}}}
+    else:
+        change = CHANGE.get(key, {section: {name: value}})
+    if key == "scenario.kind":
+        base = _merge(base, {"run": {"duration_s": 0.1}})
+    if key == "scenario.hdd_version":
+        base = _merge(base, {"run": {"duration_s": 0.1}})
+    reference = Config().replace(**base)
+    try:
+        changed = Config().replace(**_merge(base, change))
+        a, b = _log(reference), _log(changed)
+    except ConfigError as exc:  # refused: the message names the field
+        assert name.split(".")[-1] in str(exc) or section in str(exc), str(exc)
+        return
+    assert a.shape != b.shape or not np.array_equal(a, b, equal_nan=True), f"{key} = {value!r} changed nothing"
+
+
+def test_compensator_disabled_is_what_servo_run_and_loop_run_by_default():
+    """``[compensator] enabled = false`` (examples/hdd-nss-v2.toml) once had no effect:
+    ``servo run`` compared a compensated run anyway."""
+    off = Config().replace(compensator={"enabled": False})
+    assert compensation_runs(off) == (False,)
+    assert compensation_runs(Config()) == (True, False)
+    assert compensation_runs(off, "off") == (False,)
+    for asked in ("on", "compare", "both"):
+        with pytest.raises(ConfigError, match="enabled = false"):
+            compensation_runs(off, asked)
+
+
+def test_the_hdd_example_runs_uncompensated_only(tmp_path, capsys):
+    code = run_doc_command(f"servo run --config examples/hdd-nss-v2.toml --duration 0.08 --log-format npz "
+                           f"--out {tmp_path / 'r'}")
+    assert code == 0
+    out = capsys.readouterr().out
+    assert "uncompensated" in out and " compensated" not in out.replace("uncompensated", "")
+    assert sorted(p.name for p in (tmp_path / "r").glob("log_*")) == ["log_uncompensated.npz"]
+    summary = json.loads((tmp_path / "r" / "summary.json").read_text())
+    assert list(summary["runs"]) == ["uncompensated"]
+    assert summary["runs"]["uncompensated"]["estimator_error_rms_m"] > 0  # run.estimator_every's task, reported
+
+
+def test_asking_for_the_disabled_compensator_is_one_line(tmp_path, capsys):
+    code = run_doc_command(f"servo run --config examples/hdd-nss-v2.toml --duration 0.08 --compensation on "
+                           f"--out {tmp_path / 'r'}")
+    err = capsys.readouterr().err
+    assert code == 2 and err.count("\n") == 1 and "servo: error:" in err and "enabled = false" in err
+    assert not (tmp_path / "r").exists()
