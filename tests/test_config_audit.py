@@ -92,7 +92,7 @@ def other_value(f: dataclasses.Field, default):
         return next(c for c in choices if c != default)
     if isinstance(default, list):
         return [v * 1.3 for v in default] if default else [1e-4]
-    lo, hi = m["lo"], m["hi"]
+    hi = m["hi"]
     if isinstance(default, int):
         v = default + 1
     else:

@@ -25,7 +25,7 @@ def simulate(cfg: Config | None = None, compensation: str | None = None, **secti
     from servo.scenarios import scenario_inputs
 
     cfg = (Config() if cfg is None else cfg).replace(**sections) if sections else (cfg or Config())
-    logs, metas, runs, units = {}, {}, {}, {}
+    logs, metas, runs = {}, {}, {}
     for on in compensation_runs(cfg, compensation):
         label = "compensated" if on else "uncompensated"
         log = run_in_memory(cfg, scenario_inputs(cfg), on)
