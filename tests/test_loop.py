@@ -19,7 +19,7 @@ from servo.config import Config, to_toml
 from servo.io.frequency_response import load_frequency_responses
 from servo.loop.design import (compensator_response, controller_response, current_loop_design, loop_design,
                                plant_response)  # fmt: skip
-from servo.loop.margins import margins
+from servo.design.margins import margins
 from servo.loop.measure import LoopSettings, measure
 
 CFG = Config()

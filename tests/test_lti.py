@@ -14,7 +14,7 @@ from servo import lti
 from servo.config import Config
 from servo.io.frequency_response import FrequencyResponse, load_frequency_responses, save_h5, save_mat, save_npz
 from servo.loop.design import controller_response, loop_design, plant_response
-from servo.loop.margins import margins
+from servo.design.margins import margins
 
 KINDS = {
     "pi": Config().replace(controller={"velocity_source": "estimated"}),  # the rate from the estimator: exact
@@ -67,11 +67,11 @@ def test_python_control_margins_are_servo_loops(name):
     gm, pm, _, w180, wc, _ = control.stability_margins(lti.loop(cfg), returnall=True, method="frd")
     fc, f180 = np.atleast_1d(wc) / (2 * np.pi), np.atleast_1d(w180) / (2 * np.pi)
     pm_tol = 0.5 if name == "pi measured velocity" else 0.01  # deg
-    assert ours["all_crossovers_hz"]
-    for f, p in zip(ours["all_crossovers_hz"], ours["all_phase_margins_deg"]):
+    assert ours["crossovers_hz"]
+    for f, p in zip(ours["crossovers_hz"], ours["phase_margins_deg"]):
         i = int(np.argmin(np.abs(fc - f)))
         assert abs(fc[i] - f) < 0.005 * f and abs(np.atleast_1d(pm)[i] - p) < pm_tol, (f, p, fc, pm)
-    for f, g in zip(ours["all_phase_crossovers_hz"], ours["all_gain_margins_db"]):
+    for f, g in ((m["hz"], m["db"]) for m in ours["gain_margins"]):
         i = int(np.argmin(np.abs(f180 - f)))
         assert abs(f180[i] - f) < 0.005 * f and abs(20 * np.log10(np.atleast_1d(gm)[i]) - g) < 0.1
 
