@@ -94,8 +94,8 @@ def _plausible(f, near_only=False):
                           st.one_of(st.integers(-2, 2), st.integers(-12, 12 if isinstance(d, float) else 6)),
                           st.sampled_from([1, 1, 1, -1]))]  # fmt: skip
     elif isinstance(d, str):
-        c = f.metadata["choices"]
-        near = [st.sampled_from(tuple(c() if callable(c) else c))]
+        c = f.metadata["choices"]  # a free text (a path) has none: its default, nothing, a path not there
+        near = [st.sampled_from(tuple(c() if callable(c) else c) if c is not None else (d, "", "/no/such/dir"))]
     elif isinstance(d, list):
         near = [st.lists(st.floats(-1e5, 1e5), max_size=8), st.lists(st.floats(0.1, 1e5), min_size=len(d), max_size=len(d))]
     if near_only and near:

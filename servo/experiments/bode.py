@@ -27,7 +27,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from servo.config import Config
-from servo.errors import ConfigError
+from servo.errors import ConfigError, UnstableLoop
 from servo.runtime.closedloop import simulate
 from servo.io.frequency_response import FrequencyResponse
 
@@ -90,10 +90,17 @@ def check_holding_loop(cfg: Config, seconds: float = 2.0, name: str = "the drive
     gain): run ``seconds`` unexcited, with and without compensation, and raise a one-line
     :class:`~servo.errors.ConfigError` if the position's RMS in the last tenth exceeds 10x
     that of the first tenth and 10 nm.  A sweep on such a drive would measure the
-    oscillation, not the plant."""
+    oscillation, not the plant.  The run's watchdog is told to let a command sit at its
+    limit (``run.fault_limit_share = 1``), so that the check sees the oscillation and
+    names its frequency; a position that leaves the stroke is still refused."""
     n = int(round(seconds / cfg.dt))
+    watched = cfg.replace(run={"fault_limit_share": 1.0})
     for comp in (False, True):
-        x = simulate(cfg, np.zeros(n), compensation=comp)["x"]
+        try:
+            x = simulate(watched, np.zeros(n), compensation=comp)["x"]
+        except UnstableLoop as exc:
+            raise ConfigError(f"the PI holding loop is unstable on {name} (compensation {'on' if comp else 'off'}): "
+                              f"{exc}") from None  # fmt: skip
         k = n // 10
         first, last = np.std(x[:k]), np.std(x[-k:])
         if last > 10 * first and last > 1e-8:
