@@ -98,6 +98,7 @@ def test_every_long_command_takes_quiet(command):
     assert "--quiet" in sub.format_help()
 
 
+@pytest.mark.slow
 def test_printed_units_follow_the_recording(tmp_path):
     """A recording whose header says u [N] printed its estimates in A (J in A*s^2/m)."""
     import numpy as np

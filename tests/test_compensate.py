@@ -190,6 +190,7 @@ def test_a_model_in_newton_is_written_in_newton_or_converted(tmp_path, asym_repo
     assert "of the designed loop" in format_summary(a) and "head" not in format_summary(b)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("text,needle", [
     ("not json", "cannot read as JSON"),
     ("[1, 2]", "not a report.json"),
@@ -208,6 +209,7 @@ def test_bad_sources_are_one_line(tmp_path, text, needle):
     assert not (tmp_path / "c").exists()
 
 
+@pytest.mark.slow
 def test_the_command_writes_the_section_and_says_what_it_cannot_cancel(tmp_path):
     cfg = Config().replace(drive={"input_delay_s": 2e-5, "b_asymmetry": 0.2})
     src = _config_file(tmp_path, cfg)
@@ -222,6 +224,7 @@ def test_the_command_writes_the_section_and_says_what_it_cannot_cancel(tmp_path)
     assert r.returncode == 2 and "--authority" in r.stderr
 
 
+@pytest.mark.slow
 def test_on_emps_the_asymmetric_term_removes_what_the_diagnosis_found(tmp_path):
     """The real recording (issue 14 item 4): the compensator that ``servo compensate``
     writes from the diagnosis of EMPS, run causally over the recorded positions (the

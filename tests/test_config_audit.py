@@ -177,6 +177,7 @@ def test_compensator_disabled_is_what_servo_run_and_loop_run_by_default():
             compensation_runs(off, asked)
 
 
+@pytest.mark.slow
 def test_the_hdd_example_runs_uncompensated_only(tmp_path, capsys):
     code = run_doc_command(f"servo run --config examples/hdd-nss-v2.toml --duration 0.08 --log-format npz "
                            f"--out {tmp_path / 'r'}")

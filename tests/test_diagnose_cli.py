@@ -49,6 +49,7 @@ def test_diagnose_writes_the_report_the_model_and_the_plots(tmp_path, capsys, hy
     assert json.loads((again / "report.json").read_text())["findings"] == []
 
 
+@pytest.mark.slow
 def test_emps_reduced_baseline_finds_coulomb_friction_and_offset():
     """EMPS with only inertia and viscous friction: the missing Coulomb friction and offset
     are found, near the published values (Fc 20.39 N, offset -3.16 N), and the held-out
@@ -63,6 +64,7 @@ def test_emps_reduced_baseline_finds_coulomb_friction_and_offset():
     assert D.errors["test_force_rel_pct"]["after"] < 0.2 * D.errors["test_force_rel_pct"]["before"]
 
 
+@pytest.mark.slow
 def test_emps_paper_baseline_from_the_command_line(tmp_path, capsys):
     out = tmp_path / "emps"
     assert main(["diagnose", str(EMPS_MAT), *EMPS, "--no-plots", "--out", str(out)]) == 0
@@ -144,6 +146,7 @@ def test_bad_input_is_one_line_and_writes_nothing(tmp_path, capsys, case, extra,
     assert not out.exists()
 
 
+@pytest.mark.slow
 def test_the_summary_opens_with_the_verdict_and_prints_the_final_model_as_written(tmp_path, capsys):
     """EMPS with J,B: the offset found second (-3.16 N) moves in the final refit; the
     summary's final model holds the values of final_model.toml, and the verdict leads."""

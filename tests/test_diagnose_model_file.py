@@ -16,6 +16,7 @@ from servo.diagnose.report import drive_section, fit_terms
 CASES = [("hysteresis", 1e-4), ("stribeck_friction", 2e-4), ("time_delay", 5e-6)]
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("effect,size", CASES)
 def test_a_file_holding_the_fitted_baseline_names_the_same_terms(tmp_path, effect, size):
     rec, _ = concealed_recording(effect, size, seed=7)

@@ -142,6 +142,7 @@ def test_a_gated_terms_full_rate_columns_are_zero_before_its_onset():
     assert np.all(F1[before] == 0.0) and np.array_equal(F1[~before], F0[~before]) and np.any(F0[before] != 0.0)
 
 
+@pytest.mark.slow
 def test_of_two_gated_terms_that_pay_the_one_whose_refined_fit_predicts_better_is_added():
     """A LuGre element from half-way (lead-lag loop, pulses, 500 Hz): gated, both a
     Stribeck bump and a Dahl hysteresis pass the test, and with their onsets on gain

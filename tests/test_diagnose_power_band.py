@@ -128,6 +128,7 @@ def test_the_reversals_bound_the_power_rule_never_the_other_way():
         choose(slow, Options(band="spectrum"), prep(1e-5))
 
 
+@pytest.mark.slow
 def test_where_the_band_of_10_covers_the_power_the_findings_are_the_old_ones():
     """A concealed Coulomb friction recording (the project's drive) whose motion stands
     over its noise inside the band of 10: the power rule keeps 10, and the diagnosis is

@@ -32,6 +32,7 @@ def test_the_proving_ground_shares_no_code_with_the_drive():
                 assert not n.startswith(banned), f"{py.name} imports {n}"
 
 
+@pytest.mark.slow
 def test_the_command_does_not_load_the_proving_ground():
     code = ("import sys, servo.diagnose.job, servo.diagnose.report, servo.cli.diagnose; "
             "print(any(m.startswith('studies.proving') for m in sys.modules))")  # fmt: skip
@@ -136,6 +137,7 @@ def test_an_unrelated_position_is_out_of_scope():
     assert D.findings == []  # nothing is named on a recording the force balance does not describe
 
 
+@pytest.mark.slow
 def test_the_study_command_scores_what_it_ran(tmp_path):
     """``python -m studies.proving.study`` in this process: the runs in the jobs'
     order, the seeds offset as asked, the tables written; an unknown family is refused."""

@@ -229,6 +229,7 @@ def test_flag_accounts_for_the_verdict_as_well_as_the_findings():
     assert flag([], {"verdict": "unexplained"}) == (False, None)  # a table is not one of the verdicts
 
 
+@pytest.mark.slow
 def test_drives_the_model_does_not_describe_are_flagged_with_the_reason_though_nothing_is_found(tmp_path):
     """The position of an unrelated run (out of scope), whatever it finds, and a clipping the
     training part never sees stays unexplained whatever is found; the fleet flags both and

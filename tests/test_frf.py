@@ -140,6 +140,7 @@ def test_closed_loop_instrument_is_unbiased_where_h1_is_not():
     assert 0.45 < np.mean(z_biased[m] > 1) < 0.75 and np.mean(z_biased[m] > 3) < 0.05  # within them around the bias
 
 
+@pytest.mark.slow
 def test_frf_command_writes_loadable_files_and_converts_to_python_control(tmp_path, capsys):
     import control
 

@@ -168,6 +168,7 @@ def test_reference_design_is_stable_on_every_perturbed_plant(v2_evaluations):
     assert s["gain_margin_db_min"] > 1.0
 
 
+@pytest.mark.slow
 def test_reference_design_is_stable_on_every_version1_plant():
     d = designs.reference(1)
     b = benchmark(1)

@@ -367,6 +367,7 @@ def _wait_session_line(proc, needle: str, timeout: float = 10.0) -> str:
     raise AssertionError(f"no emulator line with {needle!r}; saw {seen}")
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("case", ["out_under_a_file", "ready_arrives_corrupt"])
 def test_a_host_that_quits_between_config_and_start_leaves_the_board_at_zero_current(case, tmp_path):
     """The red-team reproductions: ``servo run --port`` exits after the handshake (an output
@@ -444,6 +445,7 @@ def test_an_emulator_interrupted_mid_session_says_which_session(lockstep_emulato
     assert "stopped after 1 session(s), session 1 interrupted in state active; drive at zero current" in line
 
 
+@pytest.mark.slow
 def test_a_slow_first_kernel_compile_happens_before_the_board_is_put_in_ready(tmp_path, monkeypatch, cli):
     """Issue 28: ``servo run --port`` put the board in READY, then compiled the controller
     kernels; a first compile after an install outlasted the board's ready timeout (exit

@@ -10,6 +10,7 @@ from tests.helpers import EMPS_MAT
 from tests.test_cli import servo
 
 
+@pytest.mark.slow
 def test_identify_emps_from_the_command_line(tmp_path):
     out = tmp_path / "emps"
     r = servo("identify", str(EMPS_MAT), "--columns", "u=vir,x=qm", "--scale", "u=gtau", "--off", "K",
@@ -25,6 +26,7 @@ def test_identify_emps_from_the_command_line(tmp_path):
     }
 
 
+@pytest.mark.slow
 def test_identify_simulated_square_wave(tmp_path):
     """The square-wave experiment on the default drive (robust path, force aligned with
     the drive's known delay): J, B, Fc, h0 within 3 % of what model (3) can represent of
@@ -71,6 +73,7 @@ def test_identify_bad_input(tmp_path, capsys, args, needle):
     assert not out.exists()
 
 
+@pytest.mark.slow
 def test_hysteresis_command_on_its_own_recording(tmp_path, capsys):
     """servo hysteresis --simulate writes the recording; the same command fits it back."""
     out = tmp_path / "sim"
@@ -100,6 +103,7 @@ def square_wave_csv(tmp_path_factory):
     return out / "recording.csv"
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize(
     "args,needle",
     [

@@ -45,6 +45,7 @@ def test_an_interrupted_folder_loads_without_a_summary_and_bad_folders_are_one_l
         servo.load_run(tmp_path / "r")
 
 
+@pytest.mark.slow
 def test_a_run_of_a_plug_in_controller_loads(tmp_path, monkeypatch):
     """load_run once failed with "controller.kind must be one of pi, track, nss"."""
     import re

@@ -219,6 +219,7 @@ def test_bad_input_is_one_line_and_writes_nothing(args, message, tmp_path, capsy
 # ------------------------------------------------------------------------ through the link
 
 
+@pytest.mark.slow
 def test_through_the_emulator_the_measurement_is_the_simulated_drives(tmp_path, capsys):
     """``servo loop --port`` against the device emulator (lockstep, over a pty; in a
     thread here, tests/test_hil.py runs ``servo emulate`` as its own process) measures

@@ -21,6 +21,7 @@ def run_cells(cells: list[str], timeout: int = 600):
     return nb.cells[1:]
 
 
+@pytest.mark.slow
 def test_a_fresh_kernel_draws_a_figure_and_shows_short_summaries():
     """Once only ``<Figure size 1000x700 with 2 Axes>``, a 300 kB repr of a diagnosis and
     86 kB of a frequency response."""

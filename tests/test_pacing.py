@@ -144,6 +144,7 @@ def test_servo_run_realtime_reports_lateness_and_matches_the_unpaced_run(tmp_pat
         assert np.array_equal(la[col], lb[col]), col
 
 
+@pytest.mark.slow
 def test_realtime_runs_the_tick_path_even_when_the_config_asks_for_the_fast_path(tmp_path):
     r = servo("run", "--realtime", "--set", "run.fast_path=true", "--duration", "0.01", "--compensation", "off",
               "--out", str(tmp_path / "o"))  # fmt: skip

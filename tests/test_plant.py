@@ -63,6 +63,7 @@ def test_plant_matches_solve_ivp_on_a_smooth_case():
     assert np.abs(sim[2] - ref[:, 2]).max() < 1e-10 * cfg.drive.Ha
 
 
+@pytest.mark.slow
 def test_plant_matches_solve_ivp_across_velocity_reversals():
     """A 500 Hz sine that reverses the motion every millisecond: the Dahl state across
     reversals agrees to ~1e-5 (a reversal inside a sub-step is resolved to the sub-step)."""

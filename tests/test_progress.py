@@ -167,6 +167,7 @@ def _progress_lines(err: str, label: str) -> list[str]:
     return lines
 
 
+@pytest.mark.slow
 def test_servo_run_reports_ticks_per_run_on_stderr_only_and_quiet_silences_it(tmp_path, capsys, shown):
     argv = ["run", "--duration", "0.5", "--no-fast", "--log-format", "npz", "--set", "run.log_every=4"]
     assert main([*argv, "--out", str(tmp_path / "a")]) == 0

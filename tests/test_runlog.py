@@ -136,6 +136,7 @@ def test_a_ctrl_c_inside_a_block_hand_over_neither_loses_nor_doubles_a_block(tmp
     np.testing.assert_array_equal(got, [0, 1, 2, 3])
 
 
+@pytest.mark.slow
 def test_a_second_ctrl_c_during_finalisation_still_leaves_complete_files(tmp_path):
     proc, out = _start_run(tmp_path, "--fast", rows=300_000)
     proc.send_signal(signal.SIGINT)
