@@ -182,6 +182,9 @@ def test_frf_bad_input_is_one_line(tmp_path, capsys):
         (["frf", str(const)], "the input is constant"),
         (["frf", str(rec), "--nperseg", "5000"], "longer than the recording"),
         (["frf", str(rec), "--f-min", "50000"], "no frequency"),
+        (["frf", str(rec), "--f-min", "-1"], "need 0 <= --f-min < --f-max"),
+        (["frf", str(rec), "--f-min", "nan"], "need 0 <= --f-min < --f-max"),
+        (["frf", str(rec), "--f-min", "10", "--f-max", "5"], "need 0 <= --f-min < --f-max"),
         (["frf", str(rec), "--window", "nosuch"], "window"),
     ]
     for argv, msg in cases:

@@ -47,8 +47,8 @@ def _handle(args: argparse.Namespace) -> int:
 
     if args.nperseg is not None and args.nperseg < 8:
         raise ConfigError(f"--nperseg {args.nperseg}: at least 8 samples")
-    if not args.f_min < args.f_max:
-        raise ConfigError("need --f-min < --f-max")
+    if not 0.0 <= args.f_min < args.f_max:  # NaN fails too
+        raise ConfigError(f"--f-min {args.f_min:g} and --f-max {args.f_max:g}: need 0 <= --f-min < --f-max (Hz)")
     rec = recording_from_args(args)
     settings = WelchSettings(nperseg=args.nperseg, overlap=args.overlap, window=args.window, detrend=args.detrend)
     resp = estimate_frf(rec, args.closed_loop, settings, args.force_unit, args.f_min, args.f_max)
