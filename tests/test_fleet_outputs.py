@@ -419,3 +419,14 @@ def test_a_synthetic_fleet_on_a_full_disk_is_one_line_naming_the_folder_and_leav
     assert err.startswith(f"servo: error: {out}.incomplete") and err.count("\n") == 1, err
     assert "No space left on device" in err, err
     assert not list(tmp_path.iterdir())
+
+
+@pytest.mark.parametrize("duration", ["1e6", "-1", "nan"])
+def test_a_synthetic_recording_longer_than_a_recording_may_hold_is_one_line(tmp_path, capsys, duration):
+    """A length the readers would refuse (or none) is refused before anything is simulated:
+    1e6 s at 50 kHz asked for 5e10 samples."""
+    out = tmp_path / "syn"
+    assert main(["fleet", "synthetic", "--drives", "2", "--duration", duration, "--out", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("servo: error: --duration") and err.count("\n") == 1 and "per recording" in err, err
+    assert not list(tmp_path.iterdir())

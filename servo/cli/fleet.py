@@ -228,11 +228,10 @@ def simulate(args: argparse.Namespace) -> tuple[str, ServoError | None]:
 
 
 def synthetic(args: argparse.Namespace) -> tuple[str, ServoError | None]:
-    from servo.fleet.synthetic import synthetic_drives, write_fleet
+    from servo.fleet.synthetic import check_duration, synthetic_drives, write_fleet
     from servo.fleet.task import check_size
 
-    if not args.duration > 0:
-        raise ConfigError(f"--duration {args.duration!r}: expected a positive number of seconds")
+    check_duration(args.duration)
     check_size(args.drives)
     k = args.defects if args.defects is not None else max(1, round(0.05 * args.drives))
     drives = synthetic_drives(args.drives, k, args.seed)

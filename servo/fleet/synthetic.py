@@ -46,6 +46,17 @@ class SyntheticDrive:
     seed: int
 
 
+def check_duration(duration_s: float) -> None:
+    """Refuse (one :class:`~servo.errors.ConfigError` line) a recording length the
+    recording readers would refuse to read back (:data:`servo.io.tables.MAX_SAMPLES` at
+    :data:`RATE_HZ`), before anything is simulated or written."""
+    from servo.io.tables import MAX_SAMPLES
+
+    if not 0.0 < duration_s <= MAX_SAMPLES / RATE_HZ:
+        raise ConfigError(f"--duration {duration_s!r}: expected more than 0 and at most {MAX_SAMPLES / RATE_HZ:g} s "
+                          f"per recording ({MAX_SAMPLES} samples at {RATE_HZ:g} Hz, what a recording may hold)")  # fmt: skip
+
+
 def synthetic_drives(n: int, defects: int, seed: int = 0) -> list[SyntheticDrive]:
     """``n`` drives of which ``defects`` carry a defect (see module doc); reproducible
     from ``seed``."""
