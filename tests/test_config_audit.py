@@ -16,13 +16,13 @@ import pytest
 
 from servo.config import SECTIONS, Config, documented
 from servo.controllers import KINDS
-from servo.errors import ConfigError
+from servo.errors import ConfigError, UnstableLoop
 from servo.runtime.closedloop import MemoryLog
 from servo.runtime.controller import Controller, compensation_runs
 from servo.runtime.loop import log_rows, run_closed_loop
 from servo.runtime.simdriver import SimDriver
 from servo.scenarios import scenario_inputs
-from tests.helpers import run_doc_command
+from tests.helpers import SHARED, run_doc_command
 
 #: The run every field is tried on: the default scenario (steps, then the disturbance).
 BASE = {"run": {"duration_s": 0.42}}
@@ -35,6 +35,8 @@ ELSEWHERE = {
     "link.late_limit_ticks": "hil.serialdriver",
     "link.baudrate": "hil.serialdriver",
     "run.fast_path": "servo.run.job",  # the same bits on either path, by design
+    "link.ready_timeout_s": "hil.serialdriver",  # sent to the board in its config message
+    "run.fault_window_s": "servo.runtime.watchdog",  # acts only on a loop saturated for part of a window
 }
 
 #: Values for fields whose automatic choice would not exercise them.
@@ -53,6 +55,9 @@ VALUE = {
     "compensator.fast_on_speed": 0.05,
     "compensator.kf_authority": 0.05,
     "controller.pi.holding_limit": 2e-3,
+    "run.fault_position": 1e-5,  # inside the 20 um step: the run stops
+    "run.fault_limit_share": 0.65,
+    "scenario.hdd_package": str(SHARED / "data" / "nss-hdd-benchmark"),
 }
 
 #: Fields that can only change together with another (lists of the same length).
@@ -60,7 +65,7 @@ CHANGE = {"compensator.periodic_amplitudes": {"compensator": {"periodic_amplitud
 
 #: What a changed field needs beside it to act (its companion switched on).
 WITH = {
-    "scenario.hdd_version": {"scenario": {"kind": "hdd_benchmark"}},
+    "scenario.hdd_version": {"scenario": {"kind": "hdd_benchmark"}, "run": {"sample_rate_hz": 52800.0}},
     "scenario.excitation_amplitude": {"scenario": {"excitation": "chirp"}},
     "scenario.excitation_f_min": {"scenario": {"excitation": "chirp"}},
     "scenario.excitation_f_max": {"scenario": {"excitation": "chirp"}},
@@ -79,6 +84,8 @@ WITH = {
     "drive.fc_asymmetry": {"drive": {"Fc": 1e-3, "Fs": 1e-3}},
     "controller.velocity_cutoff_hz": {"controller": {"velocity_source": "estimated"}},
     "drive.velocity_noise": {"controller": {"velocity_source": "auto"}},
+    "run.fault_limit_share": {"controller": {"current_limit": 2e-3}, "run": {"fault_limit_share": 1.0}},
+    "scenario.hdd_package": {"scenario": {"kind": "hdd_benchmark"}, "run": {"sample_rate_hz": 52800.0}},
 }
 
 
@@ -134,16 +141,23 @@ def _merge(a: dict, b: dict) -> dict:
 
 
 AUDIT = fields_to_audit()
+#: Fields the audit finds acting on nothing, kept as known defects (strict: fixing one fails
+#: its xfail, so that the entry is removed).
+KNOWN = {"scenario.hdd_version": "version 1 and 2 give the same run at 52.8 kHz: the version changes no "
+                                 "disturbance the scenario draws (found by this audit; before, the run was "
+                                 "refused at 50 kHz and the check was empty)"}
+PARAMS = [pytest.param(*a, id=a[0], marks=pytest.mark.xfail(strict=True, reason=KNOWN[a[0]])) if a[0] in KNOWN
+          else pytest.param(*a, id=a[0]) for a in AUDIT]  # fmt: skip
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("key, f, default, kind", AUDIT, ids=[a[0] for a in AUDIT])
+@pytest.mark.parametrize("key, f, default, kind", PARAMS)
 def test_every_config_field_acts_or_is_refused_with_a_reason(key, f, default, kind):
     if key in ELSEWHERE:
         source = inspect.getsource(importlib.import_module(ELSEWHERE[key]))
         assert f.name in source, f"{key}: {ELSEWHERE[key]} does not read it"
         return
-    value = VALUE.get(key, other_value(f, default))
+    value = VALUE[key] if key in VALUE else other_value(f, default)
     section, _, name = key.partition(".")
     base = _merge(BASE, WITH.get(key, {}))
     if kind is not None:
@@ -153,14 +167,16 @@ def test_every_config_field_acts_or_is_refused_with_a_reason(key, f, default, ki
         change = CHANGE.get(key, {section: {name: value}})
     if key == "scenario.kind":
         base = _merge(base, {"run": {"duration_s": 0.1}})
-    if key == "scenario.hdd_version":
+    if key in ("scenario.hdd_version", "scenario.hdd_package"):
         base = _merge(base, {"run": {"duration_s": 0.1}})
-    reference = Config().replace(**base)
+    a = _log(Config().replace(**base))
     try:
         changed = Config().replace(**_merge(base, change))
-        a, b = _log(reference), _log(changed)
+        b = _log(changed)
     except ConfigError as exc:  # refused: the message names the field
         assert name.split(".")[-1] in str(exc) or section in str(exc), str(exc)
+        return
+    except UnstableLoop:  # the change made the run stop as unstable (servo.runtime.watchdog): it acts
         return
     assert a.shape != b.shape or not np.array_equal(a, b, equal_nan=True), f"{key} = {value!r} changed nothing"
 

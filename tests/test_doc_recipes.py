@@ -11,7 +11,7 @@ import pytest
 
 from servo.config import Config
 from servo.io.frequency_response import load_frequency_responses
-from tests.helpers import doc_commands, run_doc_command
+from tests.helpers import SHARED, doc_commands, run_doc_command
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -100,7 +100,7 @@ def test_hysteresis_simulate_reproduces_its_page(tmp_path, monkeypatch):
     assert _close(s["average_slope"]["params"]["K"], K) and _close(s["average_slope"]["params"]["Fc"] * 1e3, half)
 
 
-DESIGN_ROWS = {"design, `1/(J s^2)`": "nominal 1/(J s^2)",
+DESIGN_ROWS = {"design, `1/(J s^2)`": "nominal 1/(J s^2)", "design, drive model, compensated": "drive model, compensated",
                "design, pivot small-signal, no compensator": "drive model, pivot small-signal, no comp."}  # fmt: skip
 
 
@@ -131,9 +131,10 @@ def _check_loop_rows(summary: dict, rows: list[list[str]]) -> None:
         if len(cells) > 3:
             if cells[3] == "none in band":
                 assert m["gain_margin_db"] is None, label
-            else:
-                gm, f180 = re.match(r"([-0-9.]+) dB at ([0-9.]+) Hz", cells[3]).groups()
-                assert _close(m["gain_margin_db"], gm) and _close(m["phase_crossover_hz"], f180), (label, m)
+            else:  # the binding one: "+4.3 dB upper at 6915 Hz"
+                gm, side, f180 = re.match(r"([-+0-9.]+) dB (upper|lower) at ([0-9.]+) Hz", cells[3]).groups()
+                assert _close(m["gain_margin_db"], gm) and m["gain_margin_side"] == side, (label, m)
+                assert _close(m["gain_margin_hz"], f180), (label, m)
 
 
 @pytest.mark.slow
@@ -145,7 +146,7 @@ def test_loop_page_table_is_what_servo_loop_measures(tmp_path):
     assert run_doc_command(f"{command} --quiet --out {tmp_path / 'loop'}") == 0
     summary = json.loads((tmp_path / "loop" / "summary.json").read_text())
     rows = _loop_table(page, "## Measured (default drive")
-    assert len(rows) == 6
+    assert len(rows) == 7
     _check_loop_rows(summary, rows)
     # "without it the crossover moves by +28 % at 0.2 mA and +20 % at 4 mA"
     assert [round(100 * s["shift_rel"]) for s in summary["crossover_shift"]] == [28, 20]
@@ -205,6 +206,7 @@ def test_hdd_page_runs_give_its_pes_table(tmp_path):
     for i, command in enumerate(commands):
         kind = "nss" if "nss" in command else "track"
         out = tmp_path / f"r{i}"
+        command = command.replace("PATH/TO/NSS-HDD-Benchmark", str(SHARED / "data" / "nss-hdd-benchmark"))  # the user's copy
         assert run_doc_command(f"{command} --quiet --out {out}") == 0
         pes = json.loads((out / "summary.json").read_text())["runs"]["uncompensated"]["pes_tracks"]
         for key, text in zip(("sigma3", "rro_pp", "nrro_3sigma"), rows[kind]):

@@ -1,5 +1,6 @@
 """servo.load_run: a run folder back with named columns, units, config and summary."""
 import json
+import sys
 from pathlib import Path
 
 import numpy as np
@@ -56,6 +57,9 @@ def test_a_run_of_a_plug_in_controller_loads(tmp_path, monkeypatch):
     doc = (Path(__file__).resolve().parents[1] / "docs" / "controllers.md").read_text()
     (tmp_path / "my_pd.py").write_text(re.findall(r"^```python\n(.*?)^```", doc, flags=re.S | re.M)[0])
     monkeypatch.chdir(tmp_path)
+    # another test may have loaded its own my_pd in this process: this one loads afresh
+    monkeypatch.delitem(sys.modules, "my_pd", raising=False)
+    monkeypatch.setattr("servo.controllers.plugins._LOADED", set())
     before = dict(KINDS)
     try:
         assert main(["run", "--plugin", "my_pd", "--set", "controller.kind=pd", "--duration", "0.02", "--fast",
