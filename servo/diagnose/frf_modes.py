@@ -5,7 +5,8 @@ The force-balance rows are decimated (:mod:`servo.diagnose.band`): they cover ``
 full sample rate on the input-to-position frequency response instead:
 
 1. **Measured response.**  ``H1 = P_ux/P_uu`` over Welch segments (Hann, 50 % overlap)
-   with the coherence ``g2``, separately on the training part (the samples up to the
+   with the coherence ``g2``, by the project's one estimator (:mod:`servo.frf.estimate`,
+   the segments it averages chosen here), separately on the training part (the samples up to the
    last training row) and on the test part (the rest), from the force the model's
    linear part sees (:func:`linear_input`: the friction's force, which a loop feeds
    back into the input, taken off) to the measured position, over the segments in
@@ -14,9 +15,9 @@ full sample rate on the input-to-position frequency response instead:
    edge): a filter common to ``u`` and ``x`` cancels in the ratio, and it keeps the
    position's large low-frequency motion from leaking through the window's side lobes
    into the bins above the band, where the response is nanometres.  Each complex
-   component of ``H1`` has the standard deviation ``|H1|*sqrt((1 - g2)/(2*K_eq*g2))``
-   (Bendat & Piersol, *Random Data*, eq. 9.90; ``K_eq`` the equivalent independent
-   averages of overlapping segments).
+   component of ``H1`` has the estimator's standard deviation
+   ``|H1|*sqrt((1 - g2)/(2*K_eq*g2))`` (Bendat & Piersol, *Random Data*, eq. 9.90;
+   ``K_eq`` the equivalent independent averages of the overlapping segments used).
 2. **The model's response** over the same bins: the rigid body ``1/(J s^2 + B s + K)``
    plus every mode of the model (``x_meas = x + gain*q``, ``q'' + 2*zeta*w*q' + w^2*q =
    u/J``, the :mod:`~servo.diagnose.terms` ``resonance`` term), each part discretised
@@ -77,6 +78,7 @@ import numpy as np
 from scipy import optimize, signal, stats
 
 from servo.diagnose.band import band_hz
+from servo.frf.estimate import WelchSettings, estimate, frequencies, segment_starts, spectra, window_kernel
 from servo.diagnose.terms import VOCABULARY
 
 #: a bin is usable where the coherence is at least this (the variance formula is first
@@ -218,85 +220,49 @@ def choose_nperseg(moving_train: np.ndarray, moving_test: np.ndarray, shortest: 
 
 def measure(u: np.ndarray, x: np.ndarray, moving: np.ndarray, dt: float, nperseg: int, highpass_hz: float,
             z: np.ndarray | None = None) -> Response:
-    """The response from ``u`` to ``x`` ((n,) each) over the Welch segments of ``nperseg``
-    samples (Hann, 50 % overlap) in which the arm slides: at most :data:`STUCK_MAX` of
-    their samples outside ``moving`` (n,) bool; after a common zero-phase high-pass at
-    ``highpass_hz`` (module doc, step 1).  Spectra one-sided, per Hz.
+    """The response from ``u`` to ``x`` ((n,) each) by the project's one estimator
+    (:func:`servo.frf.estimate.spectra` and :func:`~servo.frf.estimate.estimate`) over
+    the Welch segments of ``nperseg`` samples (Hann, 50 % overlap, mean removed) in which
+    the arm slides: at most :data:`STUCK_MAX` of their samples outside ``moving`` (n,)
+    bool; after a common zero-phase high-pass at ``highpass_hz`` (module doc, step 1).
 
-    Without ``z``: ``H1 = P_ux/P_uu``, each complex component's std
-    ``|H1|*sqrt((1 - g2)/(2*K_eq*g2))`` (Bendat & Piersol eq. 9.90).
-
-    With an instrument ``z`` (n,) (the recording's ``r``: a reference or an excitation
-    injected in the loop, uncorrelated with the sensor's noise): ``H = P_zx/P_zu``,
-    which the noise a loop feeds back into ``u`` does not bias (module doc, step 6).
-    Its first-order error is ``avg(conj(Z)*V)/P_zu`` with ``V = X - H*U`` the part of
-    the position the response does not explain, so each complex component has the
-    variance ``P_vv/(2*K_eq*g2_zu*P_uu)``, ``P_vv = P_xx - 2*Re(conj(H)*P_ux) +
-    |H|^2*P_uu`` (for ``z = u`` this is eq. 9.90 again).  The first order holds where
-    the denominator ``P_zu`` is well estimated (the numerator's error enters linearly):
-    ``coh`` is the instrument's coherence with the input, ``g2_zu``; ``Puu`` the input's
-    power the instrument explains, ``g2_zu*P_uu`` (the position's share of the sensor
-    noise is then :func:`snr`'s rule, as for ``H1``)."""
+    Without ``z``: ``H1 = P_ux/P_uu``.  With an instrument ``z`` (n,) (the recording's
+    ``r``: a reference or an excitation injected in the loop, uncorrelated with the
+    sensor's noise): ``H = P_zx/P_zu``, which the noise a loop feeds back into ``u``
+    does not bias (module doc, step 6).  Both with the estimator's one random-error
+    formula, ``rel_std = sqrt(P_vv/(2*K_eq*g2_zu*P_uu*|H|^2))``, ``P_vv`` the spectrum of
+    the part of the position the response does not explain (Bendat & Piersol eq. 9.90
+    in open loop, ``g2_zu = 1``), ``K_eq`` counting only the pairs of segments used
+    that overlap.  ``coh``: the estimator's coherence (the input's share of the
+    position), with an instrument no more than the instrument's coherence with the
+    input (the first-order formula needs the denominator ``P_zu`` well estimated);
+    ``Puu`` the input's power the instrument explains, ``g2_zu*P_uu`` (``P_uu`` for
+    ``H1``)."""
     fs = 1.0 / dt
     sos = signal.butter(4, highpass_hz / (fs / 2), btype="high", output="sos")
-    uf = signal.sosfiltfilt(sos, u)
-    xf = signal.sosfiltfilt(sos, x)
-    zf = None if z is None else signal.sosfiltfilt(sos, z)
-    hop = nperseg // 2
-    starts = np.arange(0, u.size - nperseg + 1, hop)
+    sig = {"u": signal.sosfiltfilt(sos, u), "x": signal.sosfiltfilt(sos, x)}
+    pairs = [("u", "x")]
+    if z is not None:
+        sig["z"] = signal.sosfiltfilt(sos, z)
+        pairs += [("z", "u"), ("z", "x")]
+    settings = WelchSettings(nperseg=nperseg, overlap=0.5, window="hann", detrend="constant")
+    starts = segment_starts(u.size, nperseg, settings.noverlap)
     c = np.concatenate([[0], np.cumsum(~moving)])
     stuck = (c[starts + nperseg] - c[starts]) / nperseg
-    ok = stuck <= STUCK_MAX
-    sel = starts[ok]
-    w = signal.get_window("hann", nperseg)
-    scale = 2.0 / (fs * np.sum(w**2))
-    k = sel.size
-    nf = nperseg // 2 + 1
-    Puu, Pxx, Pux = np.zeros(nf), np.zeros(nf), np.zeros(nf, complex)
-    Pzz, Pzu, Pzx = np.zeros(nf), np.zeros(nf, complex), np.zeros(nf, complex)
-
-    def windowed_fft(sig, idx):
-        fr = sig[idx]
-        return np.fft.rfft((fr - fr.mean(axis=1, keepdims=True)) * w, axis=1)
-
-    for a in range(0, k, 64):  # chunks: a 1e6-sample recording's frames need not all be held at once
-        idx = sel[a : a + 64, None] + np.arange(nperseg)[None, :]
-        U, X = windowed_fft(uf, idx), windowed_fft(xf, idx)
-        Puu += np.sum(np.abs(U) ** 2, axis=0)
-        Pxx += np.sum(np.abs(X) ** 2, axis=0)
-        Pux += np.sum(np.conj(U) * X, axis=0)
-        if zf is not None:
-            Z = windowed_fft(zf, idx)
-            Pzz += np.sum(np.abs(Z) ** 2, axis=0)
-            Pzu += np.sum(np.conj(Z) * U, axis=0)
-            Pzx += np.sum(np.conj(Z) * X, axis=0)
-    f = np.fft.rfftfreq(nperseg, dt)
+    sel = starts[stuck <= STUCK_MAX]
     method = "H1" if z is None else "instrumental"
-    if k == 0:
+    f = frequencies(nperseg, dt)
+    if sel.size == 0:
+        nf = f.size
         nan = np.full(nf, np.nan)
         return Response(f, nan.astype(complex), np.zeros(nf), np.full(nf, np.inf), np.zeros(nf), 0, 0.0, u.size,
                         method=method)
-    Puu, Pxx, Pux = Puu * scale / k, Pxx * scale / k, Pux * scale / k
-    # overlapping neighbours are correlated (Welch 1967): rho = 0.028 for Hann at 50 %
-    rho = (np.sum(w[:hop] * w[hop:]) / np.sum(w**2)) ** 2
-    pairs = int(np.sum(np.diff(sel) == hop))
-    K_eq = k / (1.0 + 2.0 * rho * pairs / k)
-    with np.errstate(divide="ignore", invalid="ignore"):
-        if z is None:
-            H = Pux / Puu
-            coh = np.clip(np.abs(Pux) ** 2 / (Puu * Pxx), 0.0, 1.0)
-            rel = np.sqrt((1.0 - coh) / (2.0 * K_eq * coh))
-            Pin = Puu
-        else:
-            Pzz, Pzu, Pzx = Pzz * scale / k, Pzu * scale / k, Pzx * scale / k
-            H = Pzx / Pzu
-            g2_zu = np.clip(np.abs(Pzu) ** 2 / (Pzz * Puu), 0.0, 1.0)
-            coh = g2_zu
-            Pvv = np.maximum(Pxx - 2.0 * np.real(np.conj(H) * Pux) + np.abs(H) ** 2 * Puu, 0.0)
-            rel = np.sqrt(Pvv / (2.0 * K_eq * g2_zu * Puu)) / np.abs(H)
-            Pin = g2_zu * Puu
-    return Response(f, H, np.nan_to_num(coh), np.nan_to_num(rel, nan=np.inf), np.nan_to_num(Pin), k, float(K_eq),
-                    u.size, int(starts.size), method)
+    est = estimate(spectra(sig, dt, settings, pairs, sel), "u", "x", None if z is None else "z")
+    # usable where the input's share of the output is, and (instrument) where the
+    # instrument explains the input (the ratio's denominator): the smaller of the two
+    coh = np.minimum(est.coherence, est.g2_ru)
+    return Response(est.f, est.H, np.nan_to_num(coh), np.nan_to_num(est.rel_std, nan=np.inf),
+                    np.nan_to_num(est.g2_ru * est.Puu), est.K, float(est.K_eq), u.size, int(starts.size), method)
 
 
 #: the terms whose force the response's linear part holds (every other column term's
@@ -337,13 +303,8 @@ def _zoh(num, den, dt: float, f: np.ndarray) -> np.ndarray:
 
 
 def kernel(nperseg: int) -> tuple[np.ndarray, np.ndarray]:
-    """The Hann window's power kernel: offsets (bins) and weights summing to 1."""
-    w = signal.get_window("hann", nperseg)
-    m = nperseg * KERNEL_RES
-    W = np.abs(np.fft.fft(w, m)) ** 2
-    k = np.arange(-KERNEL_HALF * KERNEL_RES, KERNEL_HALF * KERNEL_RES + 1)
-    wt = W[k % m]
-    return k / KERNEL_RES, wt / wt.sum()
+    """The Hann window's power kernel (:func:`servo.frf.estimate.window_kernel`)."""
+    return window_kernel("hann", nperseg, KERNEL_RES, KERNEL_HALF)
 
 
 @dataclass
@@ -590,7 +551,7 @@ def run(design, fit, alpha: float, instrument: np.ndarray | None = None) -> Resu
     res.nperseg = nper
     hp = 0.5 * edge
     u = linear_input(design, fit)
-    f = np.fft.rfftfreq(nper, sig.dt)
+    f = frequencies(nper, sig.dt)
     df = float(f[1] - f[0])
     ker = kernel(nper)
     band = (f > edge) & (f <= top)

@@ -1,5 +1,9 @@
-"""Frequency-response estimates from sampled signals: H1 over Welch segments, open or
-closed loop (the reference as instrument), with coherence and random-error bounds.
+"""The project's one frequency-response estimator: H1 over Welch segments, open or
+closed loop (the reference as instrument), with one coherence and one random-error
+formula.  ``servo frf`` (:mod:`servo.frf.job`), ``servo diagnose``'s frequency path
+(:mod:`servo.diagnose.frf_modes`, which chooses the segments: those in which the arm
+slides) and the holding-loop check of ``servo bode`` read their spectra here; ``servo
+loop`` and ``servo bode`` measure with a stepped sine instead (:mod:`servo.frf.sine`).
 
 Open loop (the input ``u`` is not fed back from the output ``y``)::
 
@@ -10,8 +14,10 @@ that the output noise does not reach::
 
     H(f) = P_ry(f) / P_ru(f)
 
-Welch averages (``scipy.signal.welch``/``csd``, Hann windows, 50 % overlap by default)
-of ``K`` segments.  ``P_xy = E[conj(X) Y]`` (scipy's convention).  Why the instrument:
+Welch averages (Hann windows, 50 % overlap by default) of ``K`` segments, computed
+with scipy's own arithmetic (:func:`spectra`: ``scipy.signal.ShortTimeFFT``, so that on
+all the segments the result is ``scipy.signal.csd``/``welch``'s to the bit), or of the
+segments a caller chooses.  ``P_xy = E[conj(X) Y]`` (scipy's convention).  Why the instrument:
 in a loop, ``u`` carries the output noise fed back through the controller, so ``H1``
 is biased towards ``-1/C`` wherever that noise dominates; ``r`` is independent of the
 noise and the ratio of its cross-spectra is unbiased (Soderstrom & Stoica, *System
@@ -29,11 +35,13 @@ In open loop (``g2_ru = 1``, ``P_nn = (1 - g2) P_yy``) this is Bendat & Piersol'
 ``sqrt(1 - g2) / (|g| sqrt(2 K_eq))`` (*Random Data*, 4th ed., eq. 9.90): the standard
 deviation of ``|H|`` relative to ``|H|`` and of the phase in radians.  The reported
 ``coherence`` is the one that gives the same error in that formula, the input's
-share of the output: the ordinary coherence in open loop,
-``SNR/(1 + SNR)`` with ``SNR = g2_ru P_uu |H|^2 / P_nn`` in closed loop.
-``K_eq = K / (1 + 2 sum_j (1 - j/K) rho_j)`` with ``rho_j`` the squared correlation of
-the window with itself shifted by ``j`` hops (Welch 1967; 0.028 for Hann at 50 %), so
-overlapping segments are not counted as independent.  The formula is first order: it
+share of the output, ``E/(E + P_nn)`` with ``E = g2_ru P_uu |H|^2``: the ordinary
+coherence ``|P_uy|^2/(P_uu P_yy)`` in open loop, ``SNR/(1 + SNR)`` with ``SNR = E/P_nn``
+in closed loop (``g2_ru`` the instrument's ordinary coherence with the input).
+``K_eq = K / (1 + (2/K) sum_j N_j rho_j)`` with ``rho_j`` the squared correlation of
+the window with itself shifted by ``j`` hops (Welch 1967; 0.028 for Hann at 50 %) and
+``N_j`` the pairs of segments used that lie ``j`` hops apart (``K - j`` when every
+segment is used), so overlapping segments are not counted as independent.  The formula is first order: it
 holds where the coherence is at least ~0.5 (checked in ``tests/test_frf.py``: the
 error exceeds 1 and 3 standard deviations as often as a Rayleigh law says there, on
 known systems open and closed loop); below, the ratio of noisy spectra has heavier
@@ -45,6 +53,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 import numpy as np
+from scipy import fft as sp_fft
 from scipy import signal
 
 from servo.errors import RecordingError
@@ -103,8 +112,21 @@ def default_nperseg(n: int, min_averages: int = MIN_AVERAGES, overlap: float = 0
     return nper
 
 
-def equivalent_averages(window: np.ndarray, nperseg: int, noverlap: int, K: int) -> float:
-    """Independent averages equivalent to ``K`` overlapping windowed segments (Welch 1967)."""
+def segment_starts(n: int, nperseg: int, noverlap: int) -> np.ndarray:
+    """First samples of the Welch segments of ``nperseg`` samples with ``noverlap``
+    overlap in ``n`` samples (scipy's segments: from sample 0, every ``nperseg -
+    noverlap``), shape ``(n_segments(n, nperseg, noverlap),)``."""
+    return np.arange(n_segments(n, nperseg, noverlap), dtype=np.int64) * (nperseg - noverlap)
+
+
+def equivalent_averages(window: np.ndarray, nperseg: int, noverlap: int, K: int,
+                        starts: np.ndarray | None = None) -> float:  # fmt: skip
+    """Independent averages equivalent to ``K`` overlapping windowed segments (Welch 1967).
+
+    ``K_eq = K / (1 + (2/K) sum_j N_j rho_j)``: ``rho_j`` the squared correlation of the
+    window with itself shifted by ``j`` hops, ``N_j`` the pairs of segments ``j`` hops
+    apart.  ``starts`` (the segments used, when some were left out): ``N_j`` counted
+    among them; None: ``K`` consecutive segments, ``N_j = K - j``."""
     step = nperseg - noverlap
     w2 = np.sum(window**2)
     s = 0.0
@@ -113,13 +135,18 @@ def equivalent_averages(window: np.ndarray, nperseg: int, noverlap: int, K: int)
         if shift >= nperseg:
             break
         rho = (np.sum(window[: nperseg - shift] * window[shift:]) / w2) ** 2
-        s += (1 - j / K) * rho
+        if starts is None:
+            s += (1 - j / K) * rho
+        else:
+            s += int(np.count_nonzero(np.isin(starts + shift, starts))) / K * rho
     return K / (1 + 2 * s)
 
 
 @dataclass
 class Spectra:
-    """Auto and cross spectra over the Welch segments, shape ``(n_f,)``; ``f`` Hz."""
+    """Auto and cross spectra over the Welch segments, shape ``(n_f,)``, one-sided, per
+    Hz (``P[(a, b)] = E[conj(A) B]``); ``f`` Hz; ``K`` segments averaged, ``K_eq`` their
+    equivalent independent averages."""
 
     f: np.ndarray
     K: int
@@ -127,34 +154,136 @@ class Spectra:
     P: dict = field(default_factory=dict)
 
 
-def spectra(signals: dict[str, np.ndarray], dt: float, s: WelchSettings, pairs) -> Spectra:
+def frequencies(nperseg: int, dt: float) -> np.ndarray:
+    """The Welch grid of segments of ``nperseg`` samples, ``k/(nperseg*dt)`` Hz, DC
+    included, shape ``(nperseg//2 + 1,)``."""
+    return sp_fft.rfftfreq(nperseg, dt)
+
+
+#: segments transformed at once when only some are used (the spectra of a 1e6-sample
+#: recording's segments need not all be held)
+CHUNK = 64
+
+
+def spectra(signals: dict[str, np.ndarray], dt: float, s: WelchSettings, pairs,
+            starts: np.ndarray | None = None) -> Spectra:  # fmt: skip
     """Welch auto spectra of every signal and the cross spectra of ``pairs`` ``(a, b)``
-    (``P_ab = E[conj(A) B]``), one-sided, same segments for all."""
+    (``P_ab = E[conj(A) B]``), one-sided, per Hz, same segments for all: each segment
+    detrended (``s.detrend``), windowed, transformed once, the products averaged.  The
+    result is ``scipy.signal.csd``/``welch``'s (``scaling="density"``,
+    ``average="mean"``; ``tests/test_frf_estimator.py`` checks it).
+    ``starts`` (int array): the first sample of each segment to use (segments of
+    ``s.nperseg`` samples, multiples of the hop, e.g. only those in which the arm
+    slides); None: every segment, as scipy."""
+    x0 = next(iter(signals.values()))
+    n, nper, nov = x0.size, s.nperseg, s.noverlap
+    all_starts = segment_starts(n, nper, nov)
+    sel = all_starts if starts is None else np.asarray(starts, dtype=np.int64)
+    hop = nper - nov
+    if np.any(sel % hop) or np.any(sel < 0) or np.any(sel + nper > n):
+        raise ValueError("spectra: segment starts must be multiples of the hop inside the signal")
     fs = 1.0 / dt
-    kw = dict(fs=fs, window=s.window, nperseg=s.nperseg, noverlap=s.noverlap, detrend=s.detrend)
+    w = signal.get_window(s.window, nper)
+    f = frequencies(nper, dt)
+    # scipy.signal.csd's own arithmetic, operation for operation (ShortTimeFFT, the
+    # products per segment, the one-sided doubling, then numpy's mean over the
+    # segments), so that ``servo frf`` reads scipy's numbers to the bit; with
+    # ``starts``, the segments are transformed a chunk at a time and only those kept
+    sft = signal.ShortTimeFFT(w, hop, fs, fft_mode="onesided", mfft=nper, scale_to="psd", phase_shift=None)
+    names = list(signals)
+    keys = [(a, a) for a in names] + list(pairs)
+    parts: dict = {key: [] for key in keys}
+    cols = sel // hop
+    chunk = max(cols.size, 1) if starts is None else CHUNK  # every segment: at once, as scipy (numpy's
+    for c in range(0, cols.size, chunk):  # complex product rounds by position in the array)
+        cc = cols[c : c + chunk]
+        p0, p1 = int(cc[0]), int(cc[-1]) + 1
+        take = slice(None) if cc.size == p1 - p0 else cc - p0  # C-contiguous, as scipy's (numpy's loops differ)
+        S = {a: np.ascontiguousarray(sft.stft_detrend(np.asarray(signals[a], dtype=float), s.detrend, p0, p1,
+                                                      k_offset=nper // 2)[:, take]) for a in names}  # fmt: skip
+        for a, b in keys:
+            P = S[a].real ** 2 + S[a].imag ** 2 if a == b else S[b] * S[a].conj()  # E[conj(A) B]
+            P[1 : (-1 if nper % 2 == 0 else None)] *= 2  # one-sided; the Nyquist bin has no twin
+            parts[(a, b)].append(P)
+    K = int(sel.size)
     out: dict = {}
-    f = None
-    for name, x in signals.items():
-        f, out[(name, name)] = signal.welch(x, **kw)
-    for a, b in pairs:
-        _, out[(a, b)] = signal.csd(signals[a], signals[b], **kw)
-    n = next(iter(signals.values())).size
-    K = n_segments(n, s.nperseg, s.noverlap)
-    K_eq = equivalent_averages(signal.get_window(s.window, s.nperseg), s.nperseg, s.noverlap, K)
+    for (a, b), chunks in parts.items():
+        if not K:
+            out[(a, b)] = np.zeros(f.size, float if a == b else complex)
+            continue
+        P = np.ascontiguousarray(np.concatenate(chunks, axis=-1)).mean(axis=-1).astype(complex)  # scipy's layout
+        out[(a, b)] = P.real if a == b else P
+    K_eq = equivalent_averages(w, nper, nov, K, None if starts is None else sel) if K else 0.0
     return Spectra(f, K, K_eq, out)
 
 
-def _finish(sp: Spectra, H, g2_ru, Puu, Pyy, Puy, meta: dict, unit: str) -> FrequencyResponse:
+@dataclass
+class Estimate:
+    """The one frequency-response estimate (module doc), every bin of the Welch grid
+    (DC included), shape ``(n_f,)``: ``f`` Hz, ``H`` complex, ``coherence`` the input's
+    share of the output ``E/(E + P_nn)``, ``rel_std`` each complex component's standard
+    deviation relative to ``|H|``, ``g2_ru`` the instrument's ordinary coherence with
+    the input (1 in open loop), ``g2_ry`` its coherence with the output (the output's
+    own in open loop, ``|P_uy|^2/(P_uu P_yy)``), ``Puu`` the input's spectrum (per Hz),
+    ``K``/``K_eq`` segments and their equivalent independent averages, ``method``
+    ``"H1"`` or ``"instrumental"``."""
+
+    f: np.ndarray
+    H: np.ndarray
+    coherence: np.ndarray
+    rel_std: np.ndarray
+    g2_ru: np.ndarray
+    g2_ry: np.ndarray
+    Puu: np.ndarray
+    K: int
+    K_eq: float
+    method: str
+
+
+def estimate(sp: Spectra, u: str = "u", y: str = "y", r: str | None = None) -> Estimate:
+    """The response from ``u`` to ``y`` from the spectra ``sp`` (:func:`spectra`, with the
+    pairs ``(u, y)``, and ``(r, u)``, ``(r, y)`` for an instrument): ``H1 = P_uy/P_uu``
+    without ``r``, ``P_ry/P_ru`` with it; coherence and ``rel_std`` by the module doc's
+    one formula (Bendat & Piersol eq. 9.90 in open loop)."""
+    P = sp.P
+    Puu, Pyy, Puy = P[(u, u)], P[(y, y)], P[(u, y)]
     with np.errstate(divide="ignore", invalid="ignore"):
+        if r is None:
+            H = Puy / Puu
+            g2_ru = np.ones_like(Puu)
+            g2_ry = np.abs(Puy) ** 2 / (Puu * Pyy)
+        else:
+            Prr = P[(r, r)]
+            H = P[(r, y)] / P[(r, u)]
+            g2_ru = np.abs(P[(r, u)]) ** 2 / (Prr * Puu)
+            g2_ry = np.abs(P[(r, y)]) ** 2 / (Prr * Pyy)
         # residual n = y - H u: P_nn = P_yy - 2 Re(conj(H) P_uy) + |H|^2 P_uu
         Pnn = np.maximum(Pyy - 2 * np.real(np.conj(H) * Puy) + np.abs(H) ** 2 * Puu, 0.0)
         explained = g2_ru * Puu * np.abs(H) ** 2
         snr = explained / Pnn
         coherence = np.where(Pnn > 0, snr / (1 + snr), 1.0)
         rel_std = np.sqrt(Pnn / (2 * sp.K_eq * explained))
+    method = "H1" if r is None else "instrumental"
+    return Estimate(sp.f, H, coherence, rel_std, g2_ru, g2_ry, Puu, sp.K, sp.K_eq, method)
+
+
+def window_kernel(window: str, nperseg: int, res: int = 4, half: int = 3) -> tuple[np.ndarray, np.ndarray]:
+    """The power kernel of a Welch window of ``nperseg`` samples: what a Welch estimate
+    reads of a response that varies across a bin is its average over this kernel.
+    Offsets (bins, ``res`` per bin, ``-half .. half`` bins) and weights summing to 1,
+    shape ``(2*half*res + 1,)`` each."""
+    w = signal.get_window(window, nperseg)
+    m = nperseg * res
+    W = np.abs(np.fft.fft(w, m)) ** 2
+    k = np.arange(-half * res, half * res + 1)
+    wt = W[k % m]
+    return k / res, wt / wt.sum()
+
+
+def _finish(sp: Spectra, est: Estimate, meta: dict, unit: str) -> FrequencyResponse:
     keep = sp.f > 0  # DC: no response to speak of after detrending
     meta = {**meta, "segments": sp.K, "equivalent_averages": sp.K_eq, "resolution_hz": float(sp.f[1] - sp.f[0])}
-    return FrequencyResponse(sp.f[keep], H[keep], coherence[keep], rel_std[keep], unit, meta)
+    return FrequencyResponse(sp.f[keep], est.H[keep], est.coherence[keep], est.rel_std[keep], unit, meta)
 
 
 def _check_signal(name: str, x: np.ndarray, n: int) -> np.ndarray:
@@ -176,12 +305,9 @@ def h1(u: np.ndarray, y: np.ndarray, dt: float, settings: WelchSettings | None =
     y = _check_signal("the output", y, u.size)
     s = (settings or WelchSettings()).check(u.size)
     sp = spectra({"u": u, "y": y}, dt, s, [("u", "y")])
-    Puu, Pyy, Puy = sp.P[("u", "u")], sp.P[("y", "y")], sp.P[("u", "y")]
-    with np.errstate(divide="ignore", invalid="ignore"):
-        H = Puy / Puu
     meta = {"method": "H1 (open loop)", "nperseg": s.nperseg, "overlap": s.overlap, "window": s.window,
             "detrend": s.detrend}  # fmt: skip
-    return _finish(sp, H, np.ones_like(Puu), Puu, Pyy, Puy, meta, unit)
+    return _finish(sp, estimate(sp), meta, unit)
 
 
 def instrumental(r: np.ndarray, u: np.ndarray, y: np.ndarray, dt: float, settings: WelchSettings | None = None,
@@ -195,18 +321,13 @@ def instrumental(r: np.ndarray, u: np.ndarray, y: np.ndarray, dt: float, setting
     r = _check_signal("the instrument (reference)", r, u.size)
     s = (settings or WelchSettings()).check(u.size)
     sp = spectra({"r": r, "u": u, "y": y}, dt, s, [("r", "u"), ("r", "y"), ("u", "y")])
-    P = sp.P
-    Prr, Puu, Pyy = P[("r", "r")], P[("u", "u")], P[("y", "y")]
-    with np.errstate(divide="ignore", invalid="ignore"):
-        H = P[("r", "y")] / P[("r", "u")]
-        g2_ru = np.abs(P[("r", "u")]) ** 2 / (Prr * Puu)
-        g2_ry = np.abs(P[("r", "y")]) ** 2 / (Prr * Pyy)
+    est = estimate(sp, r="r")
     keep = sp.f > 0
     meta = {"method": "instrumental (closed loop, reference as instrument)", "nperseg": s.nperseg,
             "overlap": s.overlap, "window": s.window, "detrend": s.detrend,
-            "coherence_ru": g2_ru[keep].tolist(), "coherence_ry": g2_ry[keep].tolist()}  # fmt: skip
-    return _finish(sp, H, g2_ru, Puu, Pyy, P[("u", "y")], meta, unit)
+            "coherence_ru": est.g2_ru[keep].tolist(), "coherence_ry": est.g2_ry[keep].tolist()}  # fmt: skip
+    return _finish(sp, est, meta, unit)
 
 
-__all__ = ["MIN_AVERAGES", "WelchSettings", "default_nperseg", "equivalent_averages", "h1", "instrumental", "n_segments",
-           "spectra"]  # fmt: skip
+__all__ = ["MIN_AVERAGES", "Estimate", "Spectra", "WelchSettings", "default_nperseg", "equivalent_averages", "estimate",
+           "frequencies", "h1", "instrumental", "n_segments", "segment_starts", "spectra", "window_kernel"]  # fmt: skip
