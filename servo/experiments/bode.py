@@ -6,7 +6,9 @@ out) and then ``periods`` whole periods (the frequency is snapped so that the me
 window holds exactly that many periods in whole samples).  The input is the nominal
 input ``u_n`` (= the VCM current ``u`` without compensation; ``u - u_c`` with it, the
 input of the compensated plant of eq. 10), the output the measured position.  Both are
-correlated with ``exp(-j*w*t)`` over the window (a single-bin DFT, no leakage)::
+demodulated over the window by the project's one stepped-sine demodulator
+(:func:`servo.frf.sine.demodulate`: the least-squares fit of a sine with an offset and a
+linear drift, over whole periods the single-bin DFT plus a trend, no leakage)::
 
     H(jw) = X(w) / U(w)
 
@@ -14,10 +16,11 @@ This is the loop-independent plant estimate: the excitation enters outside the p
 the holding loop cancels out of the ratio.  Per point, besides ``H``:
 
 * ``std``: the standard deviation of ``H`` from the spread of the one-period estimates
-  (``std(H_i)/sqrt(n_periods)``), a noise/nonstationarity estimate;
-* ``coherence``: the fraction of the output's (detrended) variance at the excitation
-  frequency, ``|X|^2/2 / var(x)``; 1 for a linear noise-free plant, lower with noise or
-  harmonics (the pivot's nonlinearity).
+  (``std(H_i)/sqrt(n_periods)``, :meth:`servo.frf.sine.SineFit.ratio`), a
+  noise/nonstationarity estimate;
+* ``coherence``: the fraction of the output's variance about its offset and drift at
+  the excitation frequency, ``|X|^2/2 / var(x - c0 - c1*t)``; 1 for a linear noise-free
+  plant, lower with noise or harmonics (the pivot's nonlinearity).
 """
 from __future__ import annotations
 
@@ -28,6 +31,8 @@ import numpy as np
 
 from servo.config import Config
 from servo.errors import ConfigError, UnstableLoop
+from servo.frf.estimate import WelchSettings, spectra
+from servo.frf.sine import demodulate
 from servo.runtime.closedloop import simulate
 from servo.io.frequency_response import FrequencyResponse
 
@@ -104,8 +109,8 @@ def check_holding_loop(cfg: Config, seconds: float = 2.0, name: str = "the drive
         k = n // 10
         first, last = np.std(x[:k]), np.std(x[-k:])
         if last > 10 * first and last > 1e-8:
-            seg = x[-k:] - x[-k:].mean()
-            f = np.fft.rfftfreq(k, cfg.dt)[1:][np.argmax(np.abs(np.fft.rfft(seg))[1:])]
+            sp = spectra({"x": x[-k:]}, cfg.dt, WelchSettings(nperseg=k, overlap=0.0, window="boxcar").check(k), [])
+            f = sp.f[1:][np.argmax(sp.P[("x", "x")][1:])]  # the periodogram's peak
             raise ConfigError(
                 f"the PI holding loop is unstable on {name} (compensation {'on' if comp else 'off'}): the position RMS "
                 f"grows from {first * 1e9:.3g} nm to {last * 1e9:.3g} nm in {seconds:g} s, oscillating at {f:.0f} Hz; "
@@ -143,20 +148,10 @@ def sine_point(cfg: Config, f: float, level: float, s: SweepSettings, compensati
     n = settle + L
     t = np.arange(n) * cfg.dt
     log = simulate(cfg, level * np.sin(2 * np.pi * f_act * t), compensation=compensation)
-    x, u_n = log["x"][settle:], log["u_n"][settle:]
-    tw = t[settle:]
-    e = np.exp(-2j * np.pi * f_act * tw)
-    X = 2.0 / L * np.dot(x - x.mean(), e)
-    U = 2.0 / L * np.dot(u_n - u_n.mean(), e)
-    H = X / U
-    # one-period estimates: spread -> standard deviation of H
-    edges = np.round(np.arange(s.periods + 1) * L / s.periods).astype(int)
-    Hi = np.array([np.dot(x[a:b], e[a:b]) / np.dot(u_n[a:b], e[a:b]) for a, b in zip(edges[:-1], edges[1:])])
-    std = float(np.std(Hi, ddof=1) / np.sqrt(s.periods)) if s.periods > 1 else float("nan")
-    k = np.arange(L)
-    xd = x - np.polyval(np.polyfit(k, x, 1), k)  # drift is not the response
-    coh = float(min(1.0, (abs(X) ** 2 / 2) / max(np.var(xd), 1e-300)))
-    return f_act, H, std, coh, float(abs(X))
+    fit = demodulate(np.column_stack([log["x"][settle:], log["u_n"][settle:]]), f_act, t[settle:], s.periods)
+    H, std = fit.ratio(0, 1)
+    X = fit.amp[0]
+    return f_act, H, std, float(fit.fraction[0]), float(abs(X))
 
 
 def sweep(cfg: Config, level: float, s: SweepSettings, compensation: bool, progress=None) -> Sweep:

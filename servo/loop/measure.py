@@ -11,8 +11,9 @@ is correlated with the excitation's frequency (a single-bin DFT, no leakage)::
     S(f) = 2/n * sum_k s[k]*exp(-j*2*pi*f*(t_k - t_i))
 
 computed as the least-squares fit of a sine together with an offset and a linear drift
-(:func:`correlate`), the same number for a periodic signal and immune to a slow
-transient still decaying in the window.
+(:func:`correlate`, the project's one demodulator :mod:`servo.frf.sine`), the same
+number for a periodic signal and immune to a slow transient still decaying in the
+window.
 
 Signals (log columns): ``u`` the current command, ``u_n`` the controller's output with
 the excitation (``u_n = u_pi + u_exc``), ``u_c`` the compensator's current, ``u_exc``,
@@ -42,6 +43,7 @@ import numpy as np
 
 from servo.config import Config
 from servo.errors import ConfigError
+from servo.frf.sine import demodulate
 from servo.io.frequency_response import FrequencyResponse
 
 #: The highest frequency a stepped sine measures, as a share of the Nyquist frequency
@@ -171,44 +173,27 @@ def program(cfg: Config, s: LoopSettings, freqs=None) -> Program:
                    s.periods, cfg.dt)  # fmt: skip
 
 
-def _sine_fit(Y: np.ndarray, w: float, t: np.ndarray) -> np.ndarray:
-    """Complex amplitudes (one per column of ``Y``, (n, m)) of the least-squares fit
-    ``y = c0 + c1*t + a*cos(w*t) + b*sin(w*t)``: ``a - j*b``, the single-bin DFT's
-    ``2/n*sum(y*exp(-j*w*t))`` of a pure sine, with an offset and a drift fitted jointly."""
-    tc = t - t.mean()
-    A = np.column_stack([np.ones_like(t), tc, np.cos(w * t), np.sin(w * t)])
-    coef = np.linalg.lstsq(A, Y, rcond=None)[0]
-    return coef[2] - 1j * coef[3]
-
-
 def correlate(log: dict[str, np.ndarray], prog: Program) -> tuple[dict, dict, dict]:
     """The complex amplitude at the frequency of each of :data:`SIGNALS` over each
-    window: a least-squares fit of a sine, an offset and a linear drift (over whole
-    periods the sine's part equals the single-bin DFT; the drift term keeps a slow
-    transient left in the window from leaking into it).  Returns ``(whole, per_period,
-    fraction)``: ``{signal: (n_f,) complex}``, ``{signal: (n_f, periods) complex}`` (one
-    fit per period, for the spread) and ``{signal: (n_f,)}`` the fraction of the
-    signal's variance about the offset and drift that the sine holds."""
+    window, by the project's one stepped-sine demodulator
+    (:func:`servo.frf.sine.demodulate`: a least-squares fit of a sine, an offset and a
+    linear drift; over whole periods the sine's part equals the single-bin DFT, the
+    drift term keeps a slow transient left in the window from leaking into it).
+    Returns ``(whole, per_period, fraction)``: ``{signal: (n_f,) complex}``,
+    ``{signal: (n_f, periods) complex}`` (one fit per period, for the spread) and
+    ``{signal: (n_f,)}`` the fraction of the signal's variance about the offset and
+    drift that the sine holds."""
     nf, p = len(prog.f), prog.periods
     whole = {s: np.zeros(nf, complex) for s in SIGNALS}
     per = {s: np.zeros((nf, p), complex) for s in SIGNALS}
     frac = {s: np.zeros(nf) for s in SIGNALS}
     for i, (f, a, (w0, w1)) in enumerate(zip(prog.f, prog.start, prog.win)):
-        n = w1 - w0
         t = (np.arange(w0, w1) - a) * prog.dt
-        w = 2.0 * np.pi * f
-        Y = np.column_stack([log[s][w0:w1] for s in SIGNALS])
-        amp = _sine_fit(Y, w, t)
-        edges = np.round(np.arange(p + 1) * n / p).astype(int)
-        amp_i = np.array([_sine_fit(Y[c:b], w, t[c:b]) for c, b in zip(edges[:-1], edges[1:])])
-        tc = t - t.mean()
-        drift = np.column_stack([np.ones_like(t), tc])
-        resid = Y - drift @ np.linalg.lstsq(drift, Y, rcond=None)[0]
-        var = np.var(resid, axis=0)
+        fit = demodulate(np.column_stack([log[s][w0:w1] for s in SIGNALS]), f, t, p)
         for j, s in enumerate(SIGNALS):
-            whole[s][i] = amp[j]
-            per[s][i] = amp_i[:, j]
-            frac[s][i] = min(1.0, abs(amp[j]) ** 2 / 2.0 / var[j]) if var[j] > 0 else 1.0
+            whole[s][i] = fit.amp[j]
+            per[s][i] = fit.per_period[:, j]
+            frac[s][i] = fit.fraction[j]
     return whole, per, frac
 
 
