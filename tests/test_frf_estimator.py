@@ -5,13 +5,15 @@ system (scipy.signal.dlti).  ``servo diagnose``'s frequency path reads its respo
 through the same estimator (servo/diagnose/frf_modes.py ``measure``)."""
 from __future__ import annotations
 
+import warnings
+
 import numpy as np
 import pytest
 from scipy import signal
 
 from servo.diagnose import frf_modes as fm
-from servo.frf.estimate import (WelchSettings, equivalent_averages, estimate, h1, instrumental, segment_starts,
-                                spectra)  # fmt: skip
+from servo.frf.estimate import (WelchSettings, coherence, equivalent_averages, estimate, h1, instrumental, psd,
+                                segment_starts, spectra)  # fmt: skip
 
 FS = 10_000.0
 DT = 1 / FS
@@ -129,3 +131,23 @@ def test_diagnose_reads_its_response_through_the_same_estimator():
     sp = spectra({"u": uf, "x": yf}, DT, WelchSettings(nperseg=1024).check(u.size), [("u", "x")], kept)
     assert r2.K == kept.size == r.K - 2  # the two segments that hold samples 5000-5099
     assert np.allclose(r2.H[band], estimate(sp, "u", "x").H[band], rtol=1e-12, atol=0)
+
+
+@pytest.mark.parametrize("n,nper,detrend", [(5000, 256, "constant"), (4097, 333, "none"), (300, 512, "constant"),
+                                            (20_000, 16, "linear")])  # fmt: skip
+def test_psd_and_coherence_are_scipys_welch_and_coherence_to_the_bit(n, nper, detrend):
+    """The residual spectra of ``servo diagnose`` (locate, power band, plots) read the
+    same estimator: scipy's numbers exactly, so that moving them here changed no
+    diagnosis (a segment longer than the signal is shortened, as scipy does)."""
+    rng = np.random.default_rng(n)
+    a = np.cumsum(rng.standard_normal(n))
+    b = signal.lfilter([0.3], [1, -0.5], a) + rng.standard_normal(n)
+    fs = 1 / 2.1e-5  # 1/(1/fs) != fs: the sample rate is passed as the caller has it
+    det = False if detrend == "none" else detrend
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", UserWarning)  # scipy: nperseg longer than the signal
+        f0, P0 = signal.welch(a, fs, nperseg=nper, detrend=det)
+        _, C0 = signal.coherence(a, b, fs, nperseg=nper, detrend=det)
+    f, P = psd(a, fs, nper, detrend=detrend)
+    _, C = coherence(a, b, fs, nper, detrend=detrend)
+    assert np.array_equal(f, f0) and np.array_equal(P, P0) and np.array_equal(C, C0)

@@ -44,6 +44,7 @@ import numpy as np
 from scipy import signal, stats
 
 from servo.diagnose.select import fft_len
+from servo.frf.estimate import coherence, psd
 
 N_WINDOWS = 20
 N_BINS = 10
@@ -147,7 +148,7 @@ def spectrum_test(r0: np.ndarray, fs: float, alpha: float) -> dict:
     """Welch spectrum of the residual rows (unusable rows zeroed) and its peaks over a
     running-median floor (see module doc)."""
     nper = _welch_len(r0.size)
-    f, P = signal.welch(r0, fs, nperseg=nper)
+    f, P = psd(r0, fs, nper)
     L = max(r0.size // nper, 2)
     floor = signal.medfilt(P, 17) if P.size >= 17 else np.full_like(P, np.median(P))
     floor = np.maximum(floor, 1e-300)
@@ -163,7 +164,7 @@ def coherence_test(r0: np.ndarray, u: np.ndarray, fs: float, alpha: float) -> di
     """Welch coherence of the residual with the input, and the level a bin exceeds with
     probability ``alpha/N_f`` when they are independent."""
     nper = _welch_len(r0.size)
-    f, C = signal.coherence(r0, u, fs, nperseg=nper)
+    f, C = coherence(r0, u, fs, nper)
     L = max(r0.size // nper, 2)
     thr = float(1 - (alpha / f.size) ** (1 / (L - 1)))
     return {"false_alarm": alpha, "f_hz": f, "coherence": C, "threshold": thr,
@@ -230,7 +231,7 @@ def where(delta: np.ndarray, valid: np.ndarray, t: np.ndarray, variables: dict, 
     conc, name, unit, ranges, sh, frac = best
     out["state"] = {"variable": name, "unit": unit, "ranges": ranges, "share_of_effect": sh, "share_of_rows": frac}
     nper = _welch_len(delta.size)
-    f, P = signal.welch(np.where(valid, delta, 0.0), fs, nperseg=nper)
+    f, P = psd(np.where(valid, delta, 0.0), fs, nper)
     k = int(np.argmax(P))
     c = np.cumsum(np.sort(P)[::-1])
     keep = P >= np.sort(P)[::-1][np.searchsorted(c, 0.5 * c[-1])]

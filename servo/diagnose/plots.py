@@ -125,12 +125,12 @@ def plot_state(D: Diagnosis, path: Path | None = None) -> Figure:
 def plot_spectrum(D: Diagnosis, path: Path | None = None) -> Figure:
     """Residual spectra before/after with the peak threshold, and the coherence of the
     baseline residual with the input."""
-    from scipy import signal
+    from servo.frf.estimate import psd
 
     k, unit = _scale(D.opt.force_unit)
     sp, co = D.locate["spectrum"], D.locate["coherence"]
     fs = 1.0 / D.sig.row_dt
-    f, Pa = signal.welch(np.where(D.sig.valid, D.residual_after, 0.0) * k, fs, nperseg=2 * (sp["f_hz"].size - 1))
+    f, Pa = psd(np.where(D.sig.valid, D.residual_after, 0.0) * k, fs, 2 * (sp["f_hz"].size - 1))
     fig, ax = subplots(2, 1, figsize=(11, 7), sharex=True)
     ax[0].loglog(sp["f_hz"][1:], sp["psd"][1:] * k * k, color="tab:red", label="baseline residual")
     ax[0].loglog(f[1:], Pa[1:], color="k", label="final model residual")

@@ -6,7 +6,7 @@ frequency where the input moves the arm by less than the sensor's noise, the row
 acceleration is the noise's second difference and the balance there holds nothing but
 noise (in a closed loop the input may have much power there, the controller's answer
 to that noise).  So the band is read from the measured motion, as the rows read it: the
-Welch spectrum (:func:`scipy.signal.welch`, Hann segments of :func:`nperseg`, no
+Welch spectrum (:func:`servo.frf.estimate.psd`, scipy's numbers, Hann segments of :func:`nperseg`, no
 detrend: a line fitted to a segment leaks into its lowest bins) of the position's second
 difference, against what the position sensor's white noise of std ``sigma_x`` (the rows'
 estimate, ``noise_x`` of :class:`servo.diagnose.signals.Signals`) gives through it,
@@ -32,6 +32,8 @@ import math
 import numpy as np
 from scipy import signal
 
+from servo.frf.estimate import psd
+
 #: the position must stand this far over the sensor's white noise floor (dB of power)
 MARGIN_DB = 20.0
 #: Welch segment length bounds (samples): the longest power of two leaving 16 segments
@@ -55,7 +57,7 @@ def signal_to_noise(x: np.ndarray, fs: float, noise_x: float) -> tuple[np.ndarra
     where both vanish, is set to 0)."""
     d = np.diff(np.asarray(x, dtype=float), 2)
     m = min(nperseg(d.size), d.size)
-    f, P = signal.welch(d, fs, window="hann", nperseg=m, detrend=False)  # a fitted line leaks into the lowest bins
+    f, P = psd(d, fs, m, detrend="none")  # a fitted line leaks into the lowest bins
     # the noise's expected Welch estimate: its second difference's autocovariance
     # sigma^2*(6, -4, 1) at lags 0, 1, 2 seen through the window's (c_k = sum w_n w_n+k),
     # not (2 sin(w/2))^4 itself, which the window's leakage exceeds at low frequencies

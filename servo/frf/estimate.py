@@ -68,7 +68,8 @@ class WelchSettings:
     """Welch segments.  ``nperseg``: samples per segment (default: the largest power of
     two that leaves ``min_averages`` segments); ``overlap``: fraction in [0, 1);
     ``window``: a ``scipy.signal.get_window`` name; ``detrend``: ``constant`` (mean) or
-    ``linear`` per segment (for a drifting output)."""
+    ``linear`` per segment (for a drifting output), or ``none`` (:func:`psd` only; ``servo
+    frf`` refuses it)."""
 
     nperseg: int | None = None
     overlap: float = 0.5
@@ -165,8 +166,8 @@ def frequencies(nperseg: int, dt: float) -> np.ndarray:
 CHUNK = 64
 
 
-def spectra(signals: dict[str, np.ndarray], dt: float, s: WelchSettings, pairs,
-            starts: np.ndarray | None = None) -> Spectra:  # fmt: skip
+def spectra(signals: dict[str, np.ndarray], dt: float | None, s: WelchSettings, pairs,
+            starts: np.ndarray | None = None, fs: float | None = None) -> Spectra:  # fmt: skip
     """Welch auto spectra of every signal and the cross spectra of ``pairs`` ``(a, b)``
     (``P_ab = E[conj(A) B]``), one-sided, per Hz, same segments for all: each segment
     detrended (``s.detrend``), windowed, transformed once, the products averaged.  The
@@ -174,7 +175,8 @@ def spectra(signals: dict[str, np.ndarray], dt: float, s: WelchSettings, pairs,
     ``average="mean"``; ``tests/test_frf_estimator.py`` checks it).
     ``starts`` (int array): the first sample of each segment to use (segments of
     ``s.nperseg`` samples, multiples of the hop, e.g. only those in which the arm
-    slides); None: every segment, as scipy."""
+    slides); None: every segment, as scipy.  ``fs`` (Hz), instead of ``dt``: the sample
+    rate as a caller of scipy has it (``1/(1/fs)`` is not always ``fs``)."""
     x0 = next(iter(signals.values()))
     n, nper, nov = x0.size, s.nperseg, s.noverlap
     all_starts = segment_starts(n, nper, nov)
@@ -182,14 +184,16 @@ def spectra(signals: dict[str, np.ndarray], dt: float, s: WelchSettings, pairs,
     hop = nper - nov
     if np.any(sel % hop) or np.any(sel < 0) or np.any(sel + nper > n):
         raise ValueError("spectra: segment starts must be multiples of the hop inside the signal")
-    fs = 1.0 / dt
+    f = frequencies(nper, dt) if fs is None else None
+    fs = 1.0 / dt if fs is None else fs
     w = signal.get_window(s.window, nper)
-    f = frequencies(nper, dt)
     # scipy.signal.csd's own arithmetic, operation for operation (ShortTimeFFT, the
     # products per segment, the one-sided doubling, then numpy's mean over the
     # segments), so that ``servo frf`` reads scipy's numbers to the bit; with
     # ``starts``, the segments are transformed a chunk at a time and only those kept
     sft = signal.ShortTimeFFT(w, hop, fs, fft_mode="onesided", mfft=nper, scale_to="psd", phase_shift=None)
+    f = sft.f if f is None else f
+    detr = None if s.detrend == "none" else s.detrend
     names = list(signals)
     keys = [(a, a) for a in names] + list(pairs)
     parts: dict = {key: [] for key in keys}
@@ -199,7 +203,7 @@ def spectra(signals: dict[str, np.ndarray], dt: float, s: WelchSettings, pairs,
         cc = cols[c : c + chunk]
         p0, p1 = int(cc[0]), int(cc[-1]) + 1
         take = slice(None) if cc.size == p1 - p0 else cc - p0  # C-contiguous, as scipy's (numpy's loops differ)
-        S = {a: np.ascontiguousarray(sft.stft_detrend(np.asarray(signals[a], dtype=float), s.detrend, p0, p1,
+        S = {a: np.ascontiguousarray(sft.stft_detrend(np.asarray(signals[a], dtype=float), detr, p0, p1,
                                                       k_offset=nper // 2)[:, take]) for a in names}  # fmt: skip
         for a, b in keys:
             P = S[a].real ** 2 + S[a].imag ** 2 if a == b else S[b] * S[a].conj()  # E[conj(A) B]
@@ -215,6 +219,39 @@ def spectra(signals: dict[str, np.ndarray], dt: float, s: WelchSettings, pairs,
         out[(a, b)] = P.real if a == b else P
     K_eq = equivalent_averages(w, nper, nov, K, None if starts is None else sel) if K else 0.0
     return Spectra(f, K, K_eq, out)
+
+
+def ordinary_coherence(Pab: np.ndarray, Paa: np.ndarray, Pbb: np.ndarray) -> np.ndarray:
+    """The ordinary (magnitude-squared) coherence ``|P_ab|^2 / (P_aa P_bb)`` of two
+    signals from their spectra, in scipy's arithmetic (``scipy.signal.coherence``)."""
+    with np.errstate(divide="ignore", invalid="ignore"):
+        return np.abs(Pab) ** 2 / Paa / Pbb
+
+
+def _plain(nperseg: int, n: int, overlap: float | None, window: str, detrend: str) -> WelchSettings:
+    nper = min(int(nperseg), n)  # scipy shortens a segment longer than the signal
+    return WelchSettings(nper, (nper // 2) / nper if overlap is None else overlap, window, detrend)
+
+
+def psd(x: np.ndarray, fs: float, nperseg: int, overlap: float | None = None, window: str = "hann",
+        detrend: str = "constant") -> tuple[np.ndarray, np.ndarray]:  # fmt: skip
+    """The Welch power spectral density of ``x`` ((n,), sampled at ``fs`` Hz): ``(f,
+    P)``, each ``(nperseg//2 + 1,)``, one-sided, per Hz (unit of ``x`` squared per Hz);
+    overlap None: ``nperseg//2`` samples.  ``scipy.signal.welch``'s numbers on the same
+    settings (:func:`spectra`)."""
+    x = np.asarray(x, dtype=float)
+    sp = spectra({"x": x}, None, _plain(nperseg, x.size, overlap, window, detrend), [], fs=fs)
+    return sp.f, sp.P[("x", "x")]
+
+
+def coherence(a: np.ndarray, b: np.ndarray, fs: float, nperseg: int, overlap: float | None = None,
+              window: str = "hann", detrend: str = "constant") -> tuple[np.ndarray, np.ndarray]:  # fmt: skip
+    """The ordinary coherence of ``a`` and ``b`` ((n,) each, sampled at ``fs`` Hz) over Welch
+    segments: ``(f, C)`` (:func:`ordinary_coherence`; ``scipy.signal.coherence``'s
+    numbers on the same settings)."""
+    a, b = np.asarray(a, dtype=float), np.asarray(b, dtype=float)
+    sp = spectra({"a": a, "b": b}, None, _plain(nperseg, a.size, overlap, window, detrend), [("a", "b")], fs=fs)
+    return sp.f, ordinary_coherence(sp.P[("a", "b")], sp.P[("a", "a")], sp.P[("b", "b")])
 
 
 @dataclass
@@ -251,12 +288,12 @@ def estimate(sp: Spectra, u: str = "u", y: str = "y", r: str | None = None) -> E
         if r is None:
             H = Puy / Puu
             g2_ru = np.ones_like(Puu)
-            g2_ry = np.abs(Puy) ** 2 / (Puu * Pyy)
+            g2_ry = ordinary_coherence(Puy, Puu, Pyy)
         else:
             Prr = P[(r, r)]
             H = P[(r, y)] / P[(r, u)]
-            g2_ru = np.abs(P[(r, u)]) ** 2 / (Prr * Puu)
-            g2_ry = np.abs(P[(r, y)]) ** 2 / (Prr * Pyy)
+            g2_ru = ordinary_coherence(P[(r, u)], Prr, Puu)
+            g2_ry = ordinary_coherence(P[(r, y)], Prr, Pyy)
         # residual n = y - H u: P_nn = P_yy - 2 Re(conj(H) P_uy) + |H|^2 P_uu
         Pnn = np.maximum(Pyy - 2 * np.real(np.conj(H) * Puy) + np.abs(H) ** 2 * Puu, 0.0)
         explained = g2_ru * Puu * np.abs(H) ** 2
@@ -329,5 +366,6 @@ def instrumental(r: np.ndarray, u: np.ndarray, y: np.ndarray, dt: float, setting
     return _finish(sp, est, meta, unit)
 
 
-__all__ = ["MIN_AVERAGES", "Estimate", "Spectra", "WelchSettings", "default_nperseg", "equivalent_averages", "estimate",
-           "frequencies", "h1", "instrumental", "n_segments", "segment_starts", "spectra", "window_kernel"]  # fmt: skip
+__all__ = ["MIN_AVERAGES", "Estimate", "Spectra", "WelchSettings", "coherence", "default_nperseg", "equivalent_averages",
+           "estimate", "frequencies", "h1", "instrumental", "n_segments", "ordinary_coherence", "psd", "segment_starts",
+           "spectra", "window_kernel"]  # fmt: skip
