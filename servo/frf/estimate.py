@@ -187,24 +187,29 @@ def spectra(signals: dict[str, np.ndarray], dt: float | None, s: WelchSettings, 
     f = frequencies(nper, dt) if fs is None else None
     fs = 1.0 / dt if fs is None else fs
     w = signal.get_window(s.window, nper)
-    # scipy.signal.csd's own arithmetic, operation for operation (ShortTimeFFT, the
-    # products per segment, the one-sided doubling, then numpy's mean over the
-    # segments), so that ``servo frf`` reads scipy's numbers to the bit; with
-    # ``starts``, the segments are transformed a chunk at a time and only those kept
+    # scipy.signal.csd's own arithmetic, operation for operation (ShortTimeFFT's scaled
+    # window and frequencies, each segment detrended, windowed and transformed as
+    # ShortTimeFFT.stft_detrend does, the products in its layout, the one-sided
+    # doubling, numpy's mean over the segments), so that ``servo frf`` reads scipy's
+    # numbers to the bit; the segments are transformed together (scipy's loop takes
+    # one at a time), and with ``starts`` a chunk at a time, only those kept
     sft = signal.ShortTimeFFT(w, hop, fs, fft_mode="onesided", mfft=nper, scale_to="psd", phase_shift=None)
     f = sft.f if f is None else f
-    detr = None if s.detrend == "none" else s.detrend
+    win = sft.win
     names = list(signals)
     keys = [(a, a) for a in names] + list(pairs)
     parts: dict = {key: [] for key in keys}
-    cols = sel // hop
-    chunk = max(cols.size, 1) if starts is None else CHUNK  # every segment: at once, as scipy (numpy's
-    for c in range(0, cols.size, chunk):  # complex product rounds by position in the array)
-        cc = cols[c : c + chunk]
-        p0, p1 = int(cc[0]), int(cc[-1]) + 1
-        take = slice(None) if cc.size == p1 - p0 else cc - p0  # C-contiguous, as scipy's (numpy's loops differ)
-        S = {a: np.ascontiguousarray(sft.stft_detrend(np.asarray(signals[a], dtype=float), detr, p0, p1,
-                                                      k_offset=nper // 2)[:, take]) for a in names}  # fmt: skip
+    chunk = max(sel.size, 1) if starts is None else CHUNK  # every segment: at once, as scipy (numpy's
+    for c in range(0, sel.size, chunk):  # complex product rounds by position in the array)
+        idx = sel[c : c + chunk, None] + np.arange(nper)[None, :]
+        S = {}
+        for a in names:
+            fr = np.asarray(signals[a], dtype=float)[idx]
+            if s.detrend == "constant":
+                fr = fr - np.mean(fr, axis=-1, keepdims=True)
+            elif s.detrend == "linear":  # one segment at a time: scipy's batched fit rounds otherwise
+                fr = np.array([signal.detrend(row, type="linear") for row in fr])
+            S[a] = np.ascontiguousarray(sp_fft.rfft(fr * win, n=nper, axis=-1).T)  # (n_f, k), scipy's layout
         for a, b in keys:
             P = S[a].real ** 2 + S[a].imag ** 2 if a == b else S[b] * S[a].conj()  # E[conj(A) B]
             P[1 : (-1 if nper % 2 == 0 else None)] *= 2  # one-sided; the Nyquist bin has no twin
