@@ -151,3 +151,37 @@ def test_psd_and_coherence_are_scipys_welch_and_coherence_to_the_bit(n, nper, de
     f, P = psd(a, fs, nper, detrend=detrend)
     _, C = coherence(a, b, fs, nper, detrend=detrend)
     assert np.array_equal(f, f0) and np.array_equal(P, P0) and np.array_equal(C, C0)
+
+
+#: files outside servo/frf/ that may transform or correlate, and why (none estimates a
+#: spectrum, a coherence or a frequency response)
+ELSEWHERE = {
+    "servo/scenarios/excitation.py": "synthesises a multisine (inverse FFT)",
+    "servo/hdd/linsim.py": "applies a repeatable runout through a filter (FFT convolution)",
+    "servo/hdd/pes.py": "streams the HDD benchmark's PES spectrum; servo.hdd sits below servo.frf in the layers",
+    "servo/diagnose/select.py": "autocorrelation of a residual by FFT (a time-domain estimate)",
+    "servo/diagnose/locate.py": "cross- and autocorrelation by FFT (time-domain estimates)",
+}
+
+
+def test_no_second_spectral_estimator_outside_the_one_home():
+    """Welch spectra, coherences and FFTs live in servo/frf/ (estimate.py, sine.py);
+    elsewhere only the uses listed in ``ELSEWHERE``."""
+    import re
+    from pathlib import Path
+
+    root = Path(__file__).resolve().parents[1]
+    pattern = re.compile(r"np\.fft\.|numpy\.fft|scipy\.fft|from scipy import fft|signal\.(csd|welch|coherence|periodogram|"
+                         r"spectrogram|ShortTimeFFT)|\bcsd\(|\bwelch\(")  # fmt: skip
+    found = set()
+    for path in list((root / "servo").rglob("*.py")) + list((root / "studies").rglob("*.py")):
+        rel = path.relative_to(root).as_posix()
+        if rel.startswith("servo/frf/"):
+            continue
+        if pattern.search(path.read_text()):
+            found.add(rel)
+    assert found <= set(ELSEWHERE), sorted(found - set(ELSEWHERE))
+    # and one sine fit: the stepped-sine commands call the demodulator
+    for rel in ("servo/loop/measure.py", "servo/experiments/bode.py"):
+        text = (root / rel).read_text()
+        assert "demodulate(" in text and "lstsq" not in text and "exp(-2j" not in text, rel
