@@ -10,8 +10,8 @@ gives the complex amplitude ``Y(f) = a - j*b``.  Over whole periods in whole sam
 the sine's columns are orthogonal to the offset, so without the drift column this is
 the single-bin DFT ``2/n * sum y[k]*exp(-j*w*t_k)`` of the mean-removed signal (no
 leakage); the drift column ``c1`` keeps a slow transient still decaying in the window
-from leaking into the amplitude (Pintelon & Schoukens, *System Identification: a
-frequency domain approach*, 2012, sec. 2.2, the sine fit of IEEE Std 1057 with a trend).
+from leaking into the amplitude (the three-parameter sine fit at a known frequency of
+IEEE Std 1057, with a linear trend added).
 
 Uncertainty, two ways, both returned:
 
