@@ -15,9 +15,9 @@ that the output noise does not reach::
     H(f) = P_ry(f) / P_ru(f)
 
 Welch averages (Hann windows, 50 % overlap by default) of ``K`` segments, computed
-with scipy's own arithmetic (:func:`spectra`: ``scipy.signal.ShortTimeFFT``, so that on
-all the segments the result is ``scipy.signal.csd``/``welch``'s to the bit), or of the
-segments a caller chooses.  ``P_xy = E[conj(X) Y]`` (scipy's convention).  Why the instrument:
+with scipy's own arithmetic (:func:`spectra`: ``scipy.signal.ShortTimeFFT``'s scaled
+window and ``csd``'s steps, so that on all the segments the result is
+``scipy.signal.csd``/``welch``'s to the bit), or of the segments a caller chooses.  ``P_xy = E[conj(X) Y]`` (scipy's convention).  Why the instrument:
 in a loop, ``u`` carries the output noise fed back through the controller, so ``H1``
 is biased towards ``-1/C`` wherever that noise dominates; ``r`` is independent of the
 noise and the ratio of its cross-spectra is unbiased (Soderstrom & Stoica, *System
