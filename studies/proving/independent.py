@@ -37,10 +37,15 @@ NOT_THE_EFFECT = ("seed", "dither", "B")
 
 
 def load_suite(path: str | Path):
-    """The suite module at ``path``."""
+    """The suite module at ``path``, its ``simulate`` compiled afresh without numba's
+    on-disk cache (a module loaded from a path is not importable by name, which that
+    cache needs; and nothing is written beside the suite)."""
+    from numba import njit
+
     spec = importlib.util.spec_from_file_location("independent_suite", str(path))
     mod = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(mod)
+    mod.simulate = njit(mod.simulate.py_func)
     return mod
 
 
