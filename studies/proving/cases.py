@@ -128,7 +128,8 @@ FAMILIES = {
     "dead_zone": Family("dead_zone", "half-width of the input dead zone / Fc", (0.2, 0.5, 1.0, 2.0)),
     "backlash": Family("backlash", "half-gap between motor and load / stroke", (3e-4, 1e-3, 3e-3, 1e-2)),
     "cubic_hard": Family("cubic_spring", "k3*stroke^2/K, hardening", (1.0, 3.0, 10.0, 30.0)),
-    "cubic_soft": Family("cubic_spring", "-k3*stroke^2/K, softening", (0.1, 0.2, 0.3, 0.5)),
+    "cubic_soft": Family("cubic_spring", "-k3*stroke^2/K, softening (the feedforward `open` loop, whose arm may "
+                         "leave the stroke, can run away: the generator then raises)", (0.1, 0.2, 0.3, 0.5)),
     "stribeck_gauss": Family("stribeck_friction", "(Fs - Fc)/Fc, Gaussian shape", (0.1, 0.2, 0.5, 1.0)),
     "lugre_stribeck": Family("stribeck_friction", "(Fs - Fc)/Fc as a LuGre element's level, falling as "
                              "exp(-(v/vs)^2) (bristle length 0.3 % of the stroke)", (0.1, 0.2, 0.5, 1.0),
