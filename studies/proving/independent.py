@@ -40,11 +40,17 @@ def load_suite(path: str | Path):
     """The suite module at ``path``, its ``simulate`` compiled afresh without numba's
     on-disk cache (a module loaded from a path is not importable by name, which that
     cache needs; and nothing is written beside the suite)."""
-    from numba import njit
+    from numba import config, njit
 
     spec = importlib.util.spec_from_file_location("independent_suite", str(path))
     mod = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(mod)
+    kept = config.CACHE_DIR
+    with tempfile.TemporaryDirectory() as tmp:
+        config.CACHE_DIR = tmp  # its decorator's cache folder, which nothing uses, not beside the suite
+        try:
+            spec.loader.exec_module(mod)
+        finally:
+            config.CACHE_DIR = kept
     mod.simulate = njit(mod.simulate.py_func)
     return mod
 
