@@ -292,3 +292,11 @@ def test_an_outside_suite_is_scored_through_the_same_tables(tmp_path):
     assert np.allclose(rec[:, 1], u, rtol=1e-9) and np.allclose(rec[:, 2], x, rtol=1e-9, atol=1e-18)
     text = tables_kinds([null, delay], label="case")
     assert "| `delay` | time_delay | 1 | 0 |" in text
+
+
+def test_bouc_wen_survives_a_steps_kick():
+    """A step reference kicks the arm by more than the Bouc-Wen element's length in one
+    sub-step; its position step is split there, so this recording (which diverged with
+    one RK4 step per sub-step) stays finite and in its stroke."""
+    tr = trajectories(Case("bouc_wen", 0.1, "pdi", "steps", 5000.0, 30000), seed=310102)
+    assert np.all(np.isfinite(tr["y"])) and np.abs(tr["x"]).max() < 2 * STROKE

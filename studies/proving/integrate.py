@@ -22,7 +22,8 @@ Force balance (force unit F, positions m)::
   exponential update in position, ``H = sigma0*z + sigma1*z'``; its level ``g``
   constant, or with ``lg_vs > 0`` the Stribeck level ``g(v) = level*exp(-(v/lg_vs)^2)``
   of the full LuGre model, ``v`` the sub-step's mean speed), **Bouc-Wen** (n = 1,
-  ``dz/dx = A - beta*sgn(dx)*z - gamma*|z|``, one RK4 step in position, ``H = kbw*z``),
+  ``dz/dx = A - beta*sgn(dx)*z - gamma*|z|``, one RK4 step in position (split where
+  the increment exceeds ``1/(beta + gamma)``), ``H = kbw*z``),
   **Maxwell-slip** (``N`` elasto-slide elements, deflection clipped at its slip
   distance, ``H = sum k_i*e_i``); ``gate[k]`` switches it on in part of the recording.
 * Optional flexible mode ``q'' + 2*zeta*w*q' + w^2*q = u_app/J`` (RK4 with the rigid
@@ -146,15 +147,23 @@ def hyst_advance(hs, dx, h, p, mdelta):
     elif kind == HYST_BOUCWEN and dx != 0.0:
         A, be, ga = p[P_BW_A], p[P_BW_BETA], p[P_BW_GAMMA]
         sd = math.copysign(1.0, dx)
+        # RK4 in position; an increment beyond 1/(beta + gamma) (a step's kick) is split in
+        # pieces of half that, where RK4 on the decay rate beta + gamma is stable
+        m = 1
+        if abs(dx) * (be + ga) > 1.0:
+            m = int(math.ceil(abs(dx) * (be + ga) / 0.5))
+        d = dx / m
         z = hs[0]
-        k1 = A - be * sd * z - ga * abs(z)
-        z2 = z + 0.5 * dx * k1
-        k2 = A - be * sd * z2 - ga * abs(z2)
-        z3 = z + 0.5 * dx * k2
-        k3 = A - be * sd * z3 - ga * abs(z3)
-        z4 = z + dx * k3
-        k4 = A - be * sd * z4 - ga * abs(z4)
-        hs[0] = z + dx * (k1 + 2 * k2 + 2 * k3 + k4) / 6.0
+        for _ in range(m):
+            k1 = A - be * sd * z - ga * abs(z)
+            z2 = z + 0.5 * d * k1
+            k2 = A - be * sd * z2 - ga * abs(z2)
+            z3 = z + 0.5 * d * k2
+            k3 = A - be * sd * z3 - ga * abs(z3)
+            z4 = z + d * k3
+            k4 = A - be * sd * z4 - ga * abs(z4)
+            z = z + d * (k1 + 2 * k2 + 2 * k3 + k4) / 6.0
+        hs[0] = z
     elif kind == HYST_MAXWELL:
         for i in range(mdelta.shape[0]):
             e = hs[2 + i] + dx
