@@ -273,7 +273,8 @@ def _wrong(r: dict) -> bool:
 
 def tables_kinds(runs: list, label: str = "family") -> str:
     """The second grid's tables (module doc): nulls per cell, families, family x
-    excitation, and the effect recordings by loop and noise.  A refused recording (the
+    excitation, family x loop, family x noise, and the effect recordings by loop,
+    noise and excitation.  A refused recording (the
     diagnosis raised) is counted as refused and is never ``consistent``; a recording
     the generator could not make is left out and listed."""
     unmade = [r for r in runs if r.get("error", "").startswith("FloatingPointError: proving ground")]
@@ -330,14 +331,18 @@ def tables_kinds(runs: list, label: str = "family") -> str:
                      f"{_rate(sum(r['verdict'] == 'consistent' for r in b), len(b))} | {right}/{len(ok)} | {_rate(sum(map(_wrong, ok)), len(ok))} | "
                      f"{', '.join(f'{k} {v}' for k, v in sorted(given.items(), key=lambda x: -x[1])) or '-'} |")  # fmt: skip
     excs = sorted({r.get("excitation", "-") for r in eff})
-    if len(excs) > 1:
-        lines += ["", f"Detected / `consistent` where the effect is >= {100 * EFFECT_MIN:.0f} %, per {label} and excitation "
+    for what, key, values in (("excitation", lambda r: r.get("excitation", "-"), excs),
+                              ("loop", _loop, [v for v in ("closed", "open") if any(_loop(r) == v for r in eff)]),
+                              ("noise", _colour, [v for v in KIND_NOISES if any(_colour(r) == v for r in eff)])):  # fmt: skip
+        if len(values) < 2:
+            continue
+        lines += ["", f"Detected / `consistent` where the effect is >= {100 * EFFECT_MIN:.0f} %, per {label} and {what} "
                   "(k/n: n the recordings with such an effect there):", "",
-                  f"| {label} | " + " | ".join(excs) + " |", "|---|" + "---|" * len(excs)]  # fmt: skip
+                  f"| {label} | " + " | ".join(values) + " |", "|---|" + "---|" * len(values)]  # fmt: skip
         for name in fams:
             cells = []
-            for e in excs:
-                b = [r for r in big if r["family"] == name and r.get("excitation") == e]
+            for val in values:
+                b = [r for r in big if r["family"] == name and key(r) == val]
                 cells.append(f"{sum(map(named_right, b))}/{len(b)} detected, {sum(r['verdict'] == 'consistent' for r in b)} "
                              "consistent" if b else "-")  # fmt: skip
             lines.append(f"| `{name}` | " + " | ".join(cells) + " |")
