@@ -25,6 +25,40 @@ training part never sees: the verdict must be ``unexplained`` with a train/test 
 ``hysteresis_late`` (a LuGre element appearing half-way).  ``out_of_scope``: the
 position of another run (another kind of excitation, so no frequency lines shared with
 the input), unrelated to the recorded input.
+
+**The second set of kinds** (issue 24), options that leave every recording of the
+first set as it was (the same arrays to the bit: the seeds' draws, :data:`CONTROLLERS`,
+:data:`EXCITATIONS` and so the study's combinations are unchanged):
+
+* ``controller="force"``: an open-loop drive with no controller at all: the input is
+  a holding bias (the nominal offset ``h0``) plus the excitation as a force, and the
+  spring is 25 times stiffer (natural frequency ``f_m``, so that the dry friction's
+  sticking band is a tenth of the stroke); the excitation's level is set so that the
+  linear spring-mass model's response peaks at 0.7 of the stroke.  ``"open"``
+  (feedforward of a reference through the nominal rigid model) stays beside it.
+* ``excitation="steps"``: a reference of steps between random targets in the stroke,
+  held 0.05-0.15 motion periods (a closed loop settles in a few per cent of one, so
+  the arm is at rest most of a longer hold), with the seeks' small random force (a
+  sign held 8 samples, 5 % of the force scale); smoothed by a second-order filter at
+  ``5*f_m`` for the ``open`` feedforward.  For ``force``, force steps held 0.3-0.8
+  motion periods.  ``force`` takes :data:`FORCE_EXCITATIONS`: ``multisine`` (8 tones
+  ``f_m/10``-``3*f_m``), ``prbs`` (clock 3 samples: broadband to about ``fs/3``, what
+  reaches modes up to the Nyquist frequency), ``chirp`` (logarithmic ``f_m/20`` to
+  ``20*f_m``) and ``steps``.
+* ``noise``: ``"white"``, ``"pink"`` (PSD ``1/f`` down to the recording's lowest
+  frequency) or ``"lowpass"`` (first-order, corner ``2*f_m``): coloured sensor noise of
+  the same standard deviation as the white one, shaped from the same draws
+  (:func:`sensor_noise`).
+* families ``modes`` (four lightly damped modes from ``0.06*fs`` to ``0.45*fs``, up to
+  the Nyquist frequency), ``drift`` (a wandering force offset), ``dead_zone`` (input),
+  ``backlash`` (between motor and load), ``cubic_hard`` and ``cubic_soft`` (a cubic
+  spring), ``stribeck_gauss`` (Gaussian Stribeck shape) and ``lugre_stribeck`` (a LuGre
+  element whose level falls with speed as a Gaussian Stribeck curve: the full LuGre
+  friction model's steady state).  A family whose ``expect`` is not (yet) a term of the
+  diagnosis's vocabulary (``drift``, ``dead_zone``, ``backlash``, ``cubic_spring``)
+  has the expected verdict ``unexplained`` until it is (:func:`expected_verdicts`).
+  Their random draws (mode frequencies, the drift's path) come from a generator of
+  their own, ``default_rng([seed, 24])``, the same for a recording and its twin.
 """
 from __future__ import annotations
 
@@ -39,6 +73,13 @@ from servo.io.recording import Recording
 RATES = (500.0, 1000.0, 5000.0, 20000.0, 50000.0)
 CONTROLLERS = ("pdi", "leadlag", "open")
 EXCITATIONS = ("seeks", "multisine", "chirp", "prbs", "pulses")
+#: the drives without feedback (``force``: no controller at all, module doc)
+OPEN = ("open", "force")
+#: every excitation (``steps`` is outside :data:`EXCITATIONS`, which the first study's
+#: combinations are made of) and the ones the ``force`` drive takes
+ALL_EXCITATIONS = EXCITATIONS + ("steps",)
+FORCE_EXCITATIONS = ("multisine", "prbs", "chirp", "steps")
+NOISES = ("white", "pink", "lowpass")
 STROKE = 1e-3
 NOISE = 1e-6  # of the stroke
 
@@ -79,7 +120,41 @@ FAMILIES = {
     "hysteresis_late": Family("hysteresis", "LuGre level / Fc, present in the second half only", (0.2, 0.5),
                               ("explained", "unexplained")),
     "out_of_scope": Family(None, "-", (0.0,), ("out_of_scope",)),
+    # the second set (module doc); appended, so that the first families keep their study combinations
+    "modes": Family("resonance", "modal gain of each of four modes at 0.06, 0.15, 0.3, 0.45 x fs (-10 %-0, zeta "
+                    "0.005-0.03)", (1e-3, 3e-3, 1e-2, 3e-2)),
+    "drift": Family("drift", "peak-to-peak of a wandering force offset / Fc (time scale a third of the recording)",
+                    (0.1, 0.3, 1.0, 3.0)),
+    "dead_zone": Family("dead_zone", "half-width of the input dead zone / Fc", (0.2, 0.5, 1.0, 2.0)),
+    "backlash": Family("backlash", "half-gap between motor and load / stroke", (3e-4, 1e-3, 3e-3, 1e-2)),
+    "cubic_hard": Family("cubic_spring", "k3*stroke^2/K, hardening", (1.0, 3.0, 10.0, 30.0)),
+    "cubic_soft": Family("cubic_spring", "-k3*stroke^2/K, softening (the feedforward `open` loop, whose arm may "
+                         "leave the stroke, can run away: the generator then raises)", (0.1, 0.2, 0.3, 0.5)),
+    "stribeck_gauss": Family("stribeck_friction", "(Fs - Fc)/Fc, Gaussian shape", (0.1, 0.2, 0.5, 1.0)),
+    "lugre_stribeck": Family("stribeck_friction", "(Fs - Fc)/Fc as a LuGre element's level, falling as "
+                             "exp(-(v/vs)^2) (bristle length 0.3 % of the stroke)", (0.1, 0.2, 0.5, 1.0),
+                             also="or hysteresis (its bristles' pre-sliding)"),
 }
+
+#: the families of the second set (module doc)
+SECOND = ("modes", "drift", "dead_zone", "backlash", "cubic_hard", "cubic_soft", "stribeck_gauss", "lugre_stribeck")
+
+
+def in_vocabulary(name: str) -> bool:
+    """Whether the diagnosis's vocabulary has a term called ``name`` (read when asked,
+    so that a term added later counts)."""
+    from servo.diagnose.terms import VOCABULARY
+
+    return name in VOCABULARY
+
+
+def expected_verdicts(family: str) -> tuple:
+    """The right verdicts of a clear case of ``family``: its :class:`Family`'s, except
+    that an effect the vocabulary has no term for can only be ``unexplained``."""
+    fam = FAMILIES[family]
+    if fam.expect is not None and not in_vocabulary(fam.expect):
+        return ("unexplained",)
+    return fam.verdict
 
 
 #: a sensor lag of ``tau`` samples is scored as a delay too where ``w_e*tau`` is at most
@@ -108,6 +183,8 @@ def accepted(family: str, size: float, decimate: int | None) -> tuple:
     if fam.expect is None:
         return ()
     names = (fam.expect,)
+    if family == "lugre_stribeck":
+        names += ("hysteresis",)
     if family == "sensor_lowpass":
         w_e = 2 * np.pi * 0.4 / (decimate or 10)
         if w_e * lag_samples(size) <= LAG_AS_DELAY:
@@ -125,6 +202,29 @@ class Case:
     excitation: str = "multisine"
     rate_hz: float = 5000.0
     samples: int = 30000
+    #: sensor noise colour, one of :data:`NOISES`
+    noise: str = "white"
+
+
+def sensor_noise(kind: str, white: np.ndarray, fs: float, fm: float) -> np.ndarray:
+    """Unit-variance sensor noise (n,) of colour ``kind`` shaped from the white draws
+    ``white``: ``white`` itself; ``pink``, PSD proportional to ``1/f`` from the lowest
+    frequency of the recording up (no DC); ``lowpass``, a first-order low-pass with
+    its corner at ``2*fm`` Hz (flat below, -20 dB/decade above)."""
+    if kind == "white":
+        return white
+    if kind == "pink":
+        X = np.fft.rfft(white)
+        f = np.fft.rfftfreq(white.size)
+        X[0] = 0.0
+        X[1:] /= np.sqrt(f[1:] / f[1])
+        c = np.fft.irfft(X, white.size)
+    elif kind == "lowpass":
+        a = np.exp(-2 * np.pi * 2.0 * fm / fs)
+        c = signal.lfilter([1.0 - a], [1.0, -a], white)
+    else:
+        raise ValueError(f"unknown noise {kind!r} (known: {', '.join(NOISES)})")
+    return (c - c.mean()) / c.std()
 
 
 def _controller(kind: str, J: float, wc: float, fs: float) -> tuple[np.ndarray, np.ndarray]:
@@ -167,11 +267,47 @@ def _smooth_steps(rng, n: int, fs: float, fm: float) -> np.ndarray:
     return out
 
 
+def _steps(rng, n: int, fs: float, fm: float, hold: tuple) -> np.ndarray:
+    """Steps between random levels in [-1, 1], each held ``hold`` (low, high) motion periods."""
+    out = np.zeros(n)
+    k = 0
+    while k < n:
+        hold_k = max(1, int(fs * rng.uniform(*hold) / fm))
+        out[k : k + hold_k] = rng.uniform(-1, 1)
+        k += hold_k
+    return out
+
+
+def _force_excitation(kind: str, rng, n: int, fs: float, fm: float) -> np.ndarray:
+    """The ``force`` drive's excitation of one kind, before its level is set (module doc)."""
+    t = np.arange(n) / fs
+    if kind == "multisine":
+        return sum(np.sin(2 * np.pi * f * t + rng.uniform(0, 2 * np.pi)) for f in np.geomspace(fm / 10, 3 * fm, 8))
+    if kind == "prbs":
+        return np.sign(rng.standard_normal(n // 3 + 1)).repeat(3)[:n]
+    if kind == "chirp":
+        return signal.chirp(t, fm / 20, t[-1], 20 * fm, method="logarithmic", phi=rng.uniform(0, 360))
+    if kind == "steps":
+        return _steps(rng, n, fs, fm, (0.3, 0.8))
+    raise ValueError(f"the force drive takes {', '.join(FORCE_EXCITATIONS)}, not {kind!r}")
+
+
+def _linear_peak(s: np.ndarray, fs: float, J: float, B: float, K: float) -> float:
+    """Peak |x| (m) of the linear spring-mass model ``J x'' + B x' + K x = s`` driven
+    by ``s`` (F), periodically extended (its steady state, by FFT)."""
+    S = np.fft.rfft(s - s.mean())
+    w = 2 * np.pi * np.fft.rfftfreq(s.size, 1 / fs)
+    return float(np.abs(np.fft.irfft(S / (K - J * w**2 + 1j * B * w), s.size)).max() + abs(s.mean()) / K)
+
+
 def _excitation(kind: str, rng, n: int, fs: float, fm: float, F: float) -> tuple[np.ndarray, np.ndarray]:
     """Reference (m) and force excitation (F) of one kind (module doc)."""
     t = np.arange(n) / fs
     fade = np.clip(t * fm / 2.0, 0, 1)
-    if kind == "seeks":
+    if kind == "steps":
+        r = STROKE * _steps(rng, n, fs, fm, (0.05, 0.15))
+        w = 0.05 * F * np.sign(rng.standard_normal(n // 8 + 1)).repeat(8)[:n]
+    elif kind == "seeks":
         r = _smooth_steps(rng, n, fs, fm)
         w = 0.05 * F * np.sign(rng.standard_normal(n // 8 + 1)).repeat(8)[:n]
     elif kind == "multisine":
@@ -210,6 +346,8 @@ def _params(case: Case, rng) -> tuple[np.ndarray, np.ndarray, np.ndarray, dict]:
     p[ig.P_J] = J
     p[ig.P_B] = 0.2 * J * wm * var()
     p[ig.P_K] = J * (wm / 5) ** 2 * var()
+    if case.controller == "force":  # no controller: a spring that holds the arm (module doc)
+        p[ig.P_K] *= 25.0
     p[ig.P_FC] = p[ig.P_FS] = 0.1 * F * var()
     p[ig.P_H0] = 0.2 * p[ig.P_FC] * var()
     p[ig.P_VS] = 0.05 * STROKE * wm
@@ -235,7 +373,8 @@ def _params(case: Case, rng) -> tuple[np.ndarray, np.ndarray, np.ndarray, dict]:
     elif fam.startswith("stribeck") or fam == "karnopp":
         p[ig.P_FS] = Fc * (1 + s)
         p[ig.P_SHAPE] = {"stribeck_exp": ig.SHAPE_EXP, "stribeck_lorentz": ig.SHAPE_LORENTZ,
-                         "stribeck_power": ig.SHAPE_POWER, "karnopp": ig.SHAPE_EXP}[fam]  # fmt: skip
+                         "stribeck_power": ig.SHAPE_POWER, "karnopp": ig.SHAPE_EXP,
+                         "stribeck_gauss": ig.SHAPE_GAUSS}[fam]  # fmt: skip
         p[ig.P_DELTA] = 0.6
         if fam == "karnopp":
             p[ig.P_VS] = 0.002 * STROKE * wm
@@ -249,28 +388,76 @@ def _params(case: Case, rng) -> tuple[np.ndarray, np.ndarray, np.ndarray, dict]:
         p[ig.P_SENSOR_HZ] = fs / s if s > 0 else 0.0  # size 0 (a twin): no low-pass
     elif fam == "quantization":
         p[ig.P_QUANTUM] = s * p[ig.P_NOISE]
+    elif fam == "lugre_stribeck" and s > 0:  # size 0 (a twin): no element
+        p[ig.P_HYST], p[ig.P_HLEVEL] = ig.HYST_LUGRE, s * Fc
+        p[ig.P_SIGMA0], p[ig.P_LG_VS] = s * Fc / L, p[ig.P_VS]
+    elif fam == "dead_zone":
+        p[ig.P_DEADZONE] = s * Fc
+    elif fam == "backlash":
+        p[ig.P_BACKLASH] = s * STROKE
+    elif fam in ("cubic_hard", "cubic_soft"):
+        p[ig.P_K3] = (1.0 if fam == "cubic_hard" else -1.0) * s * p[ig.P_K] / STROKE**2
     p[ig.P_DV] = 1e-3 * p[ig.P_NOISE] * fs
     info = {"J": J, "B": p[ig.P_B], "K": p[ig.P_K], "Fc": Fc, "Fs": p[ig.P_FS], "h0": p[ig.P_H0], "F_scale": F,
             "fm_hz": fm}  # fmt: skip
     return p, mk, md, info
 
 
+#: the ``modes`` family's modes as fractions of the sample rate (each scaled by 0.9-1.0)
+MODE_FRACTIONS = (0.06, 0.15, 0.3, 0.45)
+
+
+def _second_set(case: Case, seed: int, n: int, fs: float, Fc: float) -> tuple[np.ndarray, np.ndarray, dict]:
+    """The force offset (n,) and further modes (m, 3) of the second set's families,
+    drawn from their own generator (module doc), and what the truth records of them."""
+    rng = np.random.default_rng([seed, 24])
+    dist, modes, info = np.zeros(n), np.zeros((0, 3)), {}
+    if case.family == "modes":
+        hz = np.array(MODE_FRACTIONS) * fs * rng.uniform(0.9, 1.0, len(MODE_FRACTIONS))
+        zeta = rng.uniform(0.005, 0.03, len(MODE_FRACTIONS))
+        if case.size > 0:
+            modes = np.ascontiguousarray(np.column_stack([hz, zeta, np.full(hz.size, case.size)]))
+        info = {"modes_hz": hz.tolist(), "modes_zeta": zeta.tolist()}
+    elif case.family == "drift":
+        # a random walk low-passed at 3/T (time scale a third of the recording), from 0, peak-to-peak size*Fc
+        walk = np.cumsum(rng.standard_normal(n))
+        walk = signal.sosfiltfilt(signal.butter(2, 3.0 / (n / fs), fs=fs, output="sos"), walk)
+        walk -= walk[0]
+        if case.size > 0:
+            dist = case.size * Fc * walk / np.ptp(walk)
+        info = {"drift_pp": float(np.ptp(dist))}
+    return dist, modes, info
+
+
 def _simulate(case: Case, seed: int, u_max_late: float | None = None):
     rng = np.random.default_rng(seed)
     p, mk, md, info = _params(case, rng)
     fs, n = case.rate_hz, case.samples
-    r, w = _excitation(case.excitation, rng, n, fs, info["fm_hz"], info["F_scale"])
-    noise = rng.standard_normal(n)
+    fm = info["fm_hz"]
+    if case.controller == "force":
+        t = np.arange(n) / fs
+        sx = _force_excitation(case.excitation, rng, n, fs, fm) * np.clip(t * fm / 2.0, 0, 1)
+        level = 0.7 * STROKE / _linear_peak(sx, fs, p[ig.P_J], p[ig.P_B], p[ig.P_K])
+        r, w = np.zeros(n), p[ig.P_H0] + level * sx  # the holding bias and the excitation
+        info["force_level"] = level
+    else:
+        r, w = _excitation(case.excitation, rng, n, fs, fm, info["F_scale"])
+    noise = sensor_noise(case.noise, rng.standard_normal(n), fs, fm)
     if case.controller == "open":
+        if case.excitation == "steps":  # a feedforward cannot follow a step: a smoothed one
+            r = signal.sosfiltfilt(signal.butter(2, 5 * fm, fs=fs, output="sos"), r)
         # feedforward of the reference through the nominal rigid model, plus the excitation
         a = np.gradient(np.gradient(r, 1 / fs), 1 / fs)
         vr = np.gradient(r, 1 / fs)
         w = p[ig.P_J] * a + p[ig.P_B] * vr + p[ig.P_K] * r + p[ig.P_H0] + p[ig.P_FC] * np.tanh(vr / p[ig.P_VS]) + w
+    if case.controller in OPEN:
         b, a_ = np.zeros(1), np.ones(1)
         p[ig.P_CLOSED] = 0.0
     else:
         b, a_ = _controller(case.controller, p[ig.P_J], 2 * np.pi * fs / 50, fs)
         p[ig.P_CLOSED] = 1.0
+    dist, modes, more = _second_set(case, seed, n, fs, p[ig.P_FC])
+    info.update(more)
     u_max = np.full(n, 1e30)
     if u_max_late is not None:
         u_max[int(0.7 * n) :] = u_max_late
@@ -278,9 +465,19 @@ def _simulate(case: Case, seed: int, u_max_late: float | None = None):
     if case.family == "hysteresis_late":
         gate[: n // 2] = 0.0
     u, y, x = np.zeros(n), np.zeros(n), np.zeros(n)
-    ig.run(p, np.ascontiguousarray(r), np.ascontiguousarray(w), u_max, gate, noise, b, a_,
-           np.ascontiguousarray(mk), np.ascontiguousarray(md), u, y, x, n)  # fmt: skip
-    return u, y, x, info, w
+    ig.run_full(p, np.ascontiguousarray(r), np.ascontiguousarray(w), u_max, gate, np.ascontiguousarray(noise), b, a_,
+                np.ascontiguousarray(mk), np.ascontiguousarray(md), dist, modes, u, y, x, n)  # fmt: skip
+    return u, y, x, info, w, {"p": p, "dist": dist, "modes": modes, "noise": noise, "r": r}
+
+
+def trajectories(case: Case, seed: int = 0) -> dict:
+    """The arrays behind one recording of ``case`` (no ``saturation_late`` clip, no
+    ``out_of_scope`` swap): ``u``, ``y`` (measured), ``x`` (the motor's true position),
+    ``w`` (excitation, F), ``r`` (reference, m), ``dist`` (force offset, F), ``noise``
+    (the unit-variance sensor noise), all (n,); ``modes`` (m, 3); ``p`` the parameter
+    vector of :mod:`studies.proving.integrate`; ``info`` the truth's parameters."""
+    u, y, x, info, w, extra = _simulate(case, seed)
+    return {"u": u, "y": y, "x": x, "w": w, "info": info, **extra}
 
 
 def recording(case: Case, seed: int = 0, excitation: bool = False) -> tuple[Recording, dict]:
@@ -298,21 +495,26 @@ def recording(case: Case, seed: int = 0, excitation: bool = False) -> tuple[Reco
     if case.family == "saturation_late":  # the level that clips a fraction `size` of the last 30 %
         u, *_ = _simulate(case, seed)
         lim = float(np.quantile(np.abs(u[int(0.7 * case.samples) :]), 1.0 - case.size))
-    u, y, x, info, w = _simulate(case, seed, lim)
+    u, y, x, info, w, _ = _simulate(case, seed, lim)
     if case.family == "out_of_scope":  # the position of an unrelated run
         other = "seeks" if case.excitation != "seeks" else "chirp"  # no frequency lines shared with the input
-        _, y, x, *_ = _simulate(Case("null", 0.0, case.controller, other, case.rate_hz, case.samples), seed + 7919)
+        if case.controller == "force":
+            other = "steps" if case.excitation != "steps" else "chirp"
+        _, y, x, *_ = _simulate(Case("null", 0.0, case.controller, other, case.rate_hz, case.samples, case.noise),
+                                seed + 7919)  # fmt: skip
     t = np.arange(case.samples) / case.rate_hz
     if not (np.all(np.isfinite(y)) and np.all(np.isfinite(u))):
         raise FloatingPointError(f"proving ground: {case} seed {seed} diverged")
-    truth = {"family": case.family, "size": case.size, "expect": fam.expect, "verdicts": list(fam.verdict),
+    truth = {"family": case.family, "size": case.size, "expect": fam.expect, "verdicts": list(expected_verdicts(case.family)),
              "case": case.__dict__, "seed": seed, **info}  # fmt: skip
     if lim is not None:
         truth["u_max_late"] = lim
-    ref = w.copy() if excitation and case.controller != "open" else None
+    ref = w.copy() if excitation and case.controller not in OPEN else None
+    colour = "" if case.noise == "white" else f":{case.noise}"
     rec = Recording(t, u, y, None, source=f"proving:{case.family}:{case.size:g}:{case.controller}:{case.excitation}:"
-                    f"{case.rate_hz:g}Hz:seed{seed}", meta={"truth": truth}, r=ref)  # fmt: skip
+                    f"{case.rate_hz:g}Hz{colour}:seed{seed}", meta={"truth": truth}, r=ref)  # fmt: skip
     return rec, truth
 
 
-__all__ = ["CONTROLLERS", "Case", "EXCITATIONS", "FAMILIES", "RATES", "accepted", "recording"]
+__all__ = ["ALL_EXCITATIONS", "CONTROLLERS", "Case", "EXCITATIONS", "FAMILIES", "FORCE_EXCITATIONS", "NOISES", "OPEN",
+           "RATES", "SECOND", "accepted", "expected_verdicts", "recording", "sensor_noise", "trajectories"]
