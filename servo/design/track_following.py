@@ -126,5 +126,6 @@ def track_following(
                          f"integrator (closed-loop pole radius {radius:.4f}): lower the crossover or the delay")  # fmt: skip
     info = dict(kind="track_following", J=J, crossover_hz=crossover_hz, phase_margin_deg=phase_margin(lead_ratio),
                 lead_ratio=lead_ratio, integrator_ratio=integrator_ratio, delay_s=delay_s,
-                notches=[list(n) for n in notches], peaks=[list(pk) for pk in peaks], lowpass_hz=lowpass_hz, lowpass_zeta=lowpass_zeta)  # fmt: skip
+                notches=[list(n) for n in notches], peaks=[list(pk) for pk in peaks], lowpass_hz=lowpass_hz,
+                lowpass_zeta=lowpass_zeta)  # fmt: skip
     return _build(J, fs, pes_every, method, slow, fast_blocks, info, peak_blocks)
