@@ -128,3 +128,30 @@ def test_a_plugin_that_fails_and_a_design_that_cannot_be_are_one_line_before_any
                            capture_output=True, text=True, cwd=tmp_path)  # fmt: skip
         assert r.returncode == 2 and r.stderr.count("\n") == 1 and message in r.stderr, r.stderr
         assert not out.exists() and not (tmp_path / f"o{i}.incomplete").exists()
+
+
+@pytest.mark.parametrize("track, message", [
+    ({"peak_hz": [120.0]}, "controller.track.peak_hz, peak_gain_db, peak_width and peak_phase_deg must have the same length"),
+    ({"peak_hz": [30000.0], "peak_gain_db": [6.0], "peak_width": [0.1], "peak_phase_deg": [0.0]},
+     "controller.track.peak_hz[0] = 30000.0 is at or above the Nyquist frequency"),
+    ({"peak_hz": [120.0 * k for k in range(1, 9)], "peak_gain_db": [6.0] * 8, "peak_width": [0.01] * 8,
+      "peak_phase_deg": [0.0] * 8}, "at most 7 peak filters"),
+    ({"peak_hz": [120.0], "peak_gain_db": [6.0], "peak_width": [0.01], "peak_phase_deg": [95.0]}, "peak_phase_deg[0]"),
+])  # fmt: skip
+def test_track_peak_filters_are_checked(track, message):
+    from servo.config import Config
+    from servo.errors import ConfigError
+
+    with pytest.raises(ConfigError, match=re.escape(message)):
+        Config().replace(controller={"kind": "track", "track": track})
+
+
+def test_track_peak_filters_join_the_pes_rate_cascade():
+    from servo.config import Config
+    from servo.controllers import get_kind
+
+    peaks = {"peak_hz": [120.0, 240.0], "peak_gain_db": [20.0, 12.0], "peak_width": [0.01, 0.01], "peak_phase_deg": [0.0, 0.0]}
+    for extra, n in (({}, 1), (peaks, 3)):
+        cfg = Config().replace(controller={"kind": "track", "track": extra})
+        p = get_kind("track").params(cfg.controller.section, cfg)
+        assert int(p["n_slow"][0]) == n

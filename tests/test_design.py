@@ -65,6 +65,43 @@ def test_notch_has_the_requested_depth_at_its_centre(method, f0, depth, width):
     assert abs(h[1]) == pytest.approx(1.0, abs=1e-3)  # unity at DC
 
 
+@pytest.mark.parametrize("f0,gain,width,phase", [(120, 20, 0.01, 0), (900, 6, 0.4, 40), (5000, 3, 0.02, -30)])
+def test_peak_has_the_requested_gain_and_phase_at_its_centre(f0, gain, width, phase):
+    """``1 + k*e^(j*phi)`` at the centre (bilinear, prewarped there: exactly); far below it
+    ``1 - width*k*sin(phi)``, far above it 1; its poles are the resonance's (``zeta = width/2``)."""
+    fs = FS / 2
+    b = analog.peak(f0, gain, width, phase)
+    k = 10 ** (gain / 20) - 1
+    assert b.response(f0) == pytest.approx(1 + k * np.exp(1j * math.radians(phase)), rel=1e-12)
+    s = discretise.sos(b, fs, "bilinear")
+    h = sections.response(s, [f0, f0 / 30, 30 * f0], fs)
+    assert h[0] == pytest.approx(1 + k * np.exp(1j * math.radians(phase)), rel=1e-9)
+    assert abs(h[1] - (1 - width * k * math.sin(math.radians(phase)))) < 0.1
+    assert abs(h[2] - 1) < 0.1 or 30 * f0 > fs / 2  # (above the PES Nyquist frequency: no such point)
+    assert np.abs(sections.poles(s)) == pytest.approx(np.exp(-width / 2 * 2 * math.pi * f0 / fs), rel=5e-3)  # (warped)
+    with pytest.raises(ValueError, match="peak"):
+        analog.peak(f0, gain, width, 120.0)
+
+
+def test_peak_filters_lower_the_sensitivity_at_their_harmonics():
+    """Peaks at the spindle harmonics (phase-stable: T is near 1 there) lower |S| there by
+    about ``|1 + T*P|``, and the lead is solved with them in place: the crossover and the
+    phase margin stay where asked."""
+    h = [120.0, 240.0, 360.0]
+    peaks = [(f, 20.0, 0.01, 0.0) for f in h]
+    kw = dict(integrator_ratio=8, notches=[(4100, 15, 0.4)], pes_every=2, delay_s=10e-6)
+    plain = track_following(J, FS, 950.0, 44.0, **kw)
+    peaked = track_following(J, FS, 950.0, 44.0, peaks=peaks, **kw)
+    assert peaked.slow_sos.shape == (4, 6) and peaked.info["peaks"] == [list(p) for p in peaks]
+    plant = loop.double_integrator(J)
+    ms = [loop.margins(loop.open_loop(d, plant, 10e-6)) for d in (plain, peaked)]
+    for m in ms:
+        assert m["stable"] and m["crossover_hz"] == pytest.approx(950.0, rel=1e-6)
+        assert m["phase_margin_deg"] == pytest.approx(44.0, abs=0.05)
+    S = [np.abs(1 / (1 + loop.frequency_response(loop.open_loop(d, plant, 10e-6), h))) for d in (plain, peaked)]
+    assert np.all(S[1] < S[0] / 8)  # 20 dB of peak gain: 10x where T is near 1
+
+
 def test_zoh_design_keeps_its_notches_deep():
     s = discretise.sos(analog.notch(4100, 20, 0.4), FS, "zoh")
     assert -20 * np.log10(abs(sections.response(s, 4100.0, FS))) < 15  # a hold equivalent loses the zeros

@@ -2,12 +2,15 @@
 "track" controller kinds reproduces the independent linear evaluation of servo.hdd
 (scipy/control, exact lifted multirate loop) sample by sample, on the same disturbance
 record."""
+import tomllib
+from pathlib import Path
+
 import numpy as np
 import pytest
 
 from servo.config import Config
 from servo.runtime.closedloop import MemoryLog
-from servo.hdd import linsim
+from servo.hdd import designs, linsim
 from servo.hdd.benchmark import benchmark
 from servo.hdd.disturbances import generate
 from servo.scenarios.hdd_benchmark import BenchmarkInputs
@@ -17,10 +20,23 @@ from servo.runtime.controller import Controller
 from servo.runtime.loop import log_rows, run_closed_loop
 from servo.runtime.simdriver import SimDriver
 
+ROOT = Path(__file__).resolve().parents[1]
 REVS = 30
-TRACK = {"crossover_hz": 950.0, "phase_margin_deg": 47.0, "integrator_ratio": 8.0,
-         "notch_hz": [4100.0, 5000.0, 7000.0, 12300.0], "notch_depth_db": [15.0, 10.0, 20.0, 20.0],
-         "notch_width": [0.4, 0.3, 0.4, 0.4], "pes_every": 2, "delay_s": 1e-5}  # fmt: skip
+#: The project's design as the example config runs it (its peak filters included).
+TRACK = tomllib.loads((ROOT / "examples" / "hdd-track-v2.toml").read_text())["controller"]["track"]
+
+
+def test_the_example_runs_the_documented_design():
+    """``examples/hdd-track-v2.toml`` runs ``servo.hdd.designs.own(2)``, the design the
+    linear evaluation tables (docs/hdd.md): the same sections, to rounding."""
+    cfg = Config().replace(**benchmark_drive(2), controller={"kind": "track", "track": TRACK})
+    ctl = Controller(cfg)
+    ran = ctl.kind.designed(cfg.controller.section, cfg)
+    own = designs.own(2)
+    assert ran.pes_every == own.pes_every == 2 and ran.fs == pytest.approx(own.fs, rel=1e-12)
+    assert ran.slow_sos.shape == own.slow_sos.shape == (5, 6)  # lead-lag + 4 peak filters
+    assert ran.slow_sos == pytest.approx(own.slow_sos, rel=1e-9, abs=1e-12 * np.abs(own.slow_sos).max())
+    assert ran.fast_sos == pytest.approx(own.fast_sos, rel=1e-9, abs=1e-12)
 
 
 @pytest.mark.parametrize("kind", ["nss", "track"])

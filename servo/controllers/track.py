@@ -1,9 +1,9 @@
-"""Track following: a lead-lag with an integrator, notches at the flexible modes and a
-low-pass, designed in continuous time on the double integrator and run as two compiled
+"""Track following: a lead-lag with an integrator, peak filters, notches at the flexible
+modes and a low-pass, designed in continuous time on the double integrator and run as two compiled
 cascades of second-order sections (:mod:`kernels.biquad`).
 
     every pes_every ticks:  e = r_base + r - x        the position error signal (PES), m
-                            y = slow(e)               lead-lag + integrator, at the PES rate
+                            y = slow(e)               lead-lag + integrator, peaks, at the PES rate
     every tick:             u_n = u0 + fast(y) + u_exc   notches + low-pass, at the tick rate
 
 ``u0`` is the current applied when the loop took over (a bumpless start: the cascades start
@@ -175,7 +175,7 @@ class TwoRate(ControllerKind):
 
 @dataclass
 class TrackSection:
-    """Track following (kind "track"): lead-lag with an integrator, notches, a low-pass,
+    """Track following (kind "track"): lead-lag with an integrator, peak filters, notches, a low-pass,
     designed on the double integrator J*x'' = u_n and solved on the exact discrete loop."""
 
     inertia: float = P(1.0e-3, "A*s^2/m", "J of the plant the design assumes (the compensated drive)", 0.0, None, lo_open=True)
@@ -185,6 +185,12 @@ class TrackSection:
     notch_hz: list = P([4100.0, 7000.0, 12300.0, 16400.0], "Hz", "notch centres (the drive's flexible modes)", 0.0, None, lo_open=True)
     notch_depth_db: list = P([20.0, 20.0, 20.0, 20.0], "dB", "notch depths at their centres", 0.0, 80.0, lo_open=True)
     notch_width: list = P([0.3, 0.3, 0.3, 0.3], "-", "notch relative widths", 0.0, 2.0, lo_open=True)
+    peak_hz: list = P([], "Hz", "peak filter centres at the PES rate (runout harmonics, a disturbance band; [] none)",
+                      0.0, None, lo_open=True)
+    peak_gain_db: list = P([], "dB", "peak gains at their centres", 0.0, 80.0, lo_open=True)
+    peak_width: list = P([], "-", "peak relative widths (2 zeta)", 0.0, 2.0, lo_open=True, hi_open=True)
+    peak_phase_deg: list = P([], "deg", "peak phases at their centres (a phase-stable insertion: near -angle(T))",
+                             -90.0, 90.0)
     lowpass_hz: float = P(0.0, "Hz", "second-order low-pass corner (0: none)", 0.0)
     pes_every: int = P(1, "ticks", "ticks per PES sample: the lead-lag runs at the tick rate / pes_every", 1, 2)
     discretisation: str = P("bilinear", "-", "bilinear (prewarped at each block's frequency) or matched poles/zeros",
@@ -206,6 +212,7 @@ class Track(TwoRate):
             s.inertia, cfg.run.sample_rate_hz, s.crossover_hz, s.phase_margin_deg,
             integrator_ratio=s.integrator_ratio or None,
             notches=list(zip(s.notch_hz, s.notch_depth_db, s.notch_width)),
+            peaks=list(zip(s.peak_hz, s.peak_gain_db, s.peak_width, s.peak_phase_deg)),
             lowpass_hz=s.lowpass_hz or None, pes_every=s.pes_every, method=s.discretisation, delay_s=s.delay_s,
         )  # fmt: skip
 
@@ -213,12 +220,19 @@ class Track(TwoRate):
     def check(cls, s: TrackSection, cfg) -> None:
         if not (len(s.notch_hz) == len(s.notch_depth_db) == len(s.notch_width)):
             raise ConfigError("config: controller.track.notch_hz, notch_depth_db and notch_width must have the same length")
+        if not (len(s.peak_hz) == len(s.peak_gain_db) == len(s.peak_width) == len(s.peak_phase_deg)):
+            raise ConfigError("config: controller.track.peak_hz, peak_gain_db, peak_width and peak_phase_deg must have "
+                              "the same length")  # fmt: skip
         nyquist = cfg.run.sample_rate_hz / 2  # the notches and low-pass run at the tick rate, the lead-lag slower
         for key, f, top in [("crossover_hz", s.crossover_hz, nyquist / s.pes_every), ("lowpass_hz", s.lowpass_hz, nyquist)] + \
-                [(f"notch_hz[{i}]", f, nyquist) for i, f in enumerate(s.notch_hz)]:  # fmt: skip
+                [(f"notch_hz[{i}]", f, nyquist) for i, f in enumerate(s.notch_hz)] + \
+                [(f"peak_hz[{i}]", f, nyquist / s.pes_every) for i, f in enumerate(s.peak_hz)]:  # fmt: skip
             if f >= top:
                 raise ConfigError(f"config: controller.track.{key} = {f!r} is at or above the Nyquist frequency "
                                   f"of its rate ({top:g} Hz)")  # fmt: skip
         if len(s.notch_hz) + (1 if s.lowpass_hz else 0) > MAX_SECTIONS:
             raise ConfigError(f"config: controller.track: at most {MAX_SECTIONS} notches and low-pass sections")
+        if 1 + len(s.peak_hz) > MAX_SECTIONS:
+            raise ConfigError(f"config: controller.track: at most {MAX_SECTIONS - 1} peak filters (the lead-lag takes "
+                              "one section of the PES-rate cascade)")  # fmt: skip
         cls.params(s, cfg)  # a design the numbers do not allow is a config error, before anything is written

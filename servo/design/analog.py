@@ -57,6 +57,32 @@ def notch(f_hz: float, depth_db: float, width: float) -> Block:
                  dict(f_hz=f_hz, depth_db=depth_db, width=width, zeta_zero=zz, zeta_pole=zp))  # fmt: skip
 
 
+def peak(f_hz: float, gain_db: float, width: float, phase_deg: float = 0.0) -> Block:
+    """Peak filter ``1 + k*e^(j*phi)`` at its centre: ``1 + P(s)`` with the resonance
+    ``P(s) = k * 2*zeta*w * (s*cos(phi) - w*sin(phi)) / (s^2 + 2*zeta*w*s + w^2)``,
+    ``w = 2*pi*f_hz``, ``zeta = width/2``, ``k = 10**(gain_db/20) - 1``::
+
+        (s^2 + 2*zeta*w*(1 + k*cos(phi))*s + w^2*(1 - 2*zeta*k*sin(phi))) / (s^2 + 2*zeta*w*s + w^2)
+
+    Placed in series with a loop ``L`` it adds ``L*P`` in parallel: the sensitivity at the
+    centre becomes ``S / (1 + T*P)``, lowered where ``T*P`` is near the positive real axis.
+    ``gain_db`` (> 0): the peak's gain at the centre for ``phase_deg = 0``; ``width``
+    (> 0): relative bandwidth (``2*zeta``); ``phase_deg``: the phase ``phi`` of ``P`` at
+    the centre, chosen against ``T``'s phase there (a *phase-stable insertion*: ``phi``
+    near ``-angle(T)`` keeps the added loop stable; 0 below the crossover, where ``T`` is
+    near 1).  Unity gain at DC and at infinity (when ``phi = 0``)."""
+    if not (f_hz > 0 and gain_db > 0 and 0 < width < 2 and -90.0 <= phase_deg <= 90.0):
+        raise ValueError(f"peak ({f_hz}, {gain_db}, {width}, {phase_deg}): need f_hz > 0, gain_db > 0, 0 < width < 2, "
+                         "-90 <= phase_deg <= 90")  # fmt: skip
+    w = 2 * math.pi * f_hz
+    zeta = width / 2
+    k = 10 ** (gain_db / 20) - 1
+    phi = math.radians(phase_deg)
+    zeros = np.roots([1.0, 2 * zeta * w * (1 + k * math.cos(phi)), w * w * (1 - 2 * zeta * k * math.sin(phi))])
+    return Block(f"peak {f_hz:g} Hz", np.asarray(zeros, complex), _pair(w, zeta), 1.0, "slow", f_hz,
+                 dict(f_hz=f_hz, gain_db=gain_db, width=width, phase_deg=phase_deg))  # fmt: skip
+
+
 def lowpass(f_hz: float, zeta: float = 0.7) -> Block:
     """Second-order low-pass ``w^2 / (s^2 + 2*zeta*w*s + w^2)``, unity DC gain."""
     if not (f_hz > 0 and 0 < zeta < 1):

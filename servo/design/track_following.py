@@ -24,14 +24,15 @@ from servo.design.design import Design
 MAX_LEAD_RATIO = 100.0
 
 
-def _build(J, fs, pes_every, method, slow_block, fast_blocks, info):
-    slow = discretise.sos(slow_block, fs / pes_every, method)
+def _build(J, fs, pes_every, method, slow_block, fast_blocks, info, peak_blocks=()):
     # a zero-order hold does not keep a notch's zeros (a 20 dB notch comes out ~12 dB):
-    # in a "zoh" design the notches and the low-pass are matched
+    # in a "zoh" design the peaks, the notches and the low-pass are matched
+    slow = np.vstack([discretise.sos(b, fs / pes_every, "matched" if method == "zoh" and b is not slow_block else method)
+                      for b in (slow_block, *peak_blocks)])  # fmt: skip
     fast = [discretise.sos(b, fs, "matched" if method == "zoh" else method) for b in fast_blocks]
     fast = np.vstack(fast) if fast else np.zeros((0, 6))
     return Design(slow, fast, fs, pes_every, integrators=1 if slow_block.params.get("integrator_ratio") else 0,
-                  blocks=(slow_block, *fast_blocks), method=method, info=info)  # fmt: skip
+                  blocks=(slow_block, *peak_blocks, *fast_blocks), method=method, info=info)  # fmt: skip
 
 
 def track_following(
@@ -43,6 +44,7 @@ def track_following(
     lead_ratio: float | None = None,
     integrator_ratio: float | None = 5.0,
     notches=(),
+    peaks=(),
     lowpass_hz: float | None = None,
     lowpass_zeta: float = 0.7,
     pes_every: int = 1,
@@ -57,6 +59,9 @@ def track_following(
     ``phase_margin_deg`` is ignored); ``integrator_ratio``: ``crossover / integrator
     corner`` (None: no integrator); ``notches``: ``(f_hz, depth_db, width)`` triples
     (:func:`servo.design.analog.notch`: depth in dB at the centre, relative width);
+    ``peaks``: ``(f_hz, gain_db, width, phase_deg)`` peak filters at the PES rate
+    (:func:`servo.design.analog.peak`: the loop gain raised at a runout harmonic or a
+    disturbance band; the lead is solved with them in place);
     ``lowpass_hz``/``lowpass_zeta``: a second-order low-pass (None: none); ``pes_every``:
     ticks per PES sample (the slow cascade runs at ``fs/pes_every``, notches and low-pass
     at ``fs``); ``method``: "bilinear" (prewarped at the crossover for the lead-lag, at each
@@ -76,6 +81,10 @@ def track_following(
     if integrator_ratio is not None and not integrator_ratio > 1:
         raise ValueError(f"integrator_ratio = {integrator_ratio}: must be > 1 (the integrator's corner below the crossover)")
     fast_blocks = [analog.notch(*n) for n in notches]
+    peak_blocks = [analog.peak(*pk) for pk in peaks]
+    for b in peak_blocks:
+        if b.match_hz >= fs / pes_every / 2:
+            raise ValueError(f"{b.name} is at or above the PES Nyquist frequency ({fs / pes_every / 2:g} Hz)")
     if lowpass_hz is not None:
         fast_blocks.append(analog.lowpass(lowpass_hz, lowpass_zeta))
     plant = loop.double_integrator(J)
@@ -83,7 +92,7 @@ def track_following(
 
     def unit_loop(a):
         slow = analog.lead_integrator(crossover_hz, a, integrator_ratio, 1.0)
-        d = _build(J, fs, pes_every, method, slow, fast_blocks, {})
+        d = _build(J, fs, pes_every, method, slow, fast_blocks, {}, peak_blocks)
         L = loop.open_loop(d, plant, delay_s)
         return complex(L(np.exp(1j * wc / d.fs_pes))), slow
 
@@ -110,12 +119,13 @@ def track_following(
     slow = analog.lead_integrator(crossover_hz, lead_ratio, integrator_ratio, gain)
     # the margin above is a phase taken mod 360 deg, blind to lag beyond -360 deg (a long
     # delay): the loop it designs must also be stable, checked on its closed-loop poles
-    cl = control.feedback(loop.open_loop(_build(J, fs, pes_every, method, slow, fast_blocks, {}), plant, delay_s), 1)
+    cl = control.feedback(loop.open_loop(_build(J, fs, pes_every, method, slow, fast_blocks, {}, peak_blocks), plant, delay_s), 1)
     radius = float(np.max(np.abs(cl.poles()))) if cl.nstates else 0.0
     if radius >= 1.0:
         raise ValueError(f"the loop designed for {crossover_hz:g} Hz, {phase_margin_deg} deg is unstable on the double "
                          f"integrator (closed-loop pole radius {radius:.4f}): lower the crossover or the delay")  # fmt: skip
     info = dict(kind="track_following", J=J, crossover_hz=crossover_hz, phase_margin_deg=phase_margin(lead_ratio),
                 lead_ratio=lead_ratio, integrator_ratio=integrator_ratio, delay_s=delay_s,
-                notches=[list(n) for n in notches], lowpass_hz=lowpass_hz, lowpass_zeta=lowpass_zeta)  # fmt: skip
-    return _build(J, fs, pes_every, method, slow, fast_blocks, info)
+                notches=[list(n) for n in notches], peaks=[list(pk) for pk in peaks], lowpass_hz=lowpass_hz,
+                lowpass_zeta=lowpass_zeta)  # fmt: skip
+    return _build(J, fs, pes_every, method, slow, fast_blocks, info, peak_blocks)
