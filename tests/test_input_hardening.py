@@ -325,6 +325,48 @@ def test_a_small_text_recording_takes_little_memory(tmp_path):
     assert peak < 4e6, peak
 
 
+def test_a_text_recording_beyond_its_budget_is_refused_before_a_value_is_parsed(tmp_path, monkeypatch):
+    """A text recording was parsed until its values reached the budget, then refused:
+    a 2 GB CSV took memory in proportion to the budget (1.07 GB) before its one line.
+    Its lines are now counted first, in the memory of one chunk; the error names the
+    count and the limit.  (The budget is lowered here to keep the file small.)"""
+    import tracemalloc
+
+    from servo.errors import RecordingError
+    from servo.io import tables
+
+    monkeypatch.setattr(tables, "MAX_TEXT_VALUES", 3_000_000)  # 1 000 000 rows of 3: 24 MB parsed
+    path = tmp_path / "r.csv"
+    path.write_text("t,u,x\n" + "0.00125,0.5,-0.25\n" * 1_100_000)  # 20 MB of text, 1.1 M rows
+    tracemalloc.start()
+    try:
+        with pytest.raises(RecordingError) as got:
+            tables.read_table(path)
+        peak = tracemalloc.get_traced_memory()[1]
+    finally:
+        tracemalloc.stop()
+    msg = str(got.value)
+    assert "lines after its header" in msg and "1000000 rows of 3 columns" in msg and "3000000 values" in msg, msg
+    assert "\n" not in msg and peak < 6e6, (peak, msg)  # the parse it replaced peaked at ~28 MB
+
+
+@pytest.mark.parametrize("last", [True, False], ids=["last-newline", "no-last-newline"])
+@pytest.mark.parametrize("ending", ["\n", "\r\n"], ids=["LF", "CRLF"])
+def test_a_text_recording_at_its_row_budget_loads_and_one_row_more_is_refused(tmp_path, monkeypatch, ending, last):
+    """The line count bounds the rows exactly: with room for 10 rows of 3 columns, 10
+    rows load (with or without a last newline, behind comments) and 11 are refused."""
+    from servo.errors import RecordingError
+    from servo.io import tables
+
+    monkeypatch.setattr(tables, "MAX_TEXT_VALUES", 30)
+    rows = lambda n: ending.join(f"{i * 1e-3},{i},{-i}" for i in range(n)) + (ending if last else "")  # noqa: E731
+    (tmp_path / "ok.csv").write_text(f"# bench 3{ending}t,u,x{ending}" + rows(10))
+    assert len(tables.read_table(tmp_path / "ok.csv")["t"]) == 10
+    (tmp_path / "over.csv").write_text(f"t,u,x{ending}" + rows(11))
+    with pytest.raises(RecordingError, match="at least 11 lines after its header, more than the 10 rows"):
+        tables.read_table(tmp_path / "over.csv")
+
+
 def test_the_hdd_benchmark_scenario_refuses_a_run_beyond_its_budget_before_allocating():
     """Its disturbances are arrays as long as the run: an hour at 52.8 kHz asked for
     ~9 GB.  One tick over the budget is refused before anything is generated."""
