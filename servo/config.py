@@ -361,6 +361,10 @@ def _check_physics(cfg: Config) -> None:
     if d.position_quantum >= d.stroke:
         raise ConfigError(f"config: drive.position_quantum = {d.position_quantum:g} m is not below drive.stroke = "
                           f"{d.stroke:g} m: every measured position would be one of a few levels")  # fmt: skip
+    if 0 < d.position_quantum < d.stroke * 2.0**-52:  # 5e-324 made every measured position infinite (exit 3)
+        raise ConfigError(f"config: drive.position_quantum = {d.position_quantum:g} m is finer than a double resolves "
+                          f"across drive.stroke = {d.stroke:g} m ({d.stroke * 2.0**-52:.3g} m): write 0 for no "
+                          "quantisation")  # fmt: skip
     stiffness = abs(d.K) + d.sigma  # the rigid body's spring at a turnaround: bias plus pre-sliding
     f_n = math.sqrt(stiffness / d.J) / (2 * math.pi)
     if f_n >= nyquist:

@@ -475,3 +475,43 @@ def test_a_bode_sweep_beyond_its_budget_is_refused_before_it_starts(tmp_path, ca
     rc = main(["bode", *option, "--quiet", "--out", str(tmp_path / "o")])
     err = _one_line_error(capsys, rc)
     assert "more than the" in err and list(tmp_path.iterdir()) == []
+
+
+# -- found by the fresh round (docs/robustness.md, "A fresh round") ---------------------
+
+
+def _run_summary(tmp_path, name, *sets):
+    out = tmp_path / name
+    argv = ["run", "--duration", "0.05", "--fast", "--compensation", "off", "--log-format", "npz", "--quiet", "--out", str(out)]
+    rc = main(argv + [a for s in sets for a in ("--set", s)])
+    assert rc == 0
+    return json.loads((out / "summary.json").read_text())["runs"]["uncompensated"]
+
+
+def test_the_plant_quantises_a_position_of_any_ratio_to_its_quantum():
+    """drive.position_quantum = 1e-300 m ran with exit 0 and reported "hold 0.0 nm": the
+    plant's quantiser floored y/quantum to a 64-bit integer (Numba's math.floor), which
+    wraps beyond 2^63, so every measured position was -9e-282 m and the arm never moved.
+    The kernel is called here with ratios each side of 2^63."""
+    from kernels.plant import plant_measure
+    from servo.config import DriveConfig
+    from servo.runtime.simplant import build_plant
+
+    p = build_plant(DriveConfig(mode_hz=[], mode_zeta=[], mode_gain=[]), 2e-5)
+    p.state["x"] = 3e-7
+    for quantum, want in [(1e-9, 3e-7), (1e-26, 3e-7), (1e-300, 3e-7), (0.0, 3e-7), (2e-7, 4e-7)]:
+        p.params["quantum"] = quantum
+        y, _ = plant_measure(p.state, p.params, p.q, p.gain, 0.0, 0.0)
+        assert y == pytest.approx(want, rel=1e-12), (quantum, y)
+
+
+@pytest.mark.parametrize("quantum", ["1e-300", "5e-324", "1e-20"])
+def test_a_quantum_finer_than_a_double_resolves_is_refused(tmp_path, capsys, quantum):
+    """Below stroke * 2^-52 a quantum is no quantisation a double can hold: 5e-324 made
+    every measured position infinite (exit 3 after a run).  Refused with the limit; 0
+    is the way to say none."""
+    out = tmp_path / "o"
+    rc = main(["run", "--duration", "0.05", "--fast", "--quiet", "--out", str(out), "--set", f"drive.position_quantum={quantum}"])
+    err = _one_line_error(capsys, rc)
+    assert "finer than a double resolves" in err and "write 0" in err and not out.exists(), err
+    assert not out.with_name("o.incomplete").exists()
