@@ -347,6 +347,10 @@ def _check_consistency(cfg: Config) -> None:
                           f"link.watchdog_s = {link.watchdog_s:g} s: a board refuses a late limit beyond its watchdog")  # fmt: skip
     if abs(d.initial_position) >= d.stroke:
         raise ConfigError("config: drive.initial_position must lie inside +-drive.stroke")
+    if cfg.run.fault_position >= d.stroke:  # the arm meets its hard stops at +-stroke first
+        raise ConfigError(f"config: run.fault_position = {cfg.run.fault_position:g} m is not inside drive.stroke = "
+                          f"{d.stroke:g} m: the arm meets its hard stops first and the check never fires "
+                          "(0: 95 % of the stroke)")  # fmt: skip
     _check_physics(cfg)
     from servo.controllers import KINDS
 

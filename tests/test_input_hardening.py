@@ -515,3 +515,15 @@ def test_a_quantum_finer_than_a_double_resolves_is_refused(tmp_path, capsys, qua
     err = _one_line_error(capsys, rc)
     assert "finer than a double resolves" in err and "write 0" in err and not out.exists(), err
     assert not out.with_name("o.incomplete").exists()
+
+
+@pytest.mark.parametrize("sets", [["run.fault_position=10"], ["run.fault_position=0.01", "drive.stroke=0.005"]])
+def test_a_fault_position_beyond_the_hard_stops_is_refused(tmp_path, capsys, sets):
+    """run.fault_position = 10 m on a 15 mm stroke ran with exit 0: the position check
+    that stops an unstable run could never fire (the plant's hard stops are at the
+    stroke), a safety net silently switched off."""
+    out = tmp_path / "o"
+    argv = ["run", "--duration", "0.05", "--fast", "--quiet", "--out", str(out)]
+    rc = main(argv + [a for s in sets for a in ("--set", s)])
+    err = _one_line_error(capsys, rc)
+    assert "run.fault_position" in err and "hard stops" in err and not out.exists(), err
