@@ -527,3 +527,25 @@ def test_a_fault_position_beyond_the_hard_stops_is_refused(tmp_path, capsys, set
     rc = main(argv + [a for s in sets for a in ("--set", s)])
     err = _one_line_error(capsys, rc)
     assert "run.fault_position" in err and "hard stops" in err and not out.exists(), err
+
+
+def _lab_recording(path, n=4000, dt=1e-4):
+    t = np.arange(n) * dt
+    u = 0.02 * np.sign(np.sin(2 * np.pi * 25 * t))
+    np.savez(path, t=t, u=u, x=np.cumsum(np.cumsum(u)) * dt * dt * 10, gain=np.array(2.0))
+    return path
+
+
+@pytest.mark.parametrize("argv", [["--scale", "t=1e-300"], ["--scale", "t=1e-6"], ["--scale", "t=1e5"],
+                                  ["--scale", "u=1,u=2"], ["--columns", "u=u,u=x"], ["--columns", "x=x,x=gain"]])  # fmt: skip
+def test_a_time_in_another_unit_or_a_role_given_twice_is_one_line(tmp_path, capsys, argv):
+    """`--scale t=1e-300` printed five numpy overflow warnings before its error (a
+    sample rate of 1e304 Hz); `--scale t=1e5` (a sample every 10 s) identified a drive;
+    `--scale u=1,u=2` ran with the last of the two.  A sample period outside 1 ns..1 s
+    and a role given twice are refused where every recording is loaded."""
+    path = _lab_recording(tmp_path / "r.npz")
+    out = tmp_path / "o"
+    rc = main(["identify", str(path), "--quiet", "--out", str(out), *argv])
+    err = _one_line_error(capsys, rc)
+    assert ("a sample every" in err and "is t in seconds" in err) or "is given twice" in err, err
+    assert not out.exists() and not out.with_name("o.incomplete").exists()
