@@ -549,3 +549,40 @@ def test_a_time_in_another_unit_or_a_role_given_twice_is_one_line(tmp_path, caps
     err = _one_line_error(capsys, rc)
     assert ("a sample every" in err and "is t in seconds" in err) or "is given twice" in err, err
     assert not out.exists() and not out.with_name("o.incomplete").exists()
+
+
+@pytest.mark.parametrize("argv", [
+    ["identify", "--simulate", "--duration", "1e9"], ["identify", "--simulate", "--duration", "inf"],
+    ["identify", "--simulate", "--amplitude", "inf"], ["hysteresis", "--simulate", "--duration", "1e9"],
+    ["hysteresis", "--simulate", "--duration", "nan"], ["hysteresis", "--simulate", "--large-hz", "nan"],
+    ["hysteresis", "--simulate", "--large-hz", "1e-9"]])  # fmt: skip
+def test_a_simulated_experiment_beyond_its_budget_or_not_finite_is_one_line(tmp_path, capsys, argv):
+    """`identify --simulate --duration 1e9` and `hysteresis --simulate --duration 1e9`
+    asked for 364 TiB (MemoryError, exit 70); `--duration nan` and `--large-hz nan` were
+    a ValueError (exit 70: min() let the NaN through).  Every in-memory simulation's
+    length is checked against MAX_MEMORY_ROWS before its inputs are allocated."""
+    out = tmp_path / "o"
+    rc = main([*argv, "--quiet", "--out", str(out)])
+    err = _one_line_error(capsys, rc)
+    assert "finite" in err or "in-memory simulation may hold" in err, err
+    assert not out.exists() and not out.with_name("o.incomplete").exists()
+
+
+def test_an_in_memory_log_beyond_its_budget_is_refused_before_it_is_allocated():
+    from servo.errors import ConfigError
+    from servo.runtime.closedloop import MAX_MEMORY_ROWS, MemoryLog
+
+    with pytest.raises(ConfigError, match=f"more than the {MAX_MEMORY_ROWS}"):
+        MemoryLog(10**13)
+    assert MemoryLog(MAX_MEMORY_ROWS // 1024).data.shape[0] == MAX_MEMORY_ROWS // 1024
+
+
+@pytest.mark.parametrize("extra", [[], ["--nperseg", "64"]])
+def test_an_overlap_just_below_one_is_a_valid_response_not_a_division_by_zero(tmp_path, capsys, extra):
+    """`servo frf --overlap 0.999999` rounded the overlap to the whole segment: no step
+    between segments, ZeroDivisionError, exit 70.  The overlap is at most a segment
+    less one sample."""
+    path = _lab_recording(tmp_path / "r.npz", n=2048)
+    rc = main(["frf", str(path), "--overlap", "0.999999", "--quiet", "--out", str(tmp_path / "o"), *extra])
+    assert rc == 0, capsys.readouterr().err
+    assert (tmp_path / "o" / "summary.json").exists()
