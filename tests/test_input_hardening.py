@@ -586,3 +586,18 @@ def test_an_overlap_just_below_one_is_a_valid_response_not_a_division_by_zero(tm
     rc = main(["frf", str(path), "--overlap", "0.999999", "--quiet", "--out", str(tmp_path / "o"), *extra])
     assert rc == 0, capsys.readouterr().err
     assert (tmp_path / "o" / "summary.json").exists()
+
+
+@pytest.mark.parametrize("argv", [["synthetic", "--drives", "2", "--seed", "-1"],
+                                  ["simulate", "--drives", "2", "--seed", "-1", "--vary", "drive.J=normal(1e-3,1e-5)", "--workers", "0",
+                                   "--no-plots"],
+                                  ["synthetic", "--drives", "2", "--duration", "1e-6"]])  # fmt: skip
+def test_a_fleet_seed_or_length_numpy_refuses_is_one_line(tmp_path, capsys, argv):
+    """`servo fleet synthetic --seed -1` was numpy's ValueError, exit 70; `--duration
+    1e-6` (no sample at 50 kHz) printed three numpy warnings, then an error about
+    run.duration_s = 0.0, a value the user never gave."""
+    out = tmp_path / "o"
+    rc = main(["fleet", *argv, "--quiet", "--out", str(out)])
+    err = _one_line_error(capsys, rc)
+    assert "--seed -1" in err or "--duration 1e-06" in err, err
+    assert not out.exists() and not out.with_name("o.incomplete").exists()
