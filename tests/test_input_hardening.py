@@ -601,3 +601,15 @@ def test_a_fleet_seed_or_length_numpy_refuses_is_one_line(tmp_path, capsys, argv
     err = _one_line_error(capsys, rc)
     assert "--seed -1" in err or "--duration 1e-06" in err, err
     assert not out.exists() and not out.with_name("o.incomplete").exists()
+
+
+@pytest.mark.parametrize("tool,scale", [("hysteresis", "u=1e-300"), ("identify", "u=1e-300"), ("identify", "x=1e-200"),
+                                        ("frf", "x=1e-300")])  # fmt: skip
+def test_a_column_below_any_physical_value_is_one_line(tmp_path, capsys, tool, scale):
+    """A recording whose u never exceeds 1e-300 A: `servo hysteresis` printed two numpy
+    warnings before its error (squares underflow).  Refused where every recording is
+    loaded, as values beyond MAGNITUDE_MAX are."""
+    path = _lab_recording(tmp_path / "r.npz")
+    rc = main([tool, str(path), "--scale", scale, "--quiet", "--out", str(tmp_path / "o")])
+    err = _one_line_error(capsys, rc)
+    assert "below any physical value" in err, err

@@ -165,6 +165,10 @@ def load_recording(path: str | Path, columns: dict[str, str] | None = None, scal
         if big.size:
             raise RecordingError(f"recording: {path.name}: {role} = {a[big[0]]:.3g} at sample {big[0]} is beyond any "
                                  f"physical value (|{role}| <= {MAGNITUDE_MAX:g} in SI units): a wrong column or scale?")  # fmt: skip
+        peak = float(np.max(np.abs(a)))
+        if 0 < peak < 1 / MAGNITUDE_MAX:  # u of 1e-300 A: squares underflow, fits print numpy warnings and fail
+            raise RecordingError(f"recording: {path.name}: {role} never exceeds {peak:.3g} in magnitude, below any physical "
+                                 f"value (max |{role}| >= {1 / MAGNITUDE_MAX:g} in SI units): a wrong column or scale?")  # fmt: skip
     dt = np.diff(arrays["t"])
     back = np.flatnonzero(dt <= 0)
     if back.size:
