@@ -613,3 +613,22 @@ def test_a_column_below_any_physical_value_is_one_line(tmp_path, capsys, tool, s
     rc = main([tool, str(path), "--scale", scale, "--quiet", "--out", str(tmp_path / "o")])
     err = _one_line_error(capsys, rc)
     assert "below any physical value" in err, err
+
+
+@pytest.mark.parametrize("defect", ["u constant", "u and x swapped", "u negated"])
+def test_identify_refuses_a_fit_whose_inertia_is_not_positive(tmp_path, capsys, defect):
+    """A recording whose force is constant identified "J = -3.34e-19, relative error
+    0.0000 %" with exit 0; one with u and x swapped J = -1.2e-8 (robust) and -7.6e-5
+    (paper).  No drive has a negative inertia: the fit is refused with the likely causes."""
+    from studies.hostile_round import _good, _write
+
+    g = _good(6000)
+    cols = {"u constant": {**g, "u": np.full_like(g["u"], 0.01)}, "u and x swapped": {**g, "u": g["x"], "x": g["u"]},
+            "u negated": {**g, "u": -g["u"]}}[defect]  # fmt: skip
+    path = _write(tmp_path / "r.npz", cols)
+    out = tmp_path / "o"
+    rc = main(["identify", str(path), "--quiet", "--out", str(out)])
+    err = _one_line_error(capsys, rc)
+    assert "inertia J = " in err and "is not positive" in err, err
+    assert not out.exists() and not out.with_name("o.incomplete").exists()
+    assert main(["identify", str(_write(tmp_path / "good.npz", g)), "--quiet", "--out", str(tmp_path / "g")]) == 0
