@@ -632,3 +632,25 @@ def test_identify_refuses_a_fit_whose_inertia_is_not_positive(tmp_path, capsys, 
     assert "inertia J = " in err and "is not positive" in err, err
     assert not out.exists() and not out.with_name("o.incomplete").exists()
     assert main(["identify", str(_write(tmp_path / "good.npz", g)), "--quiet", "--out", str(tmp_path / "g")]) == 0
+
+
+def test_ctrl_c_while_a_compiled_module_initialises_is_an_interruption(tmp_path, capsys, monkeypatch):
+    """Ctrl-C 3 s into `servo diagnose` (under load, while scipy's compiled modules were
+    still being imported) ended "servo: internal error: ImportError: initialization
+    failed", exit 70: pybind11 raises ImportError from the KeyboardInterrupt that cut the
+    module's initialisation short.  It is the user's interruption: exit 130, one line."""
+    import servo.io.recording as recording
+
+    def cut_short(*a, **k):
+        try:
+            raise KeyboardInterrupt
+        except KeyboardInterrupt as ki:
+            raise ImportError("initialization failed") from ki
+
+    monkeypatch.setattr(recording, "load_recording", cut_short)
+    rc = main(["identify", str(tmp_path / "r.csv"), "--quiet", "--out", str(tmp_path / "o")])
+    err = capsys.readouterr().err
+    assert rc == 130 and err == "servo: interrupted\n", (rc, err)
+    monkeypatch.setattr(recording, "load_recording", lambda *a, **k: (_ for _ in ()).throw(ImportError("a real bug")))
+    rc = main(["identify", str(tmp_path / "r.csv"), "--quiet", "--out", str(tmp_path / "o")])
+    assert rc == 70 and "internal error: ImportError: a real bug" in capsys.readouterr().err
