@@ -654,3 +654,26 @@ def test_ctrl_c_while_a_compiled_module_initialises_is_an_interruption(tmp_path,
     monkeypatch.setattr(recording, "load_recording", lambda *a, **k: (_ for _ in ()).throw(ImportError("a real bug")))
     rc = main(["identify", str(tmp_path / "r.csv"), "--quiet", "--out", str(tmp_path / "o")])
     assert rc == 70 and "internal error: ImportError: a real bug" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("sets", [["controller.kind=track", "controller.track.inertia=5e-324"],
+                                  ["controller.kind=track", "controller.track.crossover_hz=5e-324"],
+                                  ["controller.kind=track", "controller.track.lowpass_hz=5e-324"],
+                                  ["controller.kind=track", "controller.track.inertia=1e-300"],
+                                  ["controller.kind=nss", "controller.nss.g=1e-300"],
+                                  ["drive.stribeck_velocity=1e-200"], ["drive.mode_hz=[3000.0, 1e-300]"]])  # fmt: skip
+def test_a_scale_below_any_physical_value_is_one_line(capsys, sets):
+    """The fresh round's config sweep: controller.track.inertia, crossover_hz and
+    lowpass_hz of 5e-324 reached the loop design (IndexError, ZeroDivisionError: exit
+    70); inertia 1e-300 and nss.g 1e-300 printed numpy warnings before the error.  A
+    non-zero value of a field that is a scale (lower bound 0, no upper bound) must be
+    at least SCALE_MIN (1e-150: below it its square underflows)."""
+    rc = main(["config", *[a for s in sets for a in ("--set", s)]])
+    err = _one_line_error(capsys, rc)
+    assert "is below any value a scale can compute with" in err, err
+
+
+def test_a_small_physical_scale_is_still_accepted(capsys):
+    rc = main(["config", "--set", "drive.stribeck_velocity=1e-9", "--set", "compensator.sigma=5e-13", "--set", "controller.kind=track",
+               "--set", "controller.track.lowpass_hz=0"])  # fmt: skip
+    assert rc == 0, capsys.readouterr().err
