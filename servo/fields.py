@@ -35,7 +35,7 @@ def check_value(key: str, value: Any, f: dataclasses.Field) -> Any:
     if kind == "str":
         if m["choices"] is None:  # free text (a path)
             if not isinstance(value, str):
-                raise ConfigError(f"config: {key} must be a string, got {value!r}")
+                raise ConfigError(f"config: {key} must be a string, got {shown(value)}")  # (repr of a 5000-digit int raises)
             return value
         choices = choices_of(m)
         if not isinstance(value, str) or value not in choices:

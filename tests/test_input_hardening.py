@@ -680,3 +680,17 @@ def test_a_small_physical_scale_is_still_accepted(capsys):
     rc = main(["config", "--set", "drive.stribeck_velocity=1e-9", "--set", "compensator.sigma=5e-13", "--set", "controller.kind=track",
                "--set", "controller.track.lowpass_hz=0"])  # fmt: skip
     assert rc == 0, capsys.readouterr().err
+
+
+@pytest.mark.parametrize("value", [10**5000, ["x"] * 100_000], ids=["5000 digits", "a long list"])
+def test_a_path_field_given_a_huge_non_string_is_one_config_error(value):
+    """Found by the slow hostile suite on scenario.hdd_package, a field added since the
+    last round: the error for a non-string path quoted the value with repr, which raises
+    ValueError on an integer of thousands of digits (an internal error through the API)
+    and quotes a long list whole."""
+    from servo.config import from_dict
+    from servo.errors import ConfigError
+
+    with pytest.raises(ConfigError, match="scenario.hdd_package must be a string") as got:
+        from_dict({"scenario": {"hdd_package": value}})
+    assert len(str(got.value)) < 200
