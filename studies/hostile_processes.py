@@ -27,12 +27,11 @@ import subprocess
 import sys
 import threading
 import time
-from collections import Counter
 from pathlib import Path
 
 import numpy as np
 
-from studies.hostile_round import FINDINGS, TRIED, _good, _write, check, run_cli
+from studies.hostile_round import FINDINGS, TRIED, _good, _write, check
 
 ENV = {**os.environ, "PYTHONPATH": os.getcwd(), "MPLBACKEND": "Agg"}
 
@@ -404,8 +403,6 @@ def main(argv=None) -> int:
     a.root.mkdir(parents=True, exist_ok=True)
     g = _good(200_000)
     rec = _write(a.root / "long.npz", g)
-    from servo.io.runlog import RunLog  # noqa: F401  (a journal: from a run's log, cut)
-
     journal = a.root / "j" / "log.journal"
     journal.parent.mkdir(exist_ok=True)
     import json

@@ -131,10 +131,6 @@ def configs(d: Dirs, quick: bool):
     """Every field set to every value of BAD_VALUES: through ``servo config`` (the one
     validation all commands share); each accepted value that is not the default, run for
     a short time (``servo run --fast``) and its summary checked to be finite."""
-    from servo.config import from_dict, to_dict, Config
-    from servo.cli import parse_set
-    from servo.errors import ServoError
-
     fields = _fields()
     accepted = []
     for key, default in fields:
