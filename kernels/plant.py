@@ -251,7 +251,9 @@ def plant_measure(ps, pp, q, gain, nx, nv):
         y = st.y_lp
     y += p.noise_x * nx
     if p.quantum > 0.0:
-        y = math.floor(y / p.quantum + 0.5) * p.quantum
+        # np.floor stays a float: math.floor is an int64 in Numba, which wraps once y/quantum passes
+        # 2^63 (a quantum of 1e-300 m measured every position as -9e-282 m: the arm never moved)
+        y = np.floor(y / p.quantum + 0.5) * p.quantum
     if p.has_velocity != 0.0:
         yd += p.noise_v * nv
     else:

@@ -347,6 +347,10 @@ def _check_consistency(cfg: Config) -> None:
                           f"link.watchdog_s = {link.watchdog_s:g} s: a board refuses a late limit beyond its watchdog")  # fmt: skip
     if abs(d.initial_position) >= d.stroke:
         raise ConfigError("config: drive.initial_position must lie inside +-drive.stroke")
+    if cfg.run.fault_position >= d.stroke:  # the arm meets its hard stops at +-stroke first
+        raise ConfigError(f"config: run.fault_position = {cfg.run.fault_position:g} m is not inside drive.stroke = "
+                          f"{d.stroke:g} m: the arm meets its hard stops first and the check never fires "
+                          "(0: 95 % of the stroke)")  # fmt: skip
     _check_physics(cfg)
     from servo.controllers import KINDS
 
@@ -361,6 +365,10 @@ def _check_physics(cfg: Config) -> None:
     if d.position_quantum >= d.stroke:
         raise ConfigError(f"config: drive.position_quantum = {d.position_quantum:g} m is not below drive.stroke = "
                           f"{d.stroke:g} m: every measured position would be one of a few levels")  # fmt: skip
+    if 0 < d.position_quantum < d.stroke * 2.0**-52:  # 5e-324 made every measured position infinite (exit 3)
+        raise ConfigError(f"config: drive.position_quantum = {d.position_quantum:g} m is finer than a double resolves "
+                          f"across drive.stroke = {d.stroke:g} m ({d.stroke * 2.0**-52:.3g} m): write 0 for no "
+                          "quantisation")  # fmt: skip
     stiffness = abs(d.K) + d.sigma  # the rigid body's spring at a turnaround: bias plus pre-sliding
     f_n = math.sqrt(stiffness / d.J) / (2 * math.pi)
     if f_n >= nyquist:

@@ -35,7 +35,7 @@ def check_value(key: str, value: Any, f: dataclasses.Field) -> Any:
     if kind == "str":
         if m["choices"] is None:  # free text (a path)
             if not isinstance(value, str):
-                raise ConfigError(f"config: {key} must be a string, got {value!r}")
+                raise ConfigError(f"config: {key} must be a string, got {shown(value)}")  # (repr of a 5000-digit int raises)
             return value
         choices = choices_of(m)
         if not isinstance(value, str) or value not in choices:
@@ -83,6 +83,9 @@ def check_number(key: str, value: Any, m: dict, kind: type) -> Any:
         raise ConfigError(f"config: {key} must be finite, got {shown(value)}")
     if abs(value) > MAGNITUDE_MAX and (m["lo"] is None or m["hi"] is None):
         raise ConfigError(f"config: {key} = {shown(value)} is beyond any physical value ({range_text(m)}, {m['unit']})")
+    if value != 0 and abs(value) < SCALE_MIN and m["lo"] == 0 and m["hi"] is None:  # a scale: 5e-324 Hz
+        raise ConfigError(f"config: {key} = {shown(value)} is below any value a scale can compute with (0 or at least "
+                          f"{SCALE_MIN:g}, {m['unit']})")  # fmt: skip  (a track design divided by it: exit 70)
     lo, hi = m["lo"], m["hi"]
     if lo is not None and (value < lo or (m["lo_open"] and value == lo)):
         raise ConfigError(f"config: {key} = {shown(value)} is out of range ({range_text(m)}, {m['unit']})")
@@ -93,9 +96,17 @@ def check_number(key: str, value: Any, m: dict, kind: type) -> Any:
 
 MAGNITUDE_MAX = 1e12
 """Bound on the magnitude of a number field whose range has no explicit bound on that
-side, and of every recorded value (:mod:`servo.io.recording`): no servo quantity in SI
+side, and of every recorded value (:mod:`servo.io.recording`; its inverse bounds the
+largest value of a recorded column that is not all zero): no servo quantity in SI
 units comes near it, and values near 1e300 overflow the plant's matrix exponentials and
 the fits (warnings, NaN results)."""
+
+SCALE_MIN = 1e-150
+"""Least non-zero value of a field that is a scale (lower bound 0, no upper bound: an
+inertia, a frequency, a gain): below it its square underflows and the designs that
+divide by it fail (``controller.track.inertia = 5e-324`` was an IndexError, exit 70).
+Not 1/MAGNITUDE_MAX: the compensator writes 1e-12 (and less, converted by a force
+constant) for a Dahl element that is off."""
 
 
 def range_text(m: dict, number: bool = True) -> str:

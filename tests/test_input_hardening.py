@@ -325,6 +325,48 @@ def test_a_small_text_recording_takes_little_memory(tmp_path):
     assert peak < 4e6, peak
 
 
+def test_a_text_recording_beyond_its_budget_is_refused_before_a_value_is_parsed(tmp_path, monkeypatch):
+    """A text recording was parsed until its values reached the budget, then refused:
+    a 2 GB CSV took memory in proportion to the budget (1.07 GB) before its one line.
+    Its lines are now counted first, in the memory of one chunk; the error names the
+    count and the limit.  (The budget is lowered here to keep the file small.)"""
+    import tracemalloc
+
+    from servo.errors import RecordingError
+    from servo.io import tables
+
+    monkeypatch.setattr(tables, "MAX_TEXT_VALUES", 3_000_000)  # 1 000 000 rows of 3: 24 MB parsed
+    path = tmp_path / "r.csv"
+    path.write_text("t,u,x\n" + "0.00125,0.5,-0.25\n" * 1_100_000)  # 20 MB of text, 1.1 M rows
+    tracemalloc.start()
+    try:
+        with pytest.raises(RecordingError) as got:
+            tables.read_table(path)
+        peak = tracemalloc.get_traced_memory()[1]
+    finally:
+        tracemalloc.stop()
+    msg = str(got.value)
+    assert "lines after its header" in msg and "1000000 rows of 3 columns" in msg and "3000000 values" in msg, msg
+    assert "\n" not in msg and peak < 6e6, (peak, msg)  # the parse it replaced peaked at ~28 MB
+
+
+@pytest.mark.parametrize("last", [True, False], ids=["last-newline", "no-last-newline"])
+@pytest.mark.parametrize("ending", ["\n", "\r\n"], ids=["LF", "CRLF"])
+def test_a_text_recording_at_its_row_budget_loads_and_one_row_more_is_refused(tmp_path, monkeypatch, ending, last):
+    """The line count bounds the rows exactly: with room for 10 rows of 3 columns, 10
+    rows load (with or without a last newline, behind comments) and 11 are refused."""
+    from servo.errors import RecordingError
+    from servo.io import tables
+
+    monkeypatch.setattr(tables, "MAX_TEXT_VALUES", 30)
+    rows = lambda n: ending.join(f"{i * 1e-3},{i},{-i}" for i in range(n)) + (ending if last else "")  # noqa: E731
+    (tmp_path / "ok.csv").write_text(f"# bench 3{ending}t,u,x{ending}" + rows(10))
+    assert len(tables.read_table(tmp_path / "ok.csv")["t"]) == 10
+    (tmp_path / "over.csv").write_text(f"t,u,x{ending}" + rows(11))
+    with pytest.raises(RecordingError, match="at least 11 lines after its header, more than the 10 rows"):
+        tables.read_table(tmp_path / "over.csv")
+
+
 def test_the_hdd_benchmark_scenario_refuses_a_run_beyond_its_budget_before_allocating():
     """Its disturbances are arrays as long as the run: an hour at 52.8 kHz asked for
     ~9 GB.  One tick over the budget is refused before anything is generated."""
@@ -433,3 +475,222 @@ def test_a_bode_sweep_beyond_its_budget_is_refused_before_it_starts(tmp_path, ca
     rc = main(["bode", *option, "--quiet", "--out", str(tmp_path / "o")])
     err = _one_line_error(capsys, rc)
     assert "more than the" in err and list(tmp_path.iterdir()) == []
+
+
+# -- found by the fresh round (docs/robustness.md, "A fresh round") ---------------------
+
+
+def _run_summary(tmp_path, name, *sets):
+    out = tmp_path / name
+    argv = ["run", "--duration", "0.05", "--fast", "--compensation", "off", "--log-format", "npz", "--quiet", "--out", str(out)]
+    rc = main(argv + [a for s in sets for a in ("--set", s)])
+    assert rc == 0
+    return json.loads((out / "summary.json").read_text())["runs"]["uncompensated"]
+
+
+def test_the_plant_quantises_a_position_of_any_ratio_to_its_quantum():
+    """drive.position_quantum = 1e-300 m ran with exit 0 and reported "hold 0.0 nm": the
+    plant's quantiser floored y/quantum to a 64-bit integer (Numba's math.floor), which
+    wraps beyond 2^63, so every measured position was -9e-282 m and the arm never moved.
+    The kernel is called here with ratios each side of 2^63."""
+    from kernels.plant import plant_measure
+    from servo.config import DriveConfig
+    from servo.runtime.simplant import build_plant
+
+    p = build_plant(DriveConfig(mode_hz=[], mode_zeta=[], mode_gain=[]), 2e-5)
+    p.state["x"] = 3e-7
+    for quantum, want in [(1e-9, 3e-7), (1e-26, 3e-7), (1e-300, 3e-7), (0.0, 3e-7), (2e-7, 4e-7)]:
+        p.params["quantum"] = quantum
+        y, _ = plant_measure(p.state, p.params, p.q, p.gain, 0.0, 0.0)
+        assert y == pytest.approx(want, rel=1e-12), (quantum, y)
+
+
+@pytest.mark.parametrize("quantum", ["1e-300", "5e-324", "1e-20"])
+def test_a_quantum_finer_than_a_double_resolves_is_refused(tmp_path, capsys, quantum):
+    """Below stroke * 2^-52 a quantum is no quantisation a double can hold: 5e-324 made
+    every measured position infinite (exit 3 after a run).  Refused with the limit; 0
+    is the way to say none."""
+    out = tmp_path / "o"
+    rc = main(["run", "--duration", "0.05", "--fast", "--quiet", "--out", str(out), "--set", f"drive.position_quantum={quantum}"])
+    err = _one_line_error(capsys, rc)
+    # (1e-300 and 5e-324 meet the field's own floor first, SCALE_MIN; 1e-20 the physics check)
+    assert ("finer than a double resolves" in err and "write 0" in err) or "below any value a scale" in err, err
+    assert not out.exists()
+    assert not out.with_name("o.incomplete").exists()
+
+
+@pytest.mark.parametrize("sets", [["run.fault_position=10"], ["run.fault_position=0.01", "drive.stroke=0.005"]])
+def test_a_fault_position_beyond_the_hard_stops_is_refused(tmp_path, capsys, sets):
+    """run.fault_position = 10 m on a 15 mm stroke ran with exit 0: the position check
+    that stops an unstable run could never fire (the plant's hard stops are at the
+    stroke), a safety net silently switched off."""
+    out = tmp_path / "o"
+    argv = ["run", "--duration", "0.05", "--fast", "--quiet", "--out", str(out)]
+    rc = main(argv + [a for s in sets for a in ("--set", s)])
+    err = _one_line_error(capsys, rc)
+    assert "run.fault_position" in err and "hard stops" in err and not out.exists(), err
+
+
+def _lab_recording(path, n=4000, dt=1e-4):
+    t = np.arange(n) * dt
+    u = 0.02 * np.sign(np.sin(2 * np.pi * 25 * t))
+    np.savez(path, t=t, u=u, x=np.cumsum(np.cumsum(u)) * dt * dt * 10, gain=np.array(2.0))
+    return path
+
+
+@pytest.mark.parametrize("argv", [["--scale", "t=1e-300"], ["--scale", "t=1e-6"], ["--scale", "t=1e5"],
+                                  ["--scale", "u=1,u=2"], ["--columns", "u=u,u=x"], ["--columns", "x=x,x=gain"]])  # fmt: skip
+def test_a_time_in_another_unit_or_a_role_given_twice_is_one_line(tmp_path, capsys, argv):
+    """`--scale t=1e-300` printed five numpy overflow warnings before its error (a
+    sample rate of 1e304 Hz); `--scale t=1e5` (a sample every 10 s) identified a drive;
+    `--scale u=1,u=2` ran with the last of the two.  A sample period outside 1 ns..1 s
+    and a role given twice are refused where every recording is loaded."""
+    path = _lab_recording(tmp_path / "r.npz")
+    out = tmp_path / "o"
+    rc = main(["identify", str(path), "--quiet", "--out", str(out), *argv])
+    err = _one_line_error(capsys, rc)
+    assert ("a sample every" in err and "is t in seconds" in err) or "is given twice" in err or (
+        "t never exceeds" in err and "below any physical value" in err), err  # (t=1e-300: its magnitude first)
+    assert not out.exists() and not out.with_name("o.incomplete").exists()
+
+
+@pytest.mark.parametrize("argv", [
+    ["identify", "--simulate", "--duration", "1e9"], ["identify", "--simulate", "--duration", "inf"],
+    ["identify", "--simulate", "--amplitude", "inf"], ["hysteresis", "--simulate", "--duration", "1e9"],
+    ["hysteresis", "--simulate", "--duration", "nan"], ["hysteresis", "--simulate", "--large-hz", "nan"],
+    ["hysteresis", "--simulate", "--large-hz", "1e-9"]])  # fmt: skip
+def test_a_simulated_experiment_beyond_its_budget_or_not_finite_is_one_line(tmp_path, capsys, argv):
+    """`identify --simulate --duration 1e9` and `hysteresis --simulate --duration 1e9`
+    asked for 364 TiB (MemoryError, exit 70); `--duration nan` and `--large-hz nan` were
+    a ValueError (exit 70: min() let the NaN through).  Every in-memory simulation's
+    length is checked against MAX_MEMORY_ROWS before its inputs are allocated."""
+    out = tmp_path / "o"
+    rc = main([*argv, "--quiet", "--out", str(out)])
+    err = _one_line_error(capsys, rc)
+    assert "finite" in err or "in-memory simulation may hold" in err, err
+    assert not out.exists() and not out.with_name("o.incomplete").exists()
+
+
+def test_an_in_memory_log_beyond_its_budget_is_refused_before_it_is_allocated():
+    from servo.errors import ConfigError
+    from servo.runtime.closedloop import MAX_MEMORY_ROWS, MemoryLog
+
+    with pytest.raises(ConfigError, match=f"more than the {MAX_MEMORY_ROWS}"):
+        MemoryLog(10**13)
+    assert MemoryLog(MAX_MEMORY_ROWS // 1024).data.shape[0] == MAX_MEMORY_ROWS // 1024
+
+
+@pytest.mark.parametrize("extra", [[], ["--nperseg", "64"]])
+def test_an_overlap_just_below_one_is_a_valid_response_not_a_division_by_zero(tmp_path, capsys, extra):
+    """`servo frf --overlap 0.999999` rounded the overlap to the whole segment: no step
+    between segments, ZeroDivisionError, exit 70.  The overlap is at most a segment
+    less one sample."""
+    path = _lab_recording(tmp_path / "r.npz", n=2048)
+    rc = main(["frf", str(path), "--overlap", "0.999999", "--quiet", "--out", str(tmp_path / "o"), *extra])
+    assert rc == 0, capsys.readouterr().err
+    assert (tmp_path / "o" / "summary.json").exists()
+
+
+@pytest.mark.parametrize("argv", [["synthetic", "--drives", "2", "--seed", "-1"],
+                                  ["simulate", "--drives", "2", "--seed", "-1", "--vary", "drive.J=normal(1e-3,1e-5)", "--workers", "0",
+                                   "--no-plots"],
+                                  ["synthetic", "--drives", "2", "--duration", "1e-6"]])  # fmt: skip
+def test_a_fleet_seed_or_length_numpy_refuses_is_one_line(tmp_path, capsys, argv):
+    """`servo fleet synthetic --seed -1` was numpy's ValueError, exit 70; `--duration
+    1e-6` (no sample at 50 kHz) printed three numpy warnings, then an error about
+    run.duration_s = 0.0, a value the user never gave."""
+    out = tmp_path / "o"
+    rc = main(["fleet", *argv, "--quiet", "--out", str(out)])
+    err = _one_line_error(capsys, rc)
+    assert "--seed -1" in err or "--duration 1e-06" in err, err
+    assert not out.exists() and not out.with_name("o.incomplete").exists()
+
+
+@pytest.mark.parametrize("tool,scale", [("hysteresis", "u=1e-300"), ("identify", "u=1e-300"), ("identify", "x=1e-200"),
+                                        ("frf", "x=1e-300")])  # fmt: skip
+def test_a_column_below_any_physical_value_is_one_line(tmp_path, capsys, tool, scale):
+    """A recording whose u never exceeds 1e-300 A: `servo hysteresis` printed two numpy
+    warnings before its error (squares underflow).  Refused where every recording is
+    loaded, as values beyond MAGNITUDE_MAX are."""
+    path = _lab_recording(tmp_path / "r.npz")
+    rc = main([tool, str(path), "--scale", scale, "--quiet", "--out", str(tmp_path / "o")])
+    err = _one_line_error(capsys, rc)
+    assert "below any physical value" in err, err
+
+
+@pytest.mark.parametrize("defect", ["u constant", "u and x swapped", "u negated"])
+def test_identify_refuses_a_fit_whose_inertia_is_not_positive(tmp_path, capsys, defect):
+    """A recording whose force is constant identified "J = -3.34e-19, relative error
+    0.0000 %" with exit 0; one with u and x swapped J = -1.2e-8 (robust) and -7.6e-5
+    (paper).  No drive has a negative inertia: the fit is refused with the likely causes."""
+    from studies.hostile_round import _good, _write
+
+    g = _good(6000)
+    cols = {"u constant": {**g, "u": np.full_like(g["u"], 0.01)}, "u and x swapped": {**g, "u": g["x"], "x": g["u"]},
+            "u negated": {**g, "u": -g["u"]}}[defect]  # fmt: skip
+    path = _write(tmp_path / "r.npz", cols)
+    out = tmp_path / "o"
+    rc = main(["identify", str(path), "--quiet", "--out", str(out)])
+    err = _one_line_error(capsys, rc)
+    assert "inertia J = " in err and "is not positive" in err, err
+    assert not out.exists() and not out.with_name("o.incomplete").exists()
+    assert main(["identify", str(_write(tmp_path / "good.npz", g)), "--quiet", "--out", str(tmp_path / "g")]) == 0
+
+
+def test_ctrl_c_while_a_compiled_module_initialises_is_an_interruption(tmp_path, capsys, monkeypatch):
+    """Ctrl-C 3 s into `servo diagnose` (under load, while scipy's compiled modules were
+    still being imported) ended "servo: internal error: ImportError: initialization
+    failed", exit 70: pybind11 raises ImportError from the KeyboardInterrupt that cut the
+    module's initialisation short.  It is the user's interruption: exit 130, one line."""
+    import servo.io.recording as recording
+
+    def cut_short(*a, **k):
+        try:
+            raise KeyboardInterrupt
+        except KeyboardInterrupt as ki:
+            raise ImportError("initialization failed") from ki
+
+    monkeypatch.setattr(recording, "load_recording", cut_short)
+    rc = main(["identify", str(tmp_path / "r.csv"), "--quiet", "--out", str(tmp_path / "o")])
+    err = capsys.readouterr().err
+    assert rc == 130 and err == "servo: interrupted\n", (rc, err)
+    monkeypatch.setattr(recording, "load_recording", lambda *a, **k: (_ for _ in ()).throw(ImportError("a real bug")))
+    rc = main(["identify", str(tmp_path / "r.csv"), "--quiet", "--out", str(tmp_path / "o")])
+    assert rc == 70 and "internal error: ImportError: a real bug" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("sets", [["controller.kind=track", "controller.track.inertia=5e-324"],
+                                  ["controller.kind=track", "controller.track.crossover_hz=5e-324"],
+                                  ["controller.kind=track", "controller.track.lowpass_hz=5e-324"],
+                                  ["controller.kind=track", "controller.track.inertia=1e-300"],
+                                  ["controller.kind=nss", "controller.nss.g=1e-300"],
+                                  ["drive.stribeck_velocity=1e-200"], ["drive.mode_hz=[3000.0, 1e-300]"]])  # fmt: skip
+def test_a_scale_below_any_physical_value_is_one_line(capsys, sets):
+    """The fresh round's config sweep: controller.track.inertia, crossover_hz and
+    lowpass_hz of 5e-324 reached the loop design (IndexError, ZeroDivisionError: exit
+    70); inertia 1e-300 and nss.g 1e-300 printed numpy warnings before the error.  A
+    non-zero value of a field that is a scale (lower bound 0, no upper bound) must be
+    at least SCALE_MIN (1e-150: below it its square underflows)."""
+    rc = main(["config", *[a for s in sets for a in ("--set", s)]])
+    err = _one_line_error(capsys, rc)
+    assert "is below any value a scale can compute with" in err, err
+
+
+def test_a_small_physical_scale_is_still_accepted(capsys):
+    rc = main(["config", "--set", "drive.stribeck_velocity=1e-9", "--set", "compensator.sigma=5e-13", "--set", "controller.kind=track",
+               "--set", "controller.track.lowpass_hz=0"])  # fmt: skip
+    assert rc == 0, capsys.readouterr().err
+
+
+@pytest.mark.parametrize("value", [10**5000, ["x"] * 100_000], ids=["5000 digits", "a long list"])
+def test_a_path_field_given_a_huge_non_string_is_one_config_error(value):
+    """Found by the slow hostile suite on scenario.hdd_package, a field added since the
+    last round: the error for a non-string path quoted the value with repr, which raises
+    ValueError on an integer of thousands of digits (an internal error through the API)
+    and quotes a long list whole."""
+    from servo.config import from_dict
+    from servo.errors import ConfigError
+
+    with pytest.raises(ConfigError, match="scenario.hdd_package must be a string") as got:
+        from_dict({"scenario": {"hdd_package": value}})
+    assert len(str(got.value)) < 200

@@ -91,6 +91,19 @@ def use_agg() -> None:
         os.environ["MPLBACKEND"] = "Agg"
 
 
+def _interrupted(exc: BaseException) -> bool:
+    """Whether ``exc`` was caused by a Ctrl-C or SIGTERM: an extension module whose
+    initialisation a KeyboardInterrupt cut short raises ImportError from it (pybind11's
+    "initialization failed"), which is the user's interruption, not a bug."""
+    seen = set()
+    while exc is not None and id(exc) not in seen:
+        if isinstance(exc, KeyboardInterrupt):
+            return True
+        seen.add(id(exc))
+        exc = exc.__cause__ or exc.__context__
+    return False
+
+
 def main(argv: list[str] | None = None) -> int:
     # every command stops the same way on SIGTERM and SIGINT (the actuator to its safe
     # state, what it recorded kept): also when started in a script's background, whose
@@ -129,6 +142,9 @@ def main(argv: list[str] | None = None) -> int:
         print(f"servo: error: {os_error_line(exc)}", file=sys.stderr)
         return 2
     except Exception as exc:  # a bug: still one line unless asked for more
+        if _interrupted(exc):  # Ctrl-C while a compiled module initialised: "ImportError: initialization failed"
+            print("servo: interrupted", file=sys.stderr)
+            return 130
         if os.environ.get("SERVO_DEBUG"):
             raise
         print(f"servo: internal error: {type(exc).__name__}: {exc} (SERVO_DEBUG=1 shows the traceback)", file=sys.stderr)

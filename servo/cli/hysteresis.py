@@ -3,6 +3,7 @@ and the large-range average slope (eq. 11, Fig. 4)."""
 from __future__ import annotations
 
 import argparse
+import math
 import time
 from pathlib import Path
 
@@ -60,8 +61,9 @@ def _handle(args: argparse.Namespace) -> int:
         if args.recording:
             raise ConfigError("give a recording or --simulate, not both")
         exp = HysteresisExperiment(args.amplitude, args.hz, args.duration, args.large_amplitude, args.large_hz)
-        if min(exp.amplitude, exp.hz, exp.duration_s, exp.large_amplitude_m, exp.large_hz) <= 0:
-            raise ConfigError("--amplitude, --hz, --duration, --large-amplitude and --large-hz must be positive")
+        if not all(v > 0 and math.isfinite(v) for v in (exp.amplitude, exp.hz, exp.duration_s, exp.large_amplitude_m,
+                                                        exp.large_hz)):  # (min() let a NaN through)
+            raise ConfigError("--amplitude, --hz, --duration, --large-amplitude and --large-hz must be positive and finite")
         if exp.large_amplitude_m >= cfg.drive.stroke:
             raise ConfigError(f"--large-amplitude must stay inside the stroke (+-{cfg.drive.stroke:g} m)")
         with staged(out) as tmp:

@@ -3,6 +3,7 @@ drive's square-wave experiment (paper Fig. 5)."""
 from __future__ import annotations
 
 import argparse
+import math
 import time
 from pathlib import Path
 
@@ -93,8 +94,8 @@ def _handle(args: argparse.Namespace) -> int:
 
         cfg = config_from_args(args)
         sw = SquareWave(args.amplitude, args.hz, args.duration, args.holding_hz)
-        if not (sw.amplitude > 0 and sw.hz > 0 and sw.duration_s > 0 and sw.holding_hz > 0):
-            raise ConfigError("--amplitude, --hz, --duration and --holding-hz must be positive")
+        if not all(0 < v < math.inf for v in (sw.amplitude, sw.hz, sw.duration_s, sw.holding_hz)):
+            raise ConfigError("--amplitude, --hz, --duration and --holding-hz must be positive and finite")
         rec, log = run_square_wave(cfg, sw)
         if args.force_lag is None:
             from servo.experiments.square_wave import force_lag

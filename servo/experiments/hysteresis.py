@@ -21,7 +21,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from servo.config import Config
-from servo.runtime.closedloop import simulate
+from servo.runtime.closedloop import simulate, simulation_ticks
 from servo.identify.least_squares import LSResult, least_squares
 from servo.identify.regressors import paper_regression
 
@@ -53,13 +53,13 @@ def triangle(n: int, dt: float, amplitude: float, hz: float) -> np.ndarray:
 
 def run_small_loop(cfg: Config, exp: HysteresisExperiment = HysteresisExperiment()) -> dict:
     """Simulate the AM-sine experiment (compensator off); returns the log columns."""
-    n = int(round(exp.duration_s / cfg.dt))
+    n = simulation_ticks(exp.duration_s, cfg.dt, "the AM sine's duration")
     return simulate(cfg, am_sine(n, cfg.dt, exp.amplitude, exp.hz), compensation=False)
 
 
 def run_large_loop(cfg: Config, exp: HysteresisExperiment = HysteresisExperiment()) -> dict:
     """Simulate the large-range experiment (triangle reference, compensator off)."""
-    n = int(round(exp.large_cycles / exp.large_hz / cfg.dt))
+    n = simulation_ticks(exp.large_cycles / exp.large_hz, cfg.dt, "the large loop's duration (large_cycles / large_hz)")
     r = triangle(n, cfg.dt, exp.large_amplitude_m, exp.large_hz)
     return simulate(cfg, np.zeros(n), r=r, compensation=False)
 

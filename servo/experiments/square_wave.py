@@ -30,7 +30,7 @@ import numpy as np
 
 from servo.config import Config
 from servo.experiments.holding import holding_gains
-from servo.runtime.closedloop import simulate
+from servo.runtime.closedloop import simulate, simulation_ticks
 from servo.identify.least_squares import least_squares
 from servo.identify.regressors import TERMS, RobustSettings, paper_regression, robust_regression
 from servo.io.recording import Recording
@@ -56,7 +56,7 @@ def square_wave(n: int, dt: float, amplitude: float, hz: float) -> np.ndarray:
 def run_square_wave(cfg: Config, sw: SquareWave = SquareWave()) -> tuple[Recording, dict]:
     """Simulate the experiment (compensator off).  Returns the recording and the log."""
     c = cfg.replace(controller={"kind": "pi", "pi": holding_gains(cfg.drive.J, sw.holding_hz)})
-    n = int(round(sw.duration_s / c.dt))
+    n = simulation_ticks(sw.duration_s, c.dt, "the square wave's duration")
     log = simulate(c, square_wave(n, c.dt, sw.amplitude, sw.hz), compensation=False)
     rec = Recording(log["t"], log["u"], log["x"], log["v"] if cfg.drive.measures_velocity else None,
                     source="simulated square wave", meta={"experiment": "square_wave", **sw.__dict__})  # fmt: skip

@@ -154,9 +154,16 @@ def draw_drive(dists: list[Dist], seed: int, i: int) -> dict:
     return {d.field: float(d.draw(rng, 1)[0]) for d in dists}
 
 
+def check_seed(seed: int) -> None:
+    """Refuse a seed numpy's generators refuse (a negative one: exit 70 from ``--seed -1``)."""
+    if not (isinstance(seed, int) and seed >= 0):
+        raise ConfigError(f"--seed {seed!r}: expected a non-negative integer")
+
+
 def draw_drives(dists: list[Dist], n: int, seed: int) -> list[dict]:
     """Drives ``0..n-1`` (:func:`draw_drive`)."""
+    check_seed(seed)
     return [draw_drive(dists, seed, i) for i in range(n)]
 
 
-__all__ = ["Dist", "KINDS", "draw_drive", "draw_drives", "in_range", "parse_spec", "parse_specs"]
+__all__ = ["Dist", "KINDS", "check_seed", "draw_drive", "draw_drives", "in_range", "parse_spec", "parse_specs"]

@@ -27,7 +27,8 @@ from servo.runtime.closedloop import simulate
 from servo.io import progress
 from servo.io.atomic import atomic_write, write_json
 from servo.io.outdir import staged
-from servo.io.recording import Recording
+from servo.fleet.spec import check_seed
+from servo.io.recording import MIN_SAMPLES, Recording
 
 #: relative standard deviation of each baseline field across the fleet
 SPREAD = {"J": 0.03, "B": 0.10, "Fc": 0.10, "K": 0.20, "h0": 0.20}
@@ -52,9 +53,10 @@ def check_duration(duration_s: float) -> None:
     :data:`RATE_HZ`), before anything is simulated or written."""
     from servo.io.tables import MAX_SAMPLES
 
-    if not 0.0 < duration_s <= MAX_SAMPLES / RATE_HZ:
-        raise ConfigError(f"--duration {duration_s!r}: expected more than 0 and at most {MAX_SAMPLES / RATE_HZ:g} s "
-                          f"per recording ({MAX_SAMPLES} samples at {RATE_HZ:g} Hz, what a recording may hold)")  # fmt: skip
+    if not MIN_SAMPLES / RATE_HZ <= duration_s <= MAX_SAMPLES / RATE_HZ:  # (1e-6 s was 0 samples, then 7 lines)
+        raise ConfigError(f"--duration {duration_s!r}: expected {MIN_SAMPLES / RATE_HZ:g} to {MAX_SAMPLES / RATE_HZ:g} s "
+                          f"per recording ({MIN_SAMPLES} to {MAX_SAMPLES} samples at {RATE_HZ:g} Hz, what a recording "
+                          "needs and may hold)")  # fmt: skip
 
 
 def synthetic_drives(n: int, defects: int, seed: int = 0) -> list[SyntheticDrive]:
@@ -64,6 +66,7 @@ def synthetic_drives(n: int, defects: int, seed: int = 0) -> list[SyntheticDrive
         raise ConfigError(f"fleet: a synthetic fleet needs at least one drive, got {n}")
     if not 0 <= defects <= n:
         raise ConfigError(f"fleet: {defects} defective drives in a fleet of {n}")
+    check_seed(seed)
     rng = np.random.default_rng(seed)
     bad = {int(i): DEFECTS[k % len(DEFECTS)] for k, i in enumerate(sorted(rng.choice(n, defects, replace=False)))}
     width = max(4, len(str(n - 1)))

@@ -96,7 +96,13 @@ class WelchSettings:
 
     @property
     def noverlap(self) -> int:
-        return int(round(self.overlap * self.nperseg))
+        return overlap_samples(self.overlap, self.nperseg)
+
+
+def overlap_samples(overlap: float, nperseg: int) -> int:
+    """Samples two segments of ``nperseg`` share at ``overlap``: rounded, and at most
+    ``nperseg - 1`` (an overlap of 0.999999 rounded to the whole segment: no step, exit 70)."""
+    return min(int(round(overlap * nperseg)), nperseg - 1)
 
 
 def n_segments(n: int, nperseg: int, noverlap: int) -> int:
@@ -108,7 +114,7 @@ def default_nperseg(n: int, min_averages: int = MIN_AVERAGES, overlap: float = 0
     """The largest power of two whose Welch segments number at least ``min_averages``
     in ``n`` samples (the finest resolution that still averages)."""
     nper = 1 << max(int(np.log2(max(n, 1))), 0)
-    while nper > 8 and n_segments(n, nper, int(round(overlap * nper))) < min_averages:
+    while nper > 8 and n_segments(n, nper, overlap_samples(overlap, nper)) < min_averages:
         nper //= 2
     return nper
 

@@ -36,7 +36,8 @@ def identify(rec: Recording, path: str = "robust", terms=TERMS, settings: Robust
     ``path``: ``"robust"`` (inverse dynamics, :func:`robust_regression` with
     ``settings``) or ``"paper"`` (measured velocity, backward-difference acceleration:
     needs ``rec.v``).  ``force_lag_s``: how late the recorded force acts (see
-    :mod:`servo.identify.regressors`).
+    :mod:`servo.identify.regressors`).  A fit whose inertia ``J`` is not positive is
+    refused (:class:`IdentificationError`): no drive has one.
     """
     if path == "robust":
         reg = robust_regression(rec.t, rec.x, rec.u, rec.dt, terms, settings, force_lag_s)
@@ -46,7 +47,12 @@ def identify(rec: Recording, path: str = "robust", terms=TERMS, settings: Robust
         reg = paper_regression(rec.t, rec.x, rec.u, rec.v, rec.dt, terms, force_lag_s)
     else:
         raise IdentificationError(f"unknown derivative path {path!r} (choose {' or '.join(PATHS)})")
-    return Identification(reg, least_squares(reg))
+    fit = least_squares(reg)
+    if "J" in fit.terms and not fit["J"] > 0:  # u and x swapped, u constant: "J = -3.3e-19, relative error 0.0000 %"
+        raise IdentificationError(f"the {path} path's inertia J = {fit['J']:.3g} is not positive: the force does not "
+                                  "accelerate the position as eq. (4) says (u and x swapped, a sign, a force that does "
+                                  "not drive this axis?); if the recording does not excite the inertia, switch J off")  # fmt: skip
+    return Identification(reg, fit)
 
 
 __all__ = ["PATHS", "Identification", "identify"]

@@ -23,8 +23,9 @@ every format.
 
 Every problem is a :class:`~servo.errors.RecordingError` with one line that says what is
 wrong and where: unreadable file, missing column, unequal lengths, NaN/inf (first
-index), time not strictly increasing (first index), irregular sampling (gaps), too few
-samples.  Whether the data *excite* what a tool wants to identify is the tool's check.
+index), time not strictly increasing (first index), a sample period outside
+:data:`STEP_RANGE_S`, irregular sampling (gaps), too few samples, a role mapped or
+scaled twice.  Whether the data *excite* what a tool wants to identify is the tool's check.
 """
 from __future__ import annotations
 
@@ -40,6 +41,10 @@ from servo.io.tables import read_table
 REQUIRED = ("t", "u", "x")
 OPTIONAL = ("v", "r")
 MIN_SAMPLES = 20
+#: The sample periods a servo recording may have, s: 1 ns (1 GHz) to 1 s (1 Hz).  Outside
+#: them the time column is in another unit or scaled wrong (``--scale t=1e-300`` gave a
+#: sample rate of 1e304 Hz and overflowing derivatives).
+STEP_RANGE_S = (1e-9, 1.0)
 #: sampling is "uniform" when every step is within this fraction of the median step
 UNIFORM_TOLERANCE = 0.01
 
@@ -87,6 +92,9 @@ def parse_mapping(text: str | None, what: str) -> dict[str, str]:
         key, sep, value = item.partition("=")
         if not sep or not key.strip() or not value.strip():
             raise RecordingError(f"{what}: expected NAME=VALUE pairs separated by commas, got {item!r}")
+        if key.strip() in out:  # "u=1,u=2" took the last without a word
+            raise RecordingError(f"{what}: {key.strip()} is given twice ({key.strip()}={out[key.strip()]} and "
+                                 f"{key.strip()}={value.strip()})")  # fmt: skip
         out[key.strip()] = value.strip()
     return out
 
@@ -157,12 +165,20 @@ def load_recording(path: str | Path, columns: dict[str, str] | None = None, scal
         if big.size:
             raise RecordingError(f"recording: {path.name}: {role} = {a[big[0]]:.3g} at sample {big[0]} is beyond any "
                                  f"physical value (|{role}| <= {MAGNITUDE_MAX:g} in SI units): a wrong column or scale?")  # fmt: skip
+        peak = float(np.max(np.abs(a)))
+        if 0 < peak < 1 / MAGNITUDE_MAX:  # u of 1e-300 A: squares underflow, fits print numpy warnings and fail
+            raise RecordingError(f"recording: {path.name}: {role} never exceeds {peak:.3g} in magnitude, below any physical "
+                                 f"value (max |{role}| >= {1 / MAGNITUDE_MAX:g} in SI units): a wrong column or scale?")  # fmt: skip
     dt = np.diff(arrays["t"])
     back = np.flatnonzero(dt <= 0)
     if back.size:
         i = back[0]
         raise RecordingError(f"recording: {path.name}: time is not increasing at sample {i + 1} (t = {arrays['t'][i]:.9g} then {arrays['t'][i + 1]:.9g})")
     step = float(np.median(dt))
+    if not STEP_RANGE_S[0] <= step <= STEP_RANGE_S[1]:
+        raise RecordingError(f"recording: {path.name}: a sample every {step:.3g} s ({1 / step:.3g} Hz), outside the "
+                             f"{STEP_RANGE_S[0]:g} to {STEP_RANGE_S[1]:g} s a servo is sampled at: is t in seconds "
+                             "(--scale t=FACTOR)?")  # fmt: skip
     off = np.flatnonzero(np.abs(dt - step) > UNIFORM_TOLERANCE * step)
     if off.size:
         i = off[0]

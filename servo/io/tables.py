@@ -24,7 +24,9 @@ Memory follows what a tool asks for, never what the file holds: only the named c
 a tool reads are loaded from NPZ, MATLAB and HDF5 files (an unused column of any size
 costs nothing), each checked against :data:`MAX_SAMPLES` from its declared shape before
 it is read; text is parsed whole, each line at most :data:`MAX_LINE_CHARS` characters
-and the table at most :data:`MAX_TEXT_VALUES` values; and a compressed MATLAB variable is
+and the table at most :data:`MAX_TEXT_VALUES` values, its lines counted in chunks of
+:data:`COUNT_CHUNK` before a value is parsed (a file beyond the budget is refused
+whatever its size, in the memory of one chunk); and a compressed MATLAB variable is
 inflated to at most :data:`MAX_INFLATED_BYTES` (docs/robustness.md).
 """
 from __future__ import annotations
@@ -134,9 +136,36 @@ def _lines(fh, path: Path, lineno: int, max_rows: int | None = None, ncol: int =
         if max_rows is not None and not _is_comment(line):
             rows += 1
             if rows > max_rows:
-                raise RecordingError(f"recording: {path}: more than {max_rows} rows of {ncol} columns, the most a text "
-                                     f"recording may hold ({MAX_TEXT_VALUES} values); convert it to NPZ or HDF5")  # fmt: skip
+                raise _too_many_rows(path, f"more than {max_rows} rows", max_rows, ncol)
         yield line
+
+
+#: Bytes (UTF-8) or characters (UTF-16) read at a time while a text recording's lines are counted.
+COUNT_CHUNK = 1 << 20
+
+
+def _too_many_rows(path: Path, what: str, max_rows: int, ncol: int) -> RecordingError:
+    return RecordingError(f"recording: {path}: {what}, more than the {max_rows} rows of {ncol} columns a text recording "
+                          f"may hold ({MAX_TEXT_VALUES} values); convert it to NPZ or HDF5")  # fmt: skip
+
+
+def _check_line_count(path: Path, enc: str, header_lines: int, max_rows: int, ncol: int) -> None:
+    """Refuse a text recording with more than ``max_rows`` lines after its first
+    ``header_lines``, counted in chunks of :data:`COUNT_CHUNK` before anything is parsed:
+    memory stays one chunk whatever the file's size, and the scan stops at the limit.
+    (Comment and blank lines count too: the count is an upper bound of the rows.)"""
+    limit = header_lines + max_rows
+    newline, mode = ("\n", "r") if enc == "utf-16" else (b"\n", "rb")  # a UTF-8 sequence never holds byte 0x0A
+    lines, last = 0, newline
+    with open(path, mode, **({"encoding": enc, "newline": ""} if mode == "r" else {})) as fh:
+        while chunk := fh.read(COUNT_CHUNK):
+            lines += chunk.count(newline)
+            last = chunk[-1:]
+            if lines > limit:
+                break
+    lines += last != newline  # a last line without its newline
+    if lines > limit:
+        raise _too_many_rows(path, f"at least {lines - header_lines} lines after its header", max_rows, ncol)
 
 
 def _encoding(path: Path) -> str:
@@ -236,7 +265,9 @@ def _read_text(path: Path) -> Table:
             fh.seek(start)
         ncol = len(names)
         max_rows = max(1, min(MAX_SAMPLES, MAX_TEXT_VALUES // ncol))  # every column is read: a row is checked whole
-        lines = _lines(fh, path, lineno, max_rows, ncol)  # (loadtxt's own max_rows would allocate them all)
+        _check_line_count(path, enc, lineno, max_rows, ncol)  # before a value is parsed: refusal costs one chunk
+        lines = _lines(fh, path, lineno, max_rows, ncol)  # (loadtxt's own max_rows would allocate them all;
+        # the rows are also counted as they are read: a line ending the count missed, a lone CR, is bounded too)
         src = (line.replace(",", ".") for line in lines) if comma else lines
         try:
             with warnings.catch_warnings():  # "input contained no data": said below in one line

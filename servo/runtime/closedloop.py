@@ -8,21 +8,47 @@ runs one per frequency and level); they need the log as arrays, not as files.
 """
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 from kernels.compose import LOG_COLUMNS
 from servo.config import Config
+from servo.errors import ConfigError
 from servo.runtime.controller import Controller
 from servo.runtime.loop import log_rows, run_closed_loop
 from servo.scenarios import ArrayInputs
 from servo.runtime.simdriver import SimDriver
 
 
+#: Most rows an in-memory log may hold (every tick of an experiment: 168 s at 50 kHz;
+#: with the ~12-20 columns of a log, 0.8-1.3 GB).  Checked before its inputs or its log
+#: are allocated (``--duration 1e9`` asked for 364 TiB, exit 70).
+MAX_MEMORY_ROWS = 1 << 23
+
+
+def simulation_ticks(duration_s: float, dt: float, what: str = "--duration") -> int:
+    """The ticks of a simulated experiment ``duration_s`` long at period ``dt`` s: a
+    :class:`~servo.errors.ConfigError` naming ``what`` unless finite, positive and at
+    most :data:`MAX_MEMORY_ROWS` ticks."""
+    if not (math.isfinite(duration_s) and duration_s > 0):
+        raise ConfigError(f"{what} = {duration_s!r} s: expected a positive, finite duration")
+    n = round(duration_s / dt)
+    if not 1 <= n <= MAX_MEMORY_ROWS:
+        raise ConfigError(f"{what} = {duration_s:g} s is {n} ticks at {1 / dt:g} Hz, outside the 1 to {MAX_MEMORY_ROWS} "
+                          f"an in-memory simulation may hold ({MAX_MEMORY_ROWS * dt:g} s)")  # fmt: skip
+    return int(n)
+
+
 class MemoryLog:
     """A run log that stays in memory: rows of ``columns`` (a controller's
-    ``log_columns``; :data:`kernels.compose.LOG_COLUMNS` then the kind's own)."""
+    ``log_columns``; :data:`kernels.compose.LOG_COLUMNS` then the kind's own), at most
+    :data:`MAX_MEMORY_ROWS`."""
 
     def __init__(self, n_rows: int, columns: tuple[str, ...] = LOG_COLUMNS):
+        if n_rows > MAX_MEMORY_ROWS:
+            raise ConfigError(f"an in-memory run of {n_rows} log rows, more than the {MAX_MEMORY_ROWS} it may hold: "
+                              "a shorter run, a larger run.log_every, or servo run with its logs on disk")  # fmt: skip
         self.columns = tuple(columns)
         self.data = np.full((n_rows, len(self.columns)), np.nan)
         self.rows = 0
@@ -67,4 +93,4 @@ def run_in_memory(cfg: Config, inputs, compensation: bool | None = None) -> Memo
     return log
 
 
-__all__ = ["MemoryLog", "run_in_memory", "simulate"]
+__all__ = ["MAX_MEMORY_ROWS", "MemoryLog", "run_in_memory", "simulate", "simulation_ticks"]
