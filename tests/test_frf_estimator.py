@@ -161,6 +161,8 @@ ELSEWHERE = {
     "servo/hdd/pes.py": "streams the HDD benchmark's PES spectrum; servo.hdd sits below servo.frf in the layers",
     "servo/diagnose/select.py": "autocorrelation of a residual by FFT (a time-domain estimate)",
     "servo/diagnose/locate.py": "cross- and autocorrelation by FFT (time-domain estimates)",
+    "studies/proving/cases.py": "the independent generator shapes pink noise and bounds a stroke by FFT; it "
+                                "must not share code with the tool it measures",
 }
 
 
