@@ -27,6 +27,7 @@ from pathlib import Path
 
 import numpy as np
 
+from hil.process import end, read_line
 from kernels.plant import PLANT_PARAMS, PLANT_STATE
 from servo.config import Config
 
@@ -130,7 +131,7 @@ def serve_qemu(elf: Path, timeout: float = 30.0, icount: bool = False):
             raise RuntimeError(f"qemu did not start: {line!r}")
         yield proc, m.group(1)
     finally:
-        _end(proc)
+        end(proc)
 
 
 KINDS = ("pi", "track", "nss")
@@ -228,31 +229,4 @@ def serve_host(exe: Path, *args: str, timeout: float = 10.0):
             raise RuntimeError(f"the firmware did not start: {line!r}")
         yield proc, m.group(1)
     finally:
-        _end(proc)
-
-
-def _end(proc) -> None:
-    if proc.poll() is None:
-        proc.terminate()
-        try:
-            proc.wait(5)
-        except subprocess.TimeoutExpired:
-            proc.kill()
-            proc.wait()
-    for f in (proc.stdout, proc.stderr):
-        if f is not None:
-            f.close()
-
-
-def read_line(proc, timeout: float) -> str | None:
-    """The process's next stdout line, or None at EOF or after ``timeout`` s."""
-    end = time.monotonic() + timeout
-    fd = proc.stdout.fileno()
-    while b"\n" not in proc.pending:
-        ready, _, _ = select.select([fd], [], [], max(0.0, end - time.monotonic()))
-        chunk = os.read(fd, 4096) if ready else b""
-        if not chunk:
-            return None
-        proc.pending += chunk
-    line, _, proc.pending = proc.pending.partition(b"\n")
-    return line.decode()
+        end(proc)
