@@ -390,10 +390,10 @@ static void on_config(board *bd, const uint8_t *c, uint32_t now)
     bd->loop_kind = 0;
     bd->loop_total = bd->loop_got = 0;
     bd->refs_next = 0;
-    double u_hold = hal_prepare();
+    double u_hold = hal_write_current(bd->info.holding_current);
     bd->u_start = bd->u_last = bd->applied = u_hold;
     double x, v;
-    hal_read_position(&x, &v);
+    hal_read_position(&x, &v); /* tick 0's sample */
     bd->state = BOARD_READY;
     bd->ready_since_us = now;
     uint8_t out[48 + 4];

@@ -6,7 +6,7 @@
  *   timeout, missed deadlines, bad command, output overflow) --> FAULTED
  *
  * Zero current (hal_write_current(0.0)) at board_init and in IDLE, HELLO and FAULTED;
- * READY holds the current hal_prepare returned for at most the CONFIG's ready timeout,
+ * READY holds the board's holding current (board_info) for at most the CONFIG's ready timeout,
  * ACTIVE applies the host's commands for at most the watchdog without a COMMANDS frame.
  * A HELLO while READY or ACTIVE is refused (ignored, counted, logged).  A CONFIG beyond
  * the documented limits (b 1..32, d 0..1000, watchdog 1..60 000 000 us, ready timeout
@@ -59,6 +59,9 @@ typedef struct {
     const char *name;           /* up to 32 bytes UTF-8 */
     double sample_rate_hz;      /* f_s, Hz */
     double current_limit;       /* amplifier limit, A */
+    double holding_current;     /* A: applied in READY and until the first command is due (the
+                                   current that holds the drive at rest: 0.0 for a drive with no
+                                   bias force; READY reports what hal_write_current returned) */
     int has_velocity;           /* 1: hal_read_position measures velocity */
     int lockstep;               /* 1: advance when commands arrive (simulation); 0: board_tick paces */
     void (*log)(const char *line); /* one line per session event; may be NULL */

@@ -1,17 +1,45 @@
 /* hal.h's drive half over the simulated drive (plant.c): the position read and the
- * current write.  A write takes effect over the next sample period, so the plant steps
- * when the next sample is read (or never, after the safe state's zero: the run is over);
- * hal_prepare rebuilds the plant from FW_DRIVE, so every run starts from the same state. */
+ * current write, and the simulated drive's own rule for when a run begins (sim_poll).
+ *
+ * Time is counted in reads: a write takes effect over the next sample period, so the
+ * plant steps under the current written last when the next sample is read.
+ *
+ * Parked: while the board is in its safe state (IDLE, HELLO, FAULTED) the simulated drive
+ * rests at its power-up state (FW_DRIVE), as the Python emulator rebuilds its drive at
+ * every CONFIG, so that every run starts from the same state.  The first read after that
+ * (READY's sample, at CONFIG) is tick 0's sample and does not step the plant; currents
+ * written while parked (the safe state's zero, READY's holding current) are held, not
+ * stepped.  A second CONFIG while READY keeps the drive as it is (as a real drive would).
+ */
+#include "board.h"
 #include "drive.h"
 #include "hal.h"
 
 static plant pl;
-static int pending;
+static int parked, pending;
 static double u_pending;
+
+void sim_park(void)
+{
+    if (parked)
+        return;
+    pl = FW_DRIVE;
+    parked = 1;
+    pending = 0;
+}
+
+void sim_poll(board *bd)
+{
+    board_poll(bd);
+    if (bd->state != BOARD_READY && bd->state != BOARD_ACTIVE)
+        sim_park();
+}
 
 void hal_read_position(double *x, double *v)
 {
-    if (pending) {
+    if (parked) {
+        parked = 0;
+    } else if (pending) {
         plant_step(&pl, u_pending, 0.0);
         pending = 0;
     }
@@ -21,14 +49,7 @@ void hal_read_position(double *x, double *v)
 double hal_write_current(double amps)
 {
     u_pending = amps;
-    pending = 1;
+    pending = !parked;
     double m = FW_DRIVE.p.u_max;
     return amps > m ? m : amps < -m ? -m : amps; /* plant_step's clip, as its ubuf[0] */
-}
-
-double hal_prepare(void)
-{
-    pl = FW_DRIVE;
-    pending = 0;
-    return pl.u_hold;
 }

@@ -29,9 +29,11 @@ size_t hal_stream(const uint8_t *tx, size_t tx_len, size_t *tx_taken, uint8_t *r
 /* Power up a board (lockstep 1/0) with a session log of none. */
 void fwt_init(int lockstep)
 {
-    board_info info = {"firmware under test", FW_SAMPLE_RATE_HZ, FW_DRIVE.p.u_max, FW_HAS_VELOCITY, lockstep, 0};
+    board_info info = {"firmware under test", FW_SAMPLE_RATE_HZ, FW_DRIVE.p.u_max, FW_DRIVE.u_hold, FW_HAS_VELOCITY,
+                       lockstep, 0};
     in_len = in_pos = out_len = 0;
     board_init(&bd, &info);
+    sim_park();
 }
 
 /* Bytes from the host at time now_us: polled until consumed and the answers flushed. */
@@ -42,15 +44,15 @@ void fwt_feed(const uint8_t *p, size_t n, uint32_t now_us)
     memcpy(in, p, n < sizeof in ? n : sizeof in);
     in_len = n < sizeof in ? n : sizeof in;
     while (in_pos < in_len)
-        board_poll(&bd);
-    board_poll(&bd);
+        sim_poll(&bd);
+    sim_poll(&bd);
 }
 
 /* Time passes: poll at now_us (the watchdog and the ready timeout). */
 void fwt_poll(uint32_t now_us)
 {
     clock_us = now_us;
-    board_poll(&bd);
+    sim_poll(&bd);
 }
 
 /* Real time: one tick at now_us, its output flushed. */
@@ -58,7 +60,7 @@ void fwt_tick(uint32_t now_us)
 {
     clock_us = now_us;
     board_tick(&bd);
-    board_poll(&bd);
+    sim_poll(&bd);
 }
 
 /* The bytes the board sent since the last call. */
