@@ -15,7 +15,10 @@
  *
  * The loop on the board (docs/protocol.md section 9, lockstep): after READY the host
  * sends the controller's records (LOOP), then each tick's reference (REFS); the board
- * runs the kind's kernels (controller.c) and streams log rows (LOG).
+ * runs the kind's kernels (controller.c) and streams log rows (LOG).  New parameters of
+ * the kind (GAINS) take effect at the tick the host names, before that tick's controller
+ * runs, and are acknowledged (GAINS_ACK); a GAINS out of range (a non-finite value, a
+ * negative gain, an unstable biquad, another structure) is a fault at zero current.
  *
  * No heap, no floating-point exceptions, no library beyond <string.h> and <math.h>
  * (isfinite).  One `board` is about 40 KB (the command ring and the output buffer).
@@ -41,7 +44,7 @@
 
 enum board_state { BOARD_IDLE, BOARD_HELLO, BOARD_READY, BOARD_ACTIVE, BOARD_FAULTED };
 
-enum { CAP_VELOCITY = 1, CAP_LOCKSTEP = 2, CAP_CURRENT = 4 };
+enum { CAP_VELOCITY = 1, CAP_LOCKSTEP = 2, CAP_CURRENT = 4, CAP_LOOP = 8 };
 
 enum {
     FAULT_WATCHDOG = 1, FAULT_DEADLINE, FAULT_CORRUPT, FAULT_SEQUENCE, FAULT_COMMAND, FAULT_CONFIG,
@@ -109,6 +112,13 @@ typedef struct {
                                                          struct { track_state c; track_params p; } tr; } k; } r;
     } loop;
     uint32_t refs_next;         /* tick of the next reference expected */
+    /* new parameters of the kind (GAINS), applied before tick gains_tick runs */
+    int gains_pending;
+    uint32_t gains_tick;
+    union {
+        pi_params pi;
+        track_params tr;
+    } gains;
 } board;
 
 /* Power-up: zero current, IDLE. */

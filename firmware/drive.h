@@ -4,12 +4,22 @@
 #ifndef SERVO_FW_DRIVE_H
 #define SERVO_FW_DRIVE_H
 
+#include <stdint.h>
+
 #include "board.h"
 #include "plant.h"
 
 extern const plant FW_DRIVE;          /* the plant at power-up, rebuilt at every CONFIG */
 extern const double FW_SAMPLE_RATE_HZ; /* f_s, Hz */
 extern const int FW_HAS_VELOCITY;      /* 1: the drive measures velocity */
+extern const uint64_t FW_NOISE_SEED;   /* run.seed: the sensor noise's seed, reseeded every run */
+
+/* The steps scenario's disturbance force on the arm (servo/scenarios/steps.py), A:
+ * amplitude * sin(2 pi hz (k dt - start_s)) at tick k from start_s on, 0 before. */
+typedef struct {
+    double amplitude, hz, start_s, dt;
+} disturbance;
+extern const disturbance FW_DISTURBANCE;
 
 /* board_poll, then the simulated drive parked at its power-up state while the board is in
  * its safe state (hal_sim.c): every run starts from the same state. */
@@ -17,5 +27,8 @@ void sim_poll(board *bd);
 
 /* Park the simulated drive now (power-up). */
 void sim_park(void);
+
+/* FW_DISTURBANCE over sample period k, A. */
+double sim_disturbance(uint32_t k);
 
 #endif

@@ -6,6 +6,7 @@
 #include "board.h"
 #include "drive.h"
 #include "hal.h"
+#include "noise.h"
 
 static uint8_t in[1 << 16], out[1 << 16];
 static size_t in_len, in_pos, out_len;
@@ -88,4 +89,20 @@ void fwt_plant_run(int n, const double *u, const double *d, double *out)
         plant_measure(&pl, 0.0, 0.0, out + 2 * k, out + 2 * k + 1);
         plant_step(&pl, u[k], d[k]);
     }
+}
+
+/* The sensor noise generator alone: n pairs of standard-normal draws from `seed`. */
+void fwt_noise(uint64_t seed, int n, double *out)
+{
+    static noise_gen g;
+    noise_seed(&g, seed);
+    for (int k = 0; k < n; k++)
+        noise_pair(&g, out + 2 * k, out + 2 * k + 1);
+}
+
+/* The simulated drive's disturbance force (A) over periods 0 .. n-1. */
+void fwt_disturbance(int n, double *out)
+{
+    for (int k = 0; k < n; k++)
+        out[k] = sim_disturbance((uint32_t)k);
 }

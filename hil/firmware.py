@@ -8,10 +8,12 @@ makes for a config as C source (hexadecimal float literals: every bit kept).
 pseudo-terminal, ``firmware/main_host.c``) into a directory, once per source and drive;
 :func:`serve_host` runs it and yields its port.
 
-The firmware's drive has no sensor noise and no disturbance force (numpy's generator is
-not ported): a config run against it is compared with the simulated drive of the same
-config with ``drive.position_noise = drive.velocity_noise = 0`` and
-``scenario.disturbance_amplitude = 0`` (:func:`comparable`).
+The firmware's drive applies the steps scenario's disturbance force (the same bits as
+:mod:`servo.scenarios.steps`) and draws its sensor noise from its own generator
+(``firmware/noise.c``, seeded with ``run.seed``): with the noise on, a run is equal to the
+Python simulated drive's in distribution, not in bits.  A config run against it is
+compared bit for bit with the simulated drive of the same config with
+``drive.position_noise = drive.velocity_noise = 0`` (:func:`comparable`).
 """
 from __future__ import annotations
 
@@ -32,7 +34,7 @@ from kernels.plant import PLANT_PARAMS, PLANT_STATE
 from servo.config import Config
 
 ROOT = Path(__file__).resolve().parent.parent / "firmware"
-PORTABLE = ("cobs.c", "crc32.c", "board.c", "dahl.c", "plant.c", "controller.c", "hal_sim.c")
+PORTABLE = ("cobs.c", "crc32.c", "board.c", "dahl.c", "plant.c", "controller.c", "noise.c", "hal_sim.c")
 """The portable sources (everything but a target's main and its stream/clock half of the HAL)."""
 HOST = PORTABLE + ("main_host.c",)
 CFLAGS = ("-std=c99", "-O2", "-ffp-contract=off", "-Wall", "-Wextra", "-Werror")
@@ -41,9 +43,9 @@ MAX_MODES, MAX_UBUF = 8, 64  # firmware/plant.h
 
 
 def comparable(cfg: Config) -> Config:
-    """``cfg`` with what the firmware's drive does not model set to zero: sensor noise
-    and the disturbance force."""
-    return cfg.replace(drive={"position_noise": 0.0, "velocity_noise": 0.0}, scenario={"disturbance_amplitude": 0.0})
+    """``cfg`` without sensor noise: the firmware's drive then gives the Python simulated
+    drive's bits (its noise generator is not numpy's)."""
+    return cfg.replace(drive={"position_noise": 0.0, "velocity_noise": 0.0})
 
 
 def _c(x: float) -> str:
@@ -77,7 +79,24 @@ def drive_source(cfg: Config) -> str:
         f"{_c(p.u_hold)}}};\n"
         f"const double FW_SAMPLE_RATE_HZ = {_c(cfg.run.sample_rate_hz)};\n"
         f"const int FW_HAS_VELOCITY = {1 if cfg.drive.measures_velocity else 0};\n"
+        f"const uint64_t FW_NOISE_SEED = {cfg.run.seed}u;\n"
+        f"const disturbance FW_DISTURBANCE = {{{', '.join(map(_c, _disturbance(cfg)))}}};\n"
     )
+
+
+def _disturbance(cfg: Config) -> tuple[float, float, float, float]:
+    """The drive's disturbance force as ``(amplitude A, Hz, start s, dt s)``: the steps
+    scenario's sinusoid; another scenario kind's only if it has none."""
+    from servo.scenarios import scenario_inputs
+    from servo.scenarios.steps import ScenarioInputs
+
+    inputs = scenario_inputs(cfg)
+    if isinstance(inputs, ScenarioInputs):
+        return inputs.amplitude, inputs.hz, inputs.start_s, inputs.dt
+    if np.any(inputs.disturbance(np.arange(cfg.n_ticks)) != 0.0):
+        raise ValueError(f"the firmware's simulated drive applies the steps scenario's sinusoidal disturbance only; "
+                         f"scenario.kind = {cfg.scenario.kind} has another")  # fmt: skip
+    return 0.0, 0.0, 0.0, cfg.dt
 
 
 def find_cc() -> str | None:

@@ -51,6 +51,7 @@ TYPE_NAMES = {HELLO: "HELLO", CONFIG: "CONFIG", START: "START", COMMANDS: "COMMA
 CAP_VELOCITY = 0x0001  # samples carry a measured velocity (else v is NaN)
 CAP_LOCKSTEP = 0x0002  # the board advances when commands arrive (emulator), not on its clock
 CAP_CURRENT = 0x0004  # samples carry the applied current
+CAP_LOOP = 0x0008  # the board runs the loop itself (LOOP, REFS, GAINS; docs/protocol.md section 9)
 
 # SAMPLES status bits
 STATUS_HELD = 0x01  # a tick of this frame ran on the previous current: its command was late
