@@ -3,7 +3,7 @@
  * of virtual time, counts 40 instructions per step).  Not a board's program: it runs the
  * closed loop of each controller kind against the simulated drive and writes, on UART0,
  *
- *   <kind> controller <instructions/tick> plant <instructions/tick> frames <instructions/tick>
+ *   <kind> controller <n> plant <n> frames <n> loop_frames <n>     (instructions per tick)
  *
  * then "done", once the host has sent a byte (QEMU drops what a pty nobody reads is sent).  The records come from bench_data.c (hil/firmware.py: each kind's records
  * after its bumpless start, for the drive's config).
@@ -132,6 +132,29 @@ static uint32_t time_frames(void)
     return t + (sink == 1u); /* keep the work */
 }
 
+/* The loop on the board's frames of one tick at b = 1: a LOG frame out (13 columns: CRC,
+ * COBS) and a REFS frame in (COBS, CRC). */
+static uint32_t time_loop_frames(void)
+{
+    static uint8_t body[12 + 8 * 13 + 4], enc[140], refs[12 + 16 + 4], refs_enc[40], dec[40];
+    memcpy(refs + 12, &xs[0], 8);
+    uint32_t c0 = crc32_bytes(refs, 28);
+    memcpy(refs + 28, &c0, 4);
+    size_t refs_n = cobs_encode(refs, 32, refs_enc);
+    uint32_t t0 = now(), sink = 0;
+    for (int k = 0; k < N; k++) {
+        for (int j = 0; j < 13; j++)
+            memcpy(body + 12 + 8 * j, j & 1 ? &vs[k] : &xs[k], 8);
+        uint32_t c = crc32_bytes(body, 12 + 8 * 13);
+        memcpy(body + 12 + 8 * 13, &c, 4);
+        sink += (uint32_t)cobs_encode(body, sizeof body, enc);
+        long m = cobs_decode(refs_enc, refs_n, dec);
+        sink += crc32_bytes(dec, (size_t)m - 4);
+    }
+    uint32_t t = (t0 - now()) * INSN_PER_COUNT / N;
+    return t + (sink == 1u);
+}
+
 int main(void)
 {
     UART_BAUDDIV = 16;
@@ -150,6 +173,7 @@ int main(void)
         uint32_t c = time_kind(i > 0, rec[i][0], rec[i][1], rec[i][2], rec[i][3]);
         uint32_t p = time_plant();
         uint32_t f = time_frames();
+        uint32_t lf = time_loop_frames();
         put(names[i]);
         put(" controller ");
         put_u32(c);
@@ -157,6 +181,8 @@ int main(void)
         put_u32(p);
         put(" frames ");
         put_u32(f);
+        put(" loop_frames ");
+        put_u32(lf);
         put("\n");
     }
     put("done\n");
