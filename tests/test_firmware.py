@@ -890,3 +890,42 @@ def test_gains_out_of_range_are_a_fault_at_zero_current(lib, kind, how):
     assert [f.code for f in faults] == [P.FAULT_COMMAND], faults
     assert "GAINS for tick" in faults[0].text
     assert lib.fwt_state() == FAULTED and lib.fwt_applied() == 0.0
+
+
+# ------------------------------------------------------------------- a real board's port
+
+
+def test_a_port_provides_four_hal_functions_and_the_stub_links(tmp_path):
+    """The session (board.c) needs exactly the four functions of hal.h from a board;
+    hal_board_stub.c provides them: the portable sources, the stub and a main link."""
+    cc = find_cc()
+    board_o = tmp_path / "board.o"
+    subprocess.run([cc, "-std=c99", "-c", "-I", str(ROOT), str(ROOT / "board.c"), "-o", str(board_o)], check=True)
+    undefined = subprocess.run(["nm", "-u", str(board_o)], capture_output=True, text=True, check=True).stdout.split()
+    assert {s for s in undefined if s.startswith("hal_")} == {"hal_read_position", "hal_write_current", "hal_now_us",
+                                                              "hal_stream"}  # fmt: skip
+    main = tmp_path / "main.c"
+    main.write_text('#include "board.h"\nint main(void)\n{\n    static board bd;\n'
+                    '    board_info info = {"port", 50000.0, 1.0, 0.0, 0, 0, 0};\n    board_init(&bd, &info);\n'
+                    '    board_poll(&bd);\n    board_tick(&bd);\n    return (int)bd.state;\n}\n')  # fmt: skip
+    sources = [str(ROOT / s) for s in ("cobs.c", "crc32.c", "board.c", "controller.c", "dahl.c", "hal_board_stub.c")]
+    r = subprocess.run([cc, "-std=c99", "-Wall", "-Wextra", "-Werror", "-DSERVO_FW_PORT", "-I", str(ROOT), *sources,
+                        str(main), "-o", str(tmp_path / "port"), "-lm"], capture_output=True, text=True)  # fmt: skip
+    assert r.returncode == 0, r.stderr
+    assert subprocess.run([str(tmp_path / "port")]).returncode == IDLE  # power-up: IDLE, zero current
+    r = subprocess.run([cc, "-std=c99", "-fsyntax-only", "-I", str(ROOT), str(ROOT / "hal_board_stub.c")],
+                       capture_output=True, text=True)  # fmt: skip
+    assert r.returncode != 0 and "is a template" in r.stderr  # not built by mistake
+
+
+def test_the_loop_on_the_board_is_refused_by_a_board_without_it(tmp_path):
+    """The Python emulator runs no controller: its INFO lacks the capability, and the host
+    stops with one line before READY's drive is held."""
+    from hil.emulator import start_in_thread
+    from hil.onboard import OnBoardDriver
+
+    cfg = CFG.replace(link={"loop": "board", "timeout_s": 2.0})
+    with start_in_thread(Board(cfg), "tcp") as url:
+        drv = OnBoardDriver(cfg, url)
+        with pytest.raises(DriverError, match=r"does not run the loop itself .*use link.loop = \"host\""):
+            drv.configure()
