@@ -537,14 +537,15 @@ def assert_same_logs(fw, sim, kind, atol=None):
         assert np.ptp(b["x"]) > 1e-6
 
 
-@pytest.mark.slow  # two runs of servo run in-process, 10-15 s on a loaded machine
-def test_servo_run_port_against_the_firmware_gives_the_simulators_logs(host_build, tmp_path):
-    cfg = CFG.replace(link={"watchdog_s": 2.0, "timeout_s": 2.0})
+@pytest.mark.slow  # two runs of servo run in-process per kind, 10-15 s on a loaded machine
+@pytest.mark.parametrize("kind", ["pi", "track", "nss"])
+def test_servo_run_port_against_the_firmware_gives_the_simulators_logs(host_build, kind, tmp_path):
+    cfg = CFG.replace(controller={"kind": kind}, link={"watchdog_s": 2.0, "timeout_s": 2.0})
     with serve_host(host_build) as (proc, url):
         fw, sim = servo_run_both(cfg, url, tmp_path)
         lines = [read_line(proc, 2.0) for _ in range(4)]
     assert all("drive at zero current" in line for line in lines[1::2]), lines
-    assert_same_logs(fw, sim, "pi")
+    assert_same_logs(fw, sim, kind)
 
 
 @pytest.mark.slow  # two runs of servo run in-process per kind
@@ -600,6 +601,32 @@ LINK_FAULTS = [  # (faulty:// option, link changes, what the host says, what the
     ("silent_tx=104", {"watchdog_s": 0.2}, r"board fault, watchdog at tick \d+: no command for", "FAULT 1"),
     ("corrupt_rx=103", {}, r"corrupt frame from the board at tick 100", "stopped by the host after"),
 ]
+
+
+ON_BOARD_FAULTS = [("corrupt_tx=60", {}, r"board fault, corrupt frame", "FAULT 3"),
+                   ("dup_tx=60", {}, r"board fault, sequence error", "FAULT 4"),
+                   ("silent_tx=60", {"watchdog_s": 0.2}, r"board fault, watchdog at tick \d+: no command for", "FAULT 1")]
+
+
+@pytest.mark.parametrize("fault,link,host_says,fw_says", ON_BOARD_FAULTS, ids=[f[0] for f in ON_BOARD_FAULTS])
+def test_a_link_fault_with_the_loop_on_the_board_leaves_it_at_zero_current(host_build, fault, link, host_says, fw_says,
+                                                                            tmp_path):  # fmt: skip
+    """The loop on the board under the same link faults: a corrupt, duplicated or missing
+    host frame (REFS) is a fault at zero current, the rows before it on disk."""
+    from hil.onboard import run_on_board
+
+    cfg = FAULT_CFG.replace(controller={"kind": "track"}, link={"loop": "board", "batch": 2, **link})
+    inputs, ticks = scenario_inputs(cfg), np.arange(cfg.n_ticks)
+    controller = Controller(cfg)
+    with serve_host(host_build) as (proc, url):
+        with pytest.raises(DriverError, match=host_says):
+            with RunLog(tmp_path, "log", controller.log_columns) as log:
+                run_on_board(cfg, f"faulty://{url}?{fault}", controller, inputs.reference(ticks),
+                             inputs.excitation(ticks), log)  # fmt: skip
+        line = _zero_current_line(proc)
+    assert fw_says in line, line
+    rows = np.load(tmp_path / "log.npz")["tick"].shape[0]
+    assert 100 <= rows <= 120  # LOOP frames, START, then REFS of 2 ticks each: frame 60 is near tick 110
 
 
 @pytest.mark.parametrize("fault,link,host_says,fw_says", LINK_FAULTS, ids=[f[0] for f in LINK_FAULTS])
