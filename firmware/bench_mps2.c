@@ -110,49 +110,30 @@ static uint32_t time_plant(void)
     return (t0 - now()) * INSN_PER_COUNT / N;
 }
 
-/* One SAMPLES frame out (b = 1: CRC, COBS) and one COMMANDS frame in (COBS, CRC). */
-static uint32_t time_frames(void)
+/* One tick's frames at b = 1: a body of `out_values` float64 after its 12-byte header out
+ * (CRC, COBS) and one of `in_values` in (COBS, CRC).  Host in the loop: SAMPLES (3 values)
+ * out, COMMANDS (1) in; the loop on the board: LOG (13 columns) out, REFS (2) in. */
+static uint32_t time_frames(int out_values, int in_values)
 {
-    static uint8_t body[40], enc[64], cmd[28], cmd_enc[40], dec[40];
-    memcpy(cmd + 12, &us[0], 8);
-    uint32_t c0 = crc32_bytes(cmd, 20);
-    memcpy(cmd + 20, &c0, 4);
-    size_t cmd_n = cobs_encode(cmd, 24, cmd_enc);
+    static uint8_t body[12 + 8 * 13 + 4], enc[COBS_MAX(12 + 8 * 13 + 4)], in[12 + 8 * 2 + 4],
+        in_enc[COBS_MAX(12 + 8 * 2 + 4)], dec[12 + 8 * 2 + 4];
+    size_t out_n = 12 + 8 * (size_t)out_values, in_n = 12 + 8 * (size_t)in_values;
+    memcpy(in + 12, &us[0], 8);
+    uint32_t c0 = crc32_bytes(in, in_n);
+    memcpy(in + in_n, &c0, 4);
+    size_t in_enc_n = cobs_encode(in, in_n + 4, in_enc);
     uint32_t t0 = now(), sink = 0;
     for (int k = 0; k < N; k++) {
-        memcpy(body + 12, &xs[k], 8);
-        memcpy(body + 20, &vs[k], 8);
-        uint32_t c = crc32_bytes(body, 36);
-        memcpy(body + 36, &c, 4);
-        sink += (uint32_t)cobs_encode(body, 40, enc);
-        long m = cobs_decode(cmd_enc, cmd_n, dec);
+        for (int j = 0; j < out_values; j++)
+            memcpy(body + 12 + 8 * j, j & 1 ? &vs[k] : &xs[k], 8);
+        uint32_t c = crc32_bytes(body, out_n);
+        memcpy(body + out_n, &c, 4);
+        sink += (uint32_t)cobs_encode(body, out_n + 4, enc);
+        long m = cobs_decode(in_enc, in_enc_n, dec);
         sink += crc32_bytes(dec, (size_t)m - 4);
     }
     uint32_t t = (t0 - now()) * INSN_PER_COUNT / N;
     return t + (sink == 1u); /* keep the work */
-}
-
-/* The loop on the board's frames of one tick at b = 1: a LOG frame out (13 columns: CRC,
- * COBS) and a REFS frame in (COBS, CRC). */
-static uint32_t time_loop_frames(void)
-{
-    static uint8_t body[12 + 8 * 13 + 4], enc[140], refs[12 + 16 + 4], refs_enc[40], dec[40];
-    memcpy(refs + 12, &xs[0], 8);
-    uint32_t c0 = crc32_bytes(refs, 28);
-    memcpy(refs + 28, &c0, 4);
-    size_t refs_n = cobs_encode(refs, 32, refs_enc);
-    uint32_t t0 = now(), sink = 0;
-    for (int k = 0; k < N; k++) {
-        for (int j = 0; j < 13; j++)
-            memcpy(body + 12 + 8 * j, j & 1 ? &vs[k] : &xs[k], 8);
-        uint32_t c = crc32_bytes(body, 12 + 8 * 13);
-        memcpy(body + 12 + 8 * 13, &c, 4);
-        sink += (uint32_t)cobs_encode(body, sizeof body, enc);
-        long m = cobs_decode(refs_enc, refs_n, dec);
-        sink += crc32_bytes(dec, (size_t)m - 4);
-    }
-    uint32_t t = (t0 - now()) * INSN_PER_COUNT / N;
-    return t + (sink == 1u);
 }
 
 int main(void)
@@ -172,8 +153,8 @@ int main(void)
     for (int i = 0; i < 3; i++) {
         uint32_t c = time_kind(i > 0, rec[i][0], rec[i][1], rec[i][2], rec[i][3]);
         uint32_t p = time_plant();
-        uint32_t f = time_frames();
-        uint32_t lf = time_loop_frames();
+        uint32_t f = time_frames(3, 1);
+        uint32_t lf = time_frames(13, 2);
         put(names[i]);
         put(" controller ");
         put_u32(c);
