@@ -141,6 +141,7 @@ class OnBoardDriver(SerialDriver):
     def _log_frame(self, k0: int, b: int, cols: int) -> np.ndarray:
         """The LOG frame of ticks ``k0 .. k0+b-1`` (``(b, cols)``); acknowledgements of gain
         changes before it are recorded."""
+        self._k_frame = k0  # the tick the link's error messages name
         while True:
             kind, body = self._next_body(time.perf_counter_ns() + int(self.timeout_s * 1e9), "LOG")
             if kind == GAINS_ACK and len(body) == _ACK.size:
