@@ -17,6 +17,7 @@ import math
 import os
 import shutil
 import signal
+import struct
 import subprocess
 import sys
 import time
@@ -827,7 +828,7 @@ def test_gains_changed_at_tick_boundaries_on_the_board_give_the_simulated_drives
     assert np.array_equal(board[:301, u], plain[:301, u]) and not np.array_equal(board[301:, u], plain[301:, u])
 
 
-LOOP_HEAD = __import__("struct").Struct("<BBHBBHHH")
+LOOP_HEAD = struct.Struct("<BBHBBHHH")
 
 
 def _types(host):
@@ -855,14 +856,14 @@ def _loop_running(lib, kind):
 def _refs(host, k):
     from hil.onboard import REFS
 
-    host.send(lambda s: __import__("struct").pack("<BBHIBBHdd", P.VERSION, REFS, s, k, 1, 0, 0, 0.0, 0.0))
+    host.send(lambda s: struct.pack("<BBHIBBHdd", P.VERSION, REFS, s, k, 1, 0, 0, 0.0, 0.0))
 
 
 def _gains(host, tick, code, params):
     from hil.onboard import GAINS
 
     body = params.tobytes()
-    host.send(lambda s: __import__("struct").pack("<BBHIBBHI", P.VERSION, GAINS, s, tick, code, 0, len(body), 0) + body)
+    host.send(lambda s: struct.pack("<BBHIBBHI", P.VERSION, GAINS, s, tick, code, 0, len(body), 0) + body)
 
 
 def test_gains_are_applied_at_their_tick_and_acknowledged(lib):

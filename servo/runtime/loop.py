@@ -99,7 +99,7 @@ def run_closed_loop(
         if driver.state is DriverState.UNCONFIGURED:
             driver.configure()
         stats = np.zeros(STATS_SIZE)
-        durations = Durations() if (timing and not fast) else None
+        durations = Durations() if (timing and not fast and not driver.closes_loop) else None
         _warm_up(controller, log)
         watchdog = Watchdog(cfg)
         if not driver.closes_loop:
@@ -107,7 +107,6 @@ def run_closed_loop(
         t0 = time.perf_counter()
         try:
             if driver.closes_loop:  # the loop on the drive: the host supervises and records
-                durations = None
                 driver.run_loop(cfg, controller, inputs, log, stats, watchdog)
             elif fast:
                 _run_fast(cfg, driver, controller, inputs, log, stats, watchdog)
