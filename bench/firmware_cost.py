@@ -6,9 +6,11 @@ of a 50 kHz loop on a 200 MHz core (4000 cycles per tick).
   bytes from ``arm-none-eabi-size``; and the linked host-in-the-loop image.
 * Instructions per tick (``firmware/bench_mps2.c`` under QEMU with ``-icount shift=0``):
   each controller kind's tick on its stage (compensator on), the simulated drive's step
-  and sensor read (what a real board does not run), and one tick's frames at b = 1: with
-  the host in the loop a SAMPLES frame out and a COMMANDS frame in, with the loop on the
-  board a LOG frame out (13 columns) and a REFS frame in (CRC and COBS each way).
+  and sensor read (what a real board does not run), and the frames: with the host in the
+  loop a SAMPLES frame out and a COMMANDS frame in per tick (b = 1); with the loop on the
+  board the REFS frames in (32 ticks a frame, per tick) and a LOG frame of one 13-column
+  row out (CRC and COBS each way), sent every ``n``-th tick (``run.log_every``;
+  :func:`hil.onboard.link_log_every`): a tick costs ``controller + refs + log / n``.
 * Cycles: QEMU counts instructions, not cycles (it does not model the pipeline).  The
   cycles are bounded with a stated cycles-per-instruction range (:data:`CPI_TYPICAL`,
   :data:`CPI_BOUND`): a Cortex-M7 issues up to two instructions a cycle (CPI 0.5 at
@@ -36,6 +38,25 @@ CPI_TYPICAL = 1.0
 CPI_BOUND = 2.0
 """Cycles per instruction this code stays under on a Cortex-M7 running from its TCM (the
 module doc says why); the budget is checked at this bound."""
+
+
+ONBOARD_LOG_EVERY = 5
+"""The logging period the docs recommend with the loop on the board at 50 kHz
+(``run.log_every = 5`` with the default ``run.estimator_every = 10``: the board sends
+every 5th row); every kind fits the budget at :data:`CPI_BOUND` with it, and with any
+period from :data:`ONBOARD_FITS_FROM` on."""
+ONBOARD_FITS_FROM = 3
+"""The smallest logging period with which every kind's tick, the loop on the board, fits
+the budget at :data:`CPI_BOUND` (docs/firmware.md); at full rate (1) none does."""
+PERIODS = (1, 2, 3, 4, 5, 10)
+"""The logging periods of the printed table."""
+
+
+def onboard_tick(r: dict[str, int], every: int) -> float:
+    """Instructions per tick with the loop on the board, a log row every ``every`` ticks:
+    the kind, its share of a 32-tick REFS frame, its share of a one-row LOG frame (``r``:
+    one kind's :func:`hil.firmware.instructions_per_tick`)."""
+    return r["controller"] + r["refs"] + r["log"] / every
 
 
 def cycles(instructions: float) -> tuple[float, float]:
@@ -75,16 +96,23 @@ def main() -> None:
     print(f"| linked image (both modes, newlib's libm and string functions) | {image} (+ {bss} RAM) |")
     print("\nInstructions per tick (QEMU), and cycles at 1 and 2 cycles per instruction, of the 4000 of a "
           "50 kHz tick on a 200 MHz core:\n")
-    print("| kind | controller | host in the loop: + frames | cycles | loop on the board: + frames | cycles | "
-          "simulated drive |")
-    print("|---|---|---|---|---|---|---|")
+    print("| kind | controller | host in the loop: + frames = total | cycles (% of 4000) | simulated drive |")
+    print("|---|---|---|---|---|")
+    for kind, r in ipt.items():
+        total = r["controller"] + r["frames"]
+        lo, hi = cycles(total)
+        print(f"| `{kind}` | {r['controller']} | {r['frames']} = {total} | {lo:.0f}-{hi:.0f} "
+              f"({lo / BUDGET:.0%}-{hi / BUDGET:.0%}) | {r['plant']} |")
+    print("\nThe loop on the board: + REFS per tick (32 ticks a frame), + a one-row LOG frame; per tick with a "
+          "row every n ticks, cycles at 1-2 per instruction (% of 4000):\n")
+    print("| kind | controller + refs | LOG row | " + " | ".join(f"n = {n}" for n in PERIODS) + " |")
+    print("|---|---|---|" + "---|" * len(PERIODS))
     for kind, r in ipt.items():
         cells = []
-        for frames in (r["frames"], r["loop_frames"]):
-            total = r["controller"] + frames
-            lo, hi = cycles(total)
-            cells += [f"{frames} = {total}", f"{lo:.0f}-{hi:.0f} ({lo / BUDGET:.0%}-{hi / BUDGET:.0%})"]
-        print(f"| `{kind}` | {r['controller']} | " + " | ".join(cells) + f" | {r['plant']} |")
+        for n in PERIODS:
+            lo, hi = cycles(onboard_tick(r, n))
+            cells.append(f"{lo:.0f}-{hi:.0f} ({lo / BUDGET:.0%}-{hi / BUDGET:.0%})")
+        print(f"| `{kind}` | {r['controller']} + {r['refs']} | {r['log']} | " + " | ".join(cells) + " |")
 
 
 if __name__ == "__main__":

@@ -220,6 +220,8 @@ static void loop_tick(board *bd, uint32_t k, double r, double u_exc)
     else
         u = fw_track_tick(c, &bd->loop.r.sp, &bd->loop.r.k.tr.c, &bd->loop.r.k.tr.p, x, v, r, u_exc);
     bd->applied = hal_write_current(u);
+    if (k % bd->log_every)
+        return; /* only every log_every-th tick's row is sent (LOOP) */
     if (bd->batch_n == 0)
         bd->batch_tick0 = k;
     double row[BOARD_LOG_MAX] = {(double)k, (double)k * bd->loop.r.sp.dt, c->x_prev + c->e, x, c->v, c->u, c->u_n,
@@ -413,6 +415,7 @@ static void on_config(board *bd, const uint8_t *c, uint32_t now)
     bd->ready_us = (uint32_t)get16(c + 14) * 1000u;
     bd->loop_kind = 0;
     bd->loop_total = bd->loop_got = 0;
+    bd->log_every = 1;
     bd->refs_next = 0;
     bd->gains_pending = 0;
     double u_hold = hal_write_current(bd->info.holding_current);
@@ -488,18 +491,21 @@ static void on_commands(board *bd, const uint8_t *body, uint32_t n, uint32_t now
 static void on_loop(board *bd, const uint8_t *body, size_t n)
 {
     uint32_t kind = body[4], off = get16(body + 6), total = get16(body + 8), len = (uint32_t)n - 12;
+    uint32_t every = get16(body + 10) ? get16(body + 10) : 1u; /* 0: every tick (hosts of before) */
     uint32_t want = kind == 1 ? sizeof(stage_state) + sizeof(stage_params) + sizeof(pi_state) + sizeof(pi_params)
                               : sizeof(stage_state) + sizeof(stage_params) + sizeof(track_state) + sizeof(track_params);
     text t = {{0}, 0};
     if (!bd->info.lockstep || (kind != 1 && kind != 2) || total != want || off != bd->loop_got || off + len > total ||
-        12u + 8u * bd->b * (kind == 2 ? 13u : 12u) > BODY_MAX) {
+        12u + 8u * bd->b * (kind == 2 ? 13u : 12u) > BODY_MAX || (off > 0 && every != bd->log_every)) {
         t_u32(t_str(t_u32(t_str(t_u32(t_str(&t, "LOOP kind "), kind), ", records of "), total), " bytes at "), off);
         fault(bd, FAULT_CONFIG, "", t_str(&t, ": not a controller this board runs, a batch too large for its log rows, "
-                                              "or a real-time board (the loop on the board runs in lockstep only)"));
+                                              "another log period in a later piece, or a real-time board (the loop on the "
+                                              "board runs in lockstep only)"));
         return;
     }
     bd->loop_kind = (uint8_t)kind;
     bd->loop_total = total;
+    bd->log_every = every;
     memcpy(bd->loop.bytes + off, body + 12, len); /* the host's buf: the four records back to back */
     bd->loop_got = off + len;
 }

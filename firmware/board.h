@@ -106,6 +106,7 @@ typedef struct {
      * reference and excitation per tick */
     uint8_t loop_kind;          /* 0: host in the loop; 1: pi; 2: two-rate cascade (track, nss) */
     uint32_t loop_total, loop_got;
+    uint32_t log_every;         /* the LOG rows are those of ticks k with k % log_every == 0 (LOOP) */
     union {
         uint8_t bytes[BOARD_LOOP_BYTES];
         struct { stage_state ss; stage_params sp; union { struct { pi_state c; pi_params p; } pi;

@@ -185,9 +185,10 @@ def build_mps2_bench(cfg: Config, workdir: Path) -> Path:
 
 def instructions_per_tick(cfg: Config, workdir: Path, timeout: float = 120.0) -> dict[str, dict[str, int]]:
     """Run :func:`build_mps2_bench`'s program under QEMU with ``-icount shift=0``;
-    ``{kind: {"controller": n, "plant": n, "frames": n, "loop_frames": n}}``, instructions
-    per tick (``frames``: SAMPLES out and COMMANDS in, host in the loop; ``loop_frames``:
-    LOG out and REFS in, the loop on the board; both at b = 1)."""
+    ``{kind: {"controller": n, "plant": n, "frames": n, "refs": n, "log": n}}``,
+    instructions per tick (``frames``: SAMPLES out and COMMANDS in, host in the loop at
+    b = 1; ``refs``: the loop on the board's REFS frames in, 32 ticks a frame) and per log
+    row sent (``log``: a LOG frame of one 13-column row out, CRC and COBS)."""
     elf = build_mps2_bench(cfg, workdir)
     out: dict[str, dict[str, int]] = {}
     with serve_qemu(elf, icount=True) as (proc, url):
@@ -206,8 +207,8 @@ def instructions_per_tick(cfg: Config, workdir: Path, timeout: float = 120.0) ->
             os.close(fd)
     for line in buf.decode().splitlines():
         f = line.split()
-        if len(f) == 9:
-            out[f[0]] = {f[i]: int(f[i + 1]) for i in range(1, 9, 2)}
+        if len(f) == 11:
+            out[f[0]] = {f[i]: int(f[i + 1]) for i in range(1, 11, 2)}
     if set(out) != set(KINDS):
         raise RuntimeError(f"the bench program on QEMU gave {buf!r}")
     return out

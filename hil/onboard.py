@@ -18,6 +18,7 @@ from arrays.
 """
 from __future__ import annotations
 
+import math
 import struct
 import time
 from dataclasses import dataclass
@@ -37,11 +38,21 @@ from servo.scenarios import ArrayInputs, Inputs
 LOOP, REFS, GAINS, LOG, GAINS_ACK = 0x06, 0x07, 0x08, 0x87, 0x88
 KIND_CODES = {"pi": 1, "track": 2, "nss": 2}
 """The firmware's code of each kind's kernels (two-rate cascade: 2)."""
-_LOOP_HEAD = struct.Struct("<BBHBBHHH")  # header, kind, reserved, byte offset, total bytes, reserved
+_LOOP_HEAD = struct.Struct("<BBHBBHHH")  # header, kind, reserved, byte offset, total bytes, log period
 _LOG_HEAD = struct.Struct("<BBHIBBH")  # header, tick0, rows, columns, reserved
 _GAINS_HEAD = struct.Struct("<BBHIBBHI")  # header, tick, kind, reserved, bytes, reserved
 _ACK = struct.Struct("<BBHIBBH")  # header, tick, kind, reserved
 CHUNK = 1000 - _LOOP_HEAD.size
+REFS_MAX = 32
+"""Ticks of reference per REFS frame (the protocol's largest; the board's cost per tick
+falls with it)."""
+
+
+def link_log_every(cfg: Config) -> int:
+    """Ticks between the log rows the board sends (LOOP's log period): every
+    ``run.log_every``-th tick's row for the log and every ``run.estimator_every``-th for
+    the tracking-error statistics, so their greatest common divisor."""
+    return math.gcd(cfg.run.log_every, cfg.run.estimator_every)
 
 
 @dataclass(frozen=True)
@@ -65,6 +76,9 @@ class OnBoardDriver(SerialDriver):
         self.gains = sorted(gains, key=lambda g: g.tick)
         self.acknowledged: list[int] = []
         """Ticks of the gain changes the board acknowledged, in order."""
+        self.log_frames = 0
+        """LOG frames received (each of ``link.batch`` rows, a row every
+        :func:`link_log_every` ticks)."""
 
     def _on_configure(self):
         info = super()._on_configure()
@@ -82,9 +96,14 @@ class OnBoardDriver(SerialDriver):
         tracking error every ``run.estimator_every`` ticks to ``stats``
         (:func:`kernels.compose.error_stats`), and ``watchdog`` looks at the rows."""
         n, b = cfg.n_ticks, self.b
-        if n % b:
-            raise DriverError(f"link: the loop on the board runs whole batches: the run's {n} ticks are not a "
-                              f"multiple of link.batch = {b}")  # fmt: skip
+        every = link_log_every(cfg)
+        rows_total = -(-n // every)  # ticks 0, every, 2 every, ... below n
+        if rows_total % b:
+            raise DriverError(f"link: the loop on the board sends whole LOG frames of link.batch = {b} rows: the run's "
+                              f"{rows_total} rows (one every {every} ticks of {n}) are not a multiple of {b}")  # fmt: skip
+        if every > 0xFFFF:
+            raise DriverError(f"link: the board's log period, {every} ticks (run.log_every and run.estimator_every's "
+                              "greatest common divisor), is over 65535")  # fmt: skip
         if self.gains and not (0 <= self.gains[0].tick and self.gains[-1].tick < n):
             raise DriverError(f"link: a gain change outside the run's ticks 0..{n - 1}")
         params = controller.records()[3]
@@ -96,19 +115,20 @@ class OnBoardDriver(SerialDriver):
         data = controller.buf.tobytes()
         code = KIND_CODES[cfg.controller.kind]
         for off in range(0, len(data), CHUNK):
-            self._send(_LOOP_HEAD.pack(P.VERSION, LOOP, self._tx_seq, code, 0, off, len(data), 0)
+            self._send(_LOOP_HEAD.pack(P.VERSION, LOOP, self._tx_seq, code, 0, off, len(data), every)
                        + data[off : off + CHUNK])  # fmt: skip
         self.activate()
         cols = len(controller.log_columns)
         e_col = list(controller.log_columns).index("e")
         hold, log_every, est_every = cfg.run.excitation_every, cfg.run.log_every, cfg.run.estimator_every
         pending = list(self.gains)
-        for k0 in range(0, n, b):
-            ticks = np.arange(k0, k0 + b)
+        frames = 0  # LOG frames read
+        for k0 in range(0, n, REFS_MAX):
+            ticks = np.arange(k0, min(k0 + REFS_MAX, n))
             held = ticks - ticks % hold
             r, u_exc = inputs.reference(held), inputs.excitation(held)
-            start = 0
-            while pending and pending[0].tick < k0 + b:  # the REFS split at each change
+            start, m = 0, ticks.shape[0]
+            while pending and pending[0].tick < k0 + m:  # the REFS split at each change
                 g = pending.pop(0)
                 if g.tick - k0 > start:
                     self._refs(k0 + start, r[start : g.tick - k0], u_exc[start : g.tick - k0])
@@ -116,18 +136,28 @@ class OnBoardDriver(SerialDriver):
                 body = g.params.tobytes()
                 self._send(_GAINS_HEAD.pack(P.VERSION, GAINS, self._tx_seq, g.tick, code, 0, len(body), 0) + body)
             self._refs(k0 + start, r[start:], u_exc[start:])
-            rows = self._log_frame(k0, b, cols)
-            for i, row in enumerate(rows):
-                k = k0 + i
-                if k % est_every == 0:
-                    error_stats(stats, row[e_col])
-                if k % log_every == 0:
-                    log.data[log.rows] = row
-                    log.rows += 1
-                    if watchdog is not None:
-                        watchdog.maybe_look(log)
-                    else:
-                        log.maybe_flush()
+            while frames < -(-(k0 + m) // every) // b:  # the LOG frames the ticks sent so far complete
+                rows = self._log_frame(frames * b * every, b, cols, every)
+                frames += 1
+                self.log_frames = frames
+                for i, row in enumerate(rows):
+                    k = (frames - 1) * b * every + i * every
+                    if k % est_every == 0:
+                        error_stats(stats, row[e_col])
+                    if k % log_every == 0:
+                        log.data[log.rows] = row
+                        log.rows += 1
+                        if watchdog is not None:
+                            watchdog.maybe_look(log)
+                        else:
+                            log.maybe_flush()
+        while len(self.acknowledged) < len(self.gains):  # changes after the last logged row
+            self._k_frame = n
+            kind, body = self._next_body(time.perf_counter_ns() + int(self.timeout_s * 1e9), "GAINS_ACK")
+            if kind != GAINS_ACK or len(body) != _ACK.size:
+                self._parse(body)
+                raise DriverError(f"link: a {P.TYPE_NAMES.get(kind, hex(kind))} frame from the board, not GAINS_ACK")
+            self.acknowledged.append(_ACK.unpack(body)[3])
         if self.acknowledged != [g.tick for g in self.gains]:
             raise DriverError(f"link: the board acknowledged gain changes at ticks {self.acknowledged}, the host "
                               f"sent them for {[g.tick for g in self.gains]}")  # fmt: skip
@@ -138,9 +168,9 @@ class OnBoardDriver(SerialDriver):
         self._send(struct.pack(f"<BBHIBBH{pairs.shape[0]}d", P.VERSION, REFS, self._tx_seq, k0, r.shape[0], 0, 0,
                                *pairs))  # fmt: skip
 
-    def _log_frame(self, k0: int, b: int, cols: int) -> np.ndarray:
-        """The LOG frame of ticks ``k0 .. k0+b-1`` (``(b, cols)``); acknowledgements of gain
-        changes before it are recorded."""
+    def _log_frame(self, k0: int, b: int, cols: int, every: int) -> np.ndarray:
+        """The LOG frame of ticks ``k0, k0 + every, ..`` (``b`` rows: ``(b, cols)``);
+        acknowledgements of gain changes before it are recorded."""
         self._k_frame = k0  # the tick the link's error messages name
         while True:
             kind, body = self._next_body(time.perf_counter_ns() + int(self.timeout_s * 1e9), "LOG")
@@ -152,7 +182,8 @@ class OnBoardDriver(SerialDriver):
                 raise DriverError(f"link: a {P.TYPE_NAMES.get(kind, hex(kind))} frame from the board, not LOG")
             _, _, _, tick0, rows, ncols, _ = _LOG_HEAD.unpack_from(body)
             if tick0 != k0 or rows != b or ncols != cols or len(body) != _LOG_HEAD.size + 8 * b * cols:
-                raise DriverError(f"link: LOG frame of tick {tick0}, {rows} x {ncols}, expected {k0}, {b} x {cols}")
+                raise DriverError(f"link: LOG frame of tick {tick0}, {rows} x {ncols}, expected {k0}, {b} x {cols} "
+                                  f"(a row every {every} ticks)")  # fmt: skip
             return np.frombuffer(body, "<f8", offset=_LOG_HEAD.size).reshape(b, cols)
 
 

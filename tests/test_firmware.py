@@ -585,6 +585,49 @@ def test_the_loop_on_the_board_logs_the_simulated_drives_run(host_build, kind, t
     assert np.ptp(sim[:, LOG_COLUMNS.index("x")]) > 1e-6
 
 
+@pytest.mark.parametrize("kind", ["pi", "track", "nss"])
+def test_the_board_logs_every_nth_row_and_gives_the_simulated_drives_log_and_estimate(host_build, kind, tmp_path):
+    """run.log_every = 5 and run.estimator_every = 10: the board sends the rows of every
+    5th tick only (their greatest common divisor), 4 to a LOG frame, and the host records
+    the simulated drive's log and tracking-error statistics bit for bit; a gain change
+    after the last logged row is still acknowledged."""
+    from hil.onboard import GainChange, OnBoardDriver, link_log_every
+
+    cfg = CFG.replace(controller={"kind": kind}, run={"log_every": 5, "estimator_every": 10},
+                      link={"watchdog_s": 2.0, "timeout_s": 2.0, "batch": 4, "command_latency_ticks": 3,
+                            "loop": "board"})  # fmt: skip
+    assert link_log_every(cfg) == 5 and link_log_every(cfg.replace(run={"log_every": 4})) == 2
+    last = cfg.n_ticks - 2  # after tick 995, the last logged row
+    gains = [GainChange(last, _kind_params(cfg, kind))]  # the same gains: the run is unchanged
+    results = {}
+    with serve_host(host_build) as (proc, url):
+        drv = OnBoardDriver(cfg, url, gains)
+        controller = Controller(cfg)
+        with drv, RunLog(tmp_path, "board", controller.log_columns) as log:
+            results["board"] = run_closed_loop(cfg, drv, controller, scenario_inputs(cfg), log)
+        board = log.recorded().copy()
+    assert drv.log_frames == cfg.n_ticks // 5 // 4 and drv.acknowledged == [last]
+    controller = Controller(cfg)
+    with SimDriver(cfg, scenario_inputs(cfg)) as sim_drv, RunLog(tmp_path, "sim", controller.log_columns) as log:
+        results["sim"] = run_closed_loop(cfg, sim_drv, controller, scenario_inputs(cfg), log)
+    sim = log.recorded().copy()
+    assert board.shape == sim.shape == (cfg.n_ticks // 5, len(controller.log_columns))
+    assert np.array_equal(board, sim, equal_nan=True)
+    assert np.array_equal(results["board"].stats, results["sim"].stats)
+    assert results["sim"].stats[1] == cfg.n_ticks // 10  # every 10th tick's error
+
+
+def test_a_run_whose_logged_rows_do_not_fill_whole_frames_is_refused(host_build, tmp_path):
+    from hil.onboard import OnBoardDriver
+
+    cfg = CFG.replace(run={"log_every": 3, "estimator_every": 3}, link={"batch": 4, "command_latency_ticks": 3, "loop": "board"})
+    controller = Controller(cfg)
+    with serve_host(host_build) as (proc, url):
+        with OnBoardDriver(cfg, url) as drv, RunLog(tmp_path, "board", controller.log_columns) as log:
+            with pytest.raises(DriverError, match=r"334 rows \(one every 3 ticks of 1000\) are not a multiple of 4"):
+                run_closed_loop(cfg, drv, controller, scenario_inputs(cfg), log)
+
+
 def _zero_current_line(proc, timeout=5.0) -> str:
     end = time.monotonic() + timeout
     seen = []
@@ -604,9 +647,9 @@ LINK_FAULTS = [  # (faulty:// option, link changes, what the host says, what the
 ]
 
 
-ON_BOARD_FAULTS = [("corrupt_tx=60", {}, r"board fault, corrupt frame", "FAULT 3"),
-                   ("dup_tx=60", {}, r"board fault, sequence error", "FAULT 4"),
-                   ("silent_tx=60", {"watchdog_s": 0.2}, r"board fault, watchdog at tick \d+: no command for", "FAULT 1")]
+ON_BOARD_FAULTS = [("corrupt_tx=8", {}, r"board fault, corrupt frame", "FAULT 3"),
+                   ("dup_tx=8", {}, r"board fault, sequence error", "FAULT 4"),
+                   ("silent_tx=8", {"watchdog_s": 0.2}, r"board fault, watchdog at tick \d+: no command for", "FAULT 1")]
 
 
 @pytest.mark.parametrize("fault,link,host_says,fw_says", ON_BOARD_FAULTS, ids=[f[0] for f in ON_BOARD_FAULTS])
@@ -627,7 +670,7 @@ def test_a_link_fault_with_the_loop_on_the_board_leaves_it_at_zero_current(host_
         line = _zero_current_line(proc)
     assert fw_says in line, line
     rows = np.load(tmp_path / "log.npz")["tick"].shape[0]
-    assert 100 <= rows <= 120  # LOOP frames, START, then REFS of 2 ticks each: frame 60 is near tick 110
+    assert rows in (64, 96)  # HELLO, CONFIG, LOOP pieces, START, then REFS of 32 ticks: frame 8 is ticks 64..95
 
 
 @pytest.mark.parametrize("fault,link,host_says,fw_says", LINK_FAULTS, ids=[f[0] for f in LINK_FAULTS])
@@ -835,17 +878,18 @@ def _types(host):
     return [(body[1], body) for body in host.dec.feed(host.out())]
 
 
-def _loop_running(lib, kind):
-    """A board running ``kind`` itself (b = 1), tick 0 run; returns (host, kind code)."""
+def _loop_running(lib, kind, every=0, b=1):
+    """A board running ``kind`` itself (batch ``b``, a log row every ``every`` ticks, 0:
+    the field a host of before sends), tick 0 run; returns (host, kind code)."""
     from hil.onboard import CHUNK, KIND_CODES, LOOP
 
     host = _fresh(lib)
-    ready = host.configure(watchdog_ms=50)[-1]
+    ready = host.configure(watchdog_ms=50, b=b, d=max(0, b - 1))[-1]
     ctl = Controller(CFG.replace(controller={"kind": kind}))
     ctl.start(ready.x, ready.v, ready.i)
     data, code = ctl.buf.tobytes(), KIND_CODES[kind]
     for off in range(0, len(data), CHUNK):  # the records in frames of at most 1000 bytes
-        host.send(lambda s: LOOP_HEAD.pack(P.VERSION, LOOP, s, code, 0, off, len(data), 0) + data[off : off + CHUNK])
+        host.send(lambda s: LOOP_HEAD.pack(P.VERSION, LOOP, s, code, 0, off, len(data), every) + data[off : off + CHUNK])
     host.send(P.start)
     _refs(host, 0)
     assert lib.fwt_state() == ACTIVE
@@ -877,6 +921,43 @@ def test_gains_are_applied_at_their_tick_and_acknowledged(lib):
     kinds = [t for t, _ in _types(host)]
     assert kinds == [LOG, LOG, GAINS_ACK, LOG]  # acknowledged when applied, before tick 3's row
     assert lib.fwt_state() == ACTIVE and lib.fwt_applied() != 0.0
+
+
+@pytest.mark.parametrize("every,b", [(1, 1), (3, 1), (3, 2), (7, 4)])
+def test_the_board_sends_every_nth_row_in_batches(lib, every, b):
+    """LOOP's log period ``every``: the board sends the rows of ticks 0, every, 2 every ..
+    only, ``b`` to a LOG frame, each frame once its last row exists; the other ticks run
+    and send nothing."""
+    from hil.onboard import LOG
+
+    host, code = _loop_running(lib, "track", every=every, b=b)
+    for k in range(1, 6 * every * b):
+        _refs(host, k)
+    logs = [body for t, body in _types(host) if t == LOG]
+    assert lib.fwt_state() == ACTIVE
+    first = 1 if b == 1 else 0  # a frame of tick 0 alone went out (and was read) with tick 0
+    assert len(logs) == 6 - first
+    heads = [struct.unpack_from("<IBB", body, 4) for body in logs]
+    assert [h[0] for h in heads] == [m * b * every for m in range(first, 6)]
+    assert all(h[1] == b and h[2] == 13 for h in heads)
+    rows = np.concatenate([np.frombuffer(body, "<f8", offset=12).reshape(b, 13) for body in logs])
+    assert np.array_equal(rows[:, 0], np.arange(first * b * every, 6 * b * every, every))  # the tick column
+
+
+def test_a_log_period_that_changes_between_loop_pieces_is_refused(lib):
+    from hil.onboard import CHUNK, KIND_CODES, LOOP
+
+    host = _fresh(lib)
+    ready = host.configure(watchdog_ms=50)[-1]
+    ctl = Controller(CFG.replace(controller={"kind": "track"}))
+    ctl.start(ready.x, ready.v, ready.i)
+    data, code = ctl.buf.tobytes(), KIND_CODES["track"]
+    assert len(data) > CHUNK
+    for off, every in ((0, 4), (CHUNK, 5)):
+        host.send(lambda s: LOOP_HEAD.pack(P.VERSION, LOOP, s, code, 0, off, len(data), every) + data[off : off + CHUNK])
+    faults = [P.parse(body)[2] for t, body in _types(host) if t == P.FAULT]
+    assert [f.code for f in faults] == [P.FAULT_CONFIG] and "log period" in faults[0].text
+    assert lib.fwt_state() == FAULTED and lib.fwt_applied() == 0.0
 
 
 def _bad(kind, how):
