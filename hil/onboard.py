@@ -21,7 +21,7 @@ from __future__ import annotations
 import math
 import struct
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Sequence
 
 import numpy as np
@@ -85,7 +85,7 @@ class OnBoardDriver(SerialDriver):
         if not self.board_info.caps & P.CAP_LOOP:
             raise DriverError(f"link: the board at {self.url} ('{self.board_info.name}') does not run the loop itself "
                               "(no loop-on-board capability in its INFO); use link.loop = \"host\"")  # fmt: skip
-        return info
+        return replace(info, command_latency_ticks=self.cfg.link.loop_latency_ticks)  # none in the board's loop
 
     def run_loop(self, cfg: Config, controller: Controller, inputs: Inputs, log: RunLog, stats: np.ndarray,
                  watchdog=None) -> None:  # fmt: skip

@@ -108,6 +108,15 @@ class LinkConfig:
     baudrate: int = P(921600, "bit/s", "serial link: line rate of a real UART (pty, socket:// and USB CDC ignore it)",
                       50, 100_000_000)
 
+    @property
+    def loop_latency_ticks(self) -> int:
+        """Ticks from a command to the drive inside the loop: ``command_latency_ticks``
+        when the host closes the loop, 0 when the board does (``loop = "board"``: the
+        command never crosses the link).  The one place that decides it: the simulated
+        drive, the drivers' info and the design code (``servo.lti``,
+        ``servo.loop.design``, ``servo.experiments``) read it."""
+        return self.command_latency_ticks if self.loop == "host" else 0
+
 
 def _kind_names() -> tuple[str, ...]:
     from servo.controllers import kind_names  # imported when first needed: the kinds load kernels

@@ -50,7 +50,7 @@ class SimDriver(Driver):
     def _on_configure(self) -> DriverInfo:
         cfg = self.cfg
         self.plant = build_plant(cfg.drive, cfg.dt)
-        self.latency = np.full(self.command_latency(cfg), self.plant.u_hold)
+        self.latency = np.full(cfg.link.loop_latency_ticks, self.plant.u_hold)
         self._x = self.plant.state.view(np.float64)  # [x, v, H]: a float view for the finiteness check
         self._rng = np.random.default_rng(cfg.run.seed)
         self._noise = np.empty((NOISE_BLOCK, 2))
@@ -60,14 +60,9 @@ class SimDriver(Driver):
             name="sim",
             sample_rate_hz=cfg.run.sample_rate_hz,
             has_velocity=cfg.drive.measures_velocity,
-            command_latency_ticks=self.command_latency(cfg),
+            command_latency_ticks=cfg.link.loop_latency_ticks,
             current_limit=cfg.drive.current_limit,
         )
-
-    @staticmethod
-    def command_latency(cfg: Config) -> int:
-        """Ticks from a command to the plant: the link's ``d``, or 0 with the loop on the board."""
-        return cfg.link.command_latency_ticks if cfg.link.loop == "host" else 0
 
     def _warm_up(self) -> None:
         """Call the plant kernels once on scratch copies: any first-call cost is paid
