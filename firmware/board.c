@@ -18,6 +18,7 @@ enum { INFO = 0x81, READY = 0x82, SAMPLES = 0x84, FAULT = 0x85, STATS = 0x86, LO
 
 static uint16_t get16(const uint8_t *p) { return (uint16_t)(p[0] | p[1] << 8); }
 static uint32_t get32(const uint8_t *p) { return (uint32_t)p[0] | (uint32_t)p[1] << 8 | (uint32_t)p[2] << 16 | (uint32_t)p[3] << 24; }
+static uint64_t get64(const uint8_t *p) { return (uint64_t)get32(p) | (uint64_t)get32(p + 4) << 32; }
 static double getf64(const uint8_t *p)
 {
     uint64_t u = (uint64_t)get32(p) | (uint64_t)get32(p + 4) << 32;
@@ -393,6 +394,8 @@ static int config_problem(const board *bd, const uint8_t *c, text *t)
         t_str(t_u32(t_str(t_u32(t_str(t, "late limit "), late), " ticks is longer than the watchdog ("), wd), " us)");
     } else if (!(fabs(rate - bd->info.sample_rate_hz) <= 1e-12 * fmax(fabs(rate), fabs(bd->info.sample_rate_hz)))) {
         t_str(t_u32(t_str(t, "the host expects another sample rate than the board's "), (uint32_t)bd->info.sample_rate_hz), " Hz");
+    } else if (get64(c + 24) > 0x7FFFFFFFFFFFFFFFu) {
+        t_str(t, "seed over 2^63 - 1");
     } else {
         return 0;
     }
@@ -413,6 +416,7 @@ static void on_config(board *bd, const uint8_t *c, uint32_t now)
     bd->watchdog_us = get32(c + 8);
     bd->late_limit = get16(c + 12);
     bd->ready_us = (uint32_t)get16(c + 14) * 1000u;
+    bd->seed = get64(c + 24); /* before tick 0's sample: a simulated drive seeds its noise with it */
     bd->loop_kind = 0;
     bd->loop_total = bd->loop_got = 0;
     bd->log_every = 1;
@@ -424,13 +428,13 @@ static void on_config(board *bd, const uint8_t *c, uint32_t now)
     hal_read_position(&x, &v); /* tick 0's sample */
     bd->state = BOARD_READY;
     bd->ready_since_us = now;
-    uint8_t out[48 + 4];
+    uint8_t out[56 + 4];
     header(bd, out, READY);
-    memcpy(out + 4, c + 4, 20);
-    putf64(out + 24, x);
-    putf64(out + 32, v);
-    putf64(out + 40, u_hold);
-    send(bd, out, 48);
+    memcpy(out + 4, c + 4, 28);
+    putf64(out + 32, x);
+    putf64(out + 40, v);
+    putf64(out + 48, u_hold);
+    send(bd, out, 56);
 }
 
 static void on_start(board *bd, uint32_t now)
@@ -636,7 +640,7 @@ static size_t expected_len(const uint8_t *body, size_t n)
 {
     switch (body[1]) {
     case HELLO: return 12;
-    case CONFIG: return 24;
+    case CONFIG: return 32;
     case START: case STOP: return 4;
     case COMMANDS:
         if (n < 12 || body[8] < 1 || body[8] > BOARD_MAX_BATCH)

@@ -1,4 +1,4 @@
-/* The board side of the serial link (docs/protocol.md, version 2): framing, the session
+/* The board side of the serial link (docs/protocol.md, version 3): framing, the session
  * state machine and the safe state, around the four functions of hal.h.
  *
  *   IDLE --HELLO--> HELLO --CONFIG--> READY --START--> ACTIVE --STOP--> HELLO
@@ -31,7 +31,7 @@
 
 #include "records.h"
 
-#define BOARD_VERSION 2          /* protocol version spoken (min = max) */
+#define BOARD_VERSION 3          /* protocol version spoken (min = max) */
 #define BOARD_MAX_BATCH 32       /* b, samples per frame */
 #define BOARD_MAX_LATENCY 1000   /* d, ticks */
 #define BOARD_MAX_WATCHDOG_US 60000000u
@@ -106,6 +106,7 @@ typedef struct {
      * reference and excitation per tick */
     uint8_t loop_kind;          /* 0: host in the loop; 1: pi; 2: two-rate cascade (track, nss) */
     uint32_t loop_total, loop_got;
+    uint64_t seed;              /* CONFIG: the seed of a simulated drive's sensor noise (a real drive ignores it) */
     uint32_t log_every;         /* the LOG rows are those of ticks k with k % log_every == 0 (LOOP) */
     union {
         uint8_t bytes[BOARD_LOOP_BYTES];

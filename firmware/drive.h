@@ -12,7 +12,6 @@
 extern const plant FW_DRIVE;          /* the plant at power-up, rebuilt at every CONFIG */
 extern const double FW_SAMPLE_RATE_HZ; /* f_s, Hz */
 extern const int FW_HAS_VELOCITY;      /* 1: the drive measures velocity */
-extern const uint64_t FW_NOISE_SEED;   /* run.seed: the sensor noise's seed, reseeded every run */
 
 /* The steps scenario's disturbance force on the arm (servo/scenarios/steps.py), A:
  * amplitude * sin(2 pi hz (k dt - start_s)) at tick k from start_s on, 0 before. */

@@ -4,8 +4,9 @@
  * Time is counted in reads: a write takes effect over the next sample period, so the
  * plant steps under the current written last, and the disturbance force of that period
  * (FW_DISTURBANCE, as servo/scenarios/steps.py computes it: the same bits), when the next
- * sample is read.  Each read draws the sensor noise (noise.c, seeded with FW_NOISE_SEED at
- * every run: equal to the Python drive's in distribution, not in bits).
+ * sample is read.  Each read draws the sensor noise (noise.c, seeded at every run with the
+ * seed of the host's CONFIG, `board.seed`: equal to the Python drive's in distribution,
+ * not in bits).
  *
  * Parked: while the board is in its safe state (IDLE, HELLO, FAULTED) the simulated drive
  * rests at its power-up state (FW_DRIVE), as the Python emulator rebuilds its drive at
@@ -27,6 +28,7 @@ static int parked, pending;
 static double u_pending;
 static uint32_t steps; /* sample periods since the run began */
 static noise_gen gen;
+static const board *owner; /* the board sim_poll serves: its CONFIG's seed */
 
 void sim_park(void)
 {
@@ -36,7 +38,6 @@ void sim_park(void)
     parked = 1;
     pending = 0;
     steps = 0;
-    noise_seed(&gen, FW_NOISE_SEED);
 }
 
 /* The disturbance (A) over period k: servo/scenarios/steps.py's operations in its order. */
@@ -51,6 +52,7 @@ double sim_disturbance(uint32_t k)
 
 void sim_poll(board *bd)
 {
+    owner = bd;
     board_poll(bd);
     if (bd->state != BOARD_READY && bd->state != BOARD_ACTIVE)
         sim_park();
@@ -58,8 +60,9 @@ void sim_poll(board *bd)
 
 void hal_read_position(double *x, double *v)
 {
-    if (parked) {
+    if (parked) { /* READY's sample, at CONFIG: the run begins, with the CONFIG's seed */
         parked = 0;
+        noise_seed(&gen, owner ? owner->seed : 0u);
     } else if (pending) {
         plant_step(&pl, u_pending, sim_disturbance(steps));
         steps++;

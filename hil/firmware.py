@@ -10,7 +10,8 @@ pseudo-terminal, ``firmware/main_host.c``) into a directory, once per source and
 
 The firmware's drive applies the steps scenario's disturbance force (the same bits as
 :mod:`servo.scenarios.steps`) and draws its sensor noise from its own generator
-(``firmware/noise.c``, seeded with ``run.seed``): with the noise on, a run is equal to the
+(``firmware/noise.c``, seeded at every run with the seed the host sends in CONFIG, the
+run's ``run.seed``, not the build's): with the noise on, a run is equal to the
 Python simulated drive's in distribution, not in bits.  A config run against it is
 compared bit for bit with the simulated drive of the same config with
 ``drive.position_noise = drive.velocity_noise = 0`` (:func:`comparable`).
@@ -79,7 +80,6 @@ def drive_source(cfg: Config) -> str:
         f"{_c(p.u_hold)}}};\n"
         f"const double FW_SAMPLE_RATE_HZ = {_c(cfg.run.sample_rate_hz)};\n"
         f"const int FW_HAS_VELOCITY = {1 if cfg.drive.measures_velocity else 0};\n"
-        f"const uint64_t FW_NOISE_SEED = {cfg.run.seed}u;\n"
         f"const disturbance FW_DISTURBANCE = {{{', '.join(map(_c, _disturbance(cfg)))}}};\n"
     )
 

@@ -112,7 +112,8 @@ class SerialDriver(Driver):
                               f"{info.max_latency} ticks (link.batch = {self.b}, "
                               f"link.command_latency_ticks = {self.d})")  # fmt: skip
         cfg_msg = P.ConfigMsg(self.version, self.b, self.d, max(1, int(round(link.watchdog_s * 1e6))),
-                              link.late_limit_ticks, rate, max(1, int(round(link.ready_timeout_s * 1e3))))  # fmt: skip
+                              link.late_limit_ticks, rate, max(1, int(round(link.ready_timeout_s * 1e3))),
+                              self.cfg.run.seed)  # fmt: skip
         self._send(P.config(self._tx_seq, cfg_msg))
         kind, msg = self._next_message(time.perf_counter_ns() + int(self._handshake_s * 1e9), "READY")
         if kind != P.READY or msg.config != cfg_msg:

@@ -212,6 +212,26 @@ def test_the_noisy_drive_is_the_python_drive_in_distribution(fw_dir):
     assert np.std(py[:, 1]) > 0.5e-6 and not np.array_equal(fw, py)
 
 
+def test_one_firmware_binary_gives_each_run_the_seed_of_its_config(fw_dir, tmp_path):
+    """The seed travels in CONFIG (protocol version 3), not in the build: configs that
+    differ in run.seed build the same binary; against one running firmware, two runs with
+    seed 7 record the same noisy log, bit for bit, and a run with seed 8 another."""
+    cfg = CFG.replace(drive={"position_noise": 3e-9, "velocity_noise": 1e-6}, run={"duration_s": 0.004},
+                      link={"watchdog_s": 2.0, "timeout_s": 2.0})  # fmt: skip
+    exe = build_host(cfg.replace(run={"seed": 7}), fw_dir)
+    assert build_host(cfg.replace(run={"seed": 8}), fw_dir) == exe
+    logs = {}
+    with serve_host(exe) as (proc, url):
+        for name, seed in (("a", 7), ("b", 7), ("c", 8)):
+            run = cfg.replace(run={"seed": seed})
+            logs[name] = run_log(run, SerialDriver(run, url), tmp_path, name)
+    x, u = LOG_COLUMNS.index("x"), LOG_COLUMNS.index("u")
+    assert np.array_equal(logs["a"], logs["b"], equal_nan=True)
+    assert not np.array_equal(logs["a"][:, x], logs["c"][:, x])  # other noise, measured
+    assert not np.array_equal(logs["a"][:, u], logs["c"][:, u])  # and the loop answered it
+    assert np.std(np.diff(logs["a"][:, LOG_COLUMNS.index("v")])) > 1e-7  # the noise is on
+
+
 def test_the_controller_records_header_is_the_dtypes():
     from bench.cref import records_file
 
@@ -328,9 +348,10 @@ def test_a_config_beyond_the_documented_limits_is_refused(lib, change, needle):
 
 _u = lambda n: st.integers(0, 2**n - 1)  # noqa: E731
 _around = lambda n, limit: _u(n) | st.integers(0, 2 * limit) | st.integers(limit - 2, limit + 2)  # noqa: E731
-_CONFIGS = st.builds(P.ConfigMsg, st.sampled_from([2, 2, 2, 1, 3]), _around(8, 32), st.integers(0, 1100),
+_CONFIGS = st.builds(P.ConfigMsg, st.sampled_from([3, 3, 3, 2, 4]), _around(8, 32), st.integers(0, 1100),
                      _around(32, P.MAX_WATCHDOG_US), _around(16, 1000), st.sampled_from([RATE, RATE, 40_000.0, math.nan]),
-                     _u(16) | st.integers(P.MAX_READY_TIMEOUT_MS - 2, P.MAX_READY_TIMEOUT_MS + 2))  # fmt: skip
+                     _u(16) | st.integers(P.MAX_READY_TIMEOUT_MS - 2, P.MAX_READY_TIMEOUT_MS + 2),
+                     _u(64) | st.integers(P.MAX_SEED - 2, P.MAX_SEED + 2))  # fmt: skip
 
 
 @settings(max_examples=300, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])

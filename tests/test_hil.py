@@ -260,10 +260,10 @@ def test_the_handshake_checks_versions_and_sample_rate(tmp_path):
             super()._on_hello(seq, msg)
             self.out.clear()
             self.tx_seq = 0
-            self._send(P.info(0, P.Info(msg.nonce, 3, 4, self.caps, self.rate, 1.0, 32, 1000, "future")))
+            self._send(P.info(0, P.Info(msg.nonce, 4, 5, self.caps, self.rate, 1.0, 32, 1000, "future")))
 
     with start_in_thread(FutureBoard(FAULT_CFG)) as url:
-        with pytest.raises(DriverError, match=r"speaks protocol versions 3..4, this host 2..2"):
+        with pytest.raises(DriverError, match=r"speaks protocol versions 4..5, this host 3..3"):
             SerialDriver(FAULT_CFG, url).configure()
     board = Board(FAULT_CFG)
     with start_in_thread(board) as url:
