@@ -21,7 +21,9 @@ from __future__ import annotations
 import math
 import struct
 import time
+import tomllib
 from dataclasses import dataclass, replace
+from pathlib import Path
 from typing import Sequence
 
 import numpy as np
@@ -30,7 +32,7 @@ from hil import protocol as P
 from hil.serialdriver import SerialDriver
 from kernels.compose import STATS_SIZE, error_stats
 from servo.config import Config
-from servo.errors import DriverError
+from servo.errors import ConfigError, DriverError, first_line
 from servo.io.runlog import RunLog
 from servo.runtime.controller import Controller
 from servo.scenarios import ArrayInputs, Inputs
@@ -63,6 +65,41 @@ class GainChange:
 
     tick: int
     params: np.ndarray
+
+
+def gain_change(cfg: Config, t_s: float, controller: dict) -> GainChange:
+    """The change, ``t_s`` seconds into ``cfg``'s run, to the gains that ``controller``
+    gives (a config's ``[controller]`` table, e.g. ``{"pi": {"kp": 600.0}}``, over
+    ``cfg``'s): the running kind's parameter record of ``cfg.replace(controller=...)``
+    from tick ``round(t_s * run.sample_rate_hz)`` on.  Raises ``ConfigError`` (one line)
+    for another kind, a structure the board cannot switch to, or a time outside the run."""
+    new = cfg.replace(controller=controller)
+    if new.controller.kind != cfg.controller.kind:
+        raise ConfigError(f"config: a gain change at {t_s:g} s is for controller.kind = {new.controller.kind!r}, "
+                          f"the run's is {cfg.controller.kind!r} (the board changes gains, not kinds)")  # fmt: skip
+    tick = round(t_s * cfg.run.sample_rate_hz)
+    if not 0 < tick < cfg.n_ticks:
+        raise ConfigError(f"config: a gain change at {t_s:g} s is outside the run (0 .. {cfg.n_ticks * cfg.dt:g} s)")
+    old, params = Controller(cfg).records()[3], Controller(new).records()[3].copy()
+    if params.dtype != old.dtype or params.shape != old.shape:
+        raise ConfigError(f"config: the gain change at {t_s:g} s changes the structure of {cfg.controller.kind}'s "
+                          "parameters")  # fmt: skip
+    return GainChange(tick, params)
+
+
+def gain_changes_from_files(cfg: Config, changes: Sequence[tuple[float, str | Path]]) -> list[GainChange]:
+    """:func:`gain_change` of each ``(t_s, path)``: the ``[controller]`` table of the TOML
+    file at ``path`` (its other tables are ignored), from ``t_s`` seconds on."""
+    out = []
+    for t_s, path in changes:
+        try:
+            data = tomllib.loads(Path(path).read_text(encoding="utf-8"))
+        except (OSError, UnicodeDecodeError, tomllib.TOMLDecodeError, ValueError) as exc:
+            raise ConfigError(f"config: cannot read the gains file {path}: {first_line(exc)}") from None
+        if not isinstance(data.get("controller"), dict):
+            raise ConfigError(f"config: the gains file {path} has no [controller] table")
+        out.append(gain_change(cfg, t_s, data["controller"]))
+    return out
 
 
 class OnBoardDriver(SerialDriver):

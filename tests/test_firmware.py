@@ -14,6 +14,7 @@ Builds are cached in one temporary directory per test session (a second or two e
 """
 import ctypes
 import math
+import re
 import os
 import shutil
 import signal
@@ -1059,3 +1060,57 @@ def test_the_loop_on_the_board_is_refused_by_a_board_without_it(tmp_path):
         drv = OnBoardDriver(cfg, url)
         with pytest.raises(DriverError, match=r"does not run the loop itself .*use link.loop = \"host\""):
             drv.configure()
+
+
+@pytest.mark.slow  # a servo run in-process against the host build, and the simulated drive's run
+def test_servo_run_gains_changes_the_boards_gains_at_their_ticks(host_build, tmp_path):
+    """``servo run --port URL --loop-on-board --gains 0.006=new.toml --gains 0.014=old.toml``:
+    the board switches to the file's gains at tick 300 and back at 700, and the log is the
+    simulated drive's run with the same changes, bit for bit."""
+    from servo.cli import main
+
+    cfg = CFG.replace(controller={"kind": "pi"}, link={"watchdog_s": 2.0, "timeout_s": 2.0, "batch": 4,
+                                                       "command_latency_ticks": 3, "loop": "board"})  # fmt: skip
+    (tmp_path / "cfg.toml").write_text(to_toml(cfg))
+    (tmp_path / "new.toml").write_text("[controller.pi]\nkp = 600.0\nki = 8e4\nkd = 1.1\n")
+    (tmp_path / "old.toml").write_text(f"[controller.pi]\nkp = {cfg.controller.pi.kp!r}\nki = {cfg.controller.pi.ki!r}\n"
+                                       f"kd = {cfg.controller.pi.kd!r}\n")  # fmt: skip
+    fw = tmp_path / "fw"
+    with serve_host(host_build) as (proc, url):
+        assert main(["run", "--config", str(tmp_path / "cfg.toml"), "--port", url, "--out", str(fw), "--quiet",
+                     "--compensation", "on", "--gains", f"0.006={tmp_path / 'new.toml'}",
+                     "--gains", f"0.014={tmp_path / 'old.toml'}"]) == 0  # fmt: skip
+    from hil.onboard import GainChange
+
+    gains = [GainChange(300, _kind_params(cfg, "pi", new=True)), GainChange(700, _kind_params(cfg, "pi"))]
+    sim = sim_with_gains(cfg, gains, tmp_path, "sim")
+    board = np.load(fw / "log_compensated.npz")
+    assert np.array_equal(np.column_stack([board[c] for c in LOG_COLUMNS]), sim, equal_nan=True)
+    plain = sim_with_gains(cfg, [], tmp_path, "plain")
+    u = LOG_COLUMNS.index("u")
+    assert np.array_equal(sim[:300, u], plain[:300, u]) and not np.array_equal(sim[300:700, u], plain[300:700, u])
+
+
+@pytest.mark.parametrize("argv,says", [
+    (["--gains", "0.006=G"], r"--gains needs --port URL and --loop-on-board"),
+    (["--port", "P", "--loop-on-board", "--gains", "soon=G"], r"--gains 'soon=.*': give S=TOML"),
+    (["--port", "P", "--loop-on-board", "--gains", "inf=G"], r"--gains 'inf=.*': give S=TOML"),
+    (["--port", "P", "--loop-on-board", "--gains", "0.006=nowhere.toml"], r"cannot read the gains file"),
+    (["--port", "P", "--loop-on-board", "--gains", "0.006=K"], r"for controller.kind = 'track', the run's is 'pi'"),
+    (["--port", "P", "--loop-on-board", "--gains", "5=G"], r"a gain change at 5 s is outside the run"),
+    (["--port", "P", "--loop-on-board", "--gains", "0.006=C"], r"gains file .* has no \[controller\] table"),
+])  # fmt: skip
+def test_bad_gains_on_the_command_line_are_one_line_and_write_nothing(argv, says, tmp_path, capsys):
+    from servo.cli import main
+
+    (tmp_path / "G").write_text("[controller.pi]\nkp = 600.0\n")
+    (tmp_path / "K").write_text("[controller]\nkind = \"track\"\n")
+    (tmp_path / "C").write_text("[run]\nseed = 3\n")
+    argv = [a.replace("=G", f"={tmp_path / 'G'}").replace("=K", f"={tmp_path / 'K'}").replace("=C", f"={tmp_path / 'C'}")
+            for a in argv]  # fmt: skip
+    (tmp_path / "cfg.toml").write_text(to_toml(CFG.replace(controller={"kind": "pi"})))
+    out = tmp_path / "out"
+    rc = main(["run", "--config", str(tmp_path / "cfg.toml"), "--out", str(out), "--quiet", *argv])
+    err = capsys.readouterr().err
+    assert rc != 0 and re.search(says, err) and err.count("\n") == 1 and err.startswith("servo: error: "), err
+    assert not out.exists() and not (tmp_path / "out.incomplete").exists()
