@@ -23,6 +23,7 @@ import os
 import re
 import select
 import shutil
+import struct
 import subprocess
 import time
 from contextlib import contextmanager
@@ -30,6 +31,7 @@ from pathlib import Path
 
 import numpy as np
 
+from hil import protocol as P
 from hil.process import end, read_line
 from kernels.plant import PLANT_PARAMS, PLANT_STATE
 from servo.config import Config
@@ -181,6 +183,96 @@ def build_mps2_bench(cfg: Config, workdir: Path) -> Path:
         raise RuntimeError(f"no {ARM_CC} on the PATH")
     sources = tuple(s for s in PORTABLE if s not in ("board.c", "hal_sim.c")) + ("bench_mps2.c",)
     return _build(cfg, workdir, sources, MPS2_FLAGS, "servo_fw_bench.elf", ARM_CC, records_source(cfg))
+
+
+BENCH_TICKS = 1920
+"""Ticks of each recorded session of :func:`board_instructions_per_tick` (60 REFS frames)."""
+
+
+def session_source(cfg: Config, periods: tuple[int, ...]) -> str:
+    """C arrays of the host's bytes of a loop-on-board session per kind and log period:
+    HELLO, CONFIG (b = 1), the kind's LOOP records (started at rest with the holding
+    current) with the period, START, REFS frames of 32 ticks for :data:`BENCH_TICKS`
+    ticks (a reference step at a quarter of them); for ``firmware/bench_board_mps2.c``."""
+    from hil.framing import encode_frame
+    from hil.onboard import CHUNK, KIND_CODES, LOOP, REFS, _LOOP_HEAD
+    from servo.runtime.controller import Controller
+    from servo.runtime.simplant import build_plant
+
+    u_hold = build_plant(cfg.drive, cfg.dt).u_hold
+    labels, arrays, lens, setups = [], [], [], []
+    for kind in KINDS:
+        ctl = Controller(cfg.replace(controller={"kind": kind}))
+        ctl.start(0.0, 0.0, u_hold)
+        data, code = ctl.buf.tobytes(), KIND_CODES[kind]
+        for p in periods:
+            bodies = [P.hello(0, 1), P.config(1, P.ConfigMsg(P.VERSION, 1, 0, 1_000_000, 0, cfg.run.sample_rate_hz))]
+            for off in range(0, len(data), CHUNK):
+                bodies.append(_LOOP_HEAD.pack(P.VERSION, LOOP, len(bodies), code, 0, off, len(data), p)
+                              + data[off : off + CHUNK])  # fmt: skip
+            bodies.append(P.start(len(bodies)))
+            setup = sum(len(encode_frame(b)) for b in bodies)
+            for k0 in range(0, BENCH_TICKS, 32):
+                pairs = [v for k in range(k0, k0 + 32) for v in ((1e-6 if k > BENCH_TICKS // 4 else 0.0), 0.0)]
+                bodies.append(struct.pack(f"<BBHIBBH{len(pairs)}d", P.VERSION, REFS, len(bodies) % P.SEQ_MOD, k0,
+                                          32, 0, 0, *pairs))  # fmt: skip
+            wire = b"".join(encode_frame(b) for b in bodies)
+            labels.append(f"{kind}/{p}")
+            arrays.append(wire)
+            lens.append(len(wire))
+            setups.append(setup)
+    out = ["#include <stdint.h>", f"const int BENCH_SESSIONS = {len(arrays)};",
+           f"const uint32_t BENCH_TICKS = {BENCH_TICKS}u;",
+           f"const double BENCH_RATE_HZ = {_c(cfg.run.sample_rate_hz)}, BENCH_U_MAX = {_c(cfg.drive.current_limit)};"]
+    for i, wire in enumerate(arrays):
+        out.append(f"static const uint8_t S{i}[] = {{{', '.join(map(str, wire))}}};")
+    out.append(f"const uint8_t *const BENCH_BYTES[] = {{{', '.join(f'S{i}' for i in range(len(arrays)))}}};")
+    out.append(f"const uint32_t BENCH_LEN[] = {{{', '.join(map(str, lens))}}};")
+    out.append(f"const uint32_t BENCH_SETUP[] = {{{', '.join(map(str, setups))}}};")
+    out.append(f"const char *const BENCH_LABEL[] = {{{', '.join(chr(34) + s + chr(34) for s in labels)}}};")
+    return "\n".join(out) + "\n"
+
+
+def board_instructions_per_tick(cfg: Config, workdir: Path, periods: tuple[int, ...] = (1, 5),
+                                timeout: float = 120.0) -> dict[str, dict[int, int]]:  # fmt: skip
+    """Instructions per tick of the whole board with the loop on it (``board.c``: the
+    frames, the kind, a LOG row every ``p``-th tick), counted by QEMU with ``-icount
+    shift=0`` over :data:`BENCH_TICKS` ticks of a recorded session
+    (``firmware/bench_board_mps2.c``); ``{kind: {p: n}}``."""
+    if shutil.which(ARM_CC) is None:
+        raise RuntimeError(f"no {ARM_CC} on the PATH")
+    sources = ("cobs.c", "crc32.c", "board.c", "dahl.c", "controller.c", "bench_board_mps2.c")
+    elf = _build(cfg, workdir, sources, MPS2_FLAGS, "servo_fw_board_bench.elf", ARM_CC,
+                 session_source(cfg, periods))  # fmt: skip
+    buf = _qemu_output(elf, timeout)
+    out: dict[str, dict[int, int]] = {}
+    for line in buf.decode().splitlines():
+        f = line.split()
+        if len(f) == 3 and f[1] == "board":
+            kind, p = f[0].split("/")
+            out.setdefault(kind, {})[int(p)] = int(f[2])
+    if set(out) != set(KINDS) or any(set(v) != set(periods) for v in out.values()):
+        raise RuntimeError(f"the board bench on QEMU gave {buf!r}")
+    return out
+
+
+def _qemu_output(elf: Path, timeout: float) -> bytes:
+    """What a bench program under QEMU (``-icount shift=0``) writes until "done"."""
+    with serve_qemu(elf, icount=True) as (proc, url):
+        fd = os.open(url, os.O_RDWR | os.O_NOCTTY)
+        try:
+            import tty
+
+            tty.setraw(fd)
+            os.write(fd, b"g")  # the program waits for it
+            buf, end = b"", time.monotonic() + timeout
+            while b"done" not in buf and time.monotonic() < end:
+                ready, _, _ = select.select([fd], [], [], 1.0)
+                if ready:
+                    buf += os.read(fd, 4096)
+        finally:
+            os.close(fd)
+    return buf
 
 
 def instructions_per_tick(cfg: Config, workdir: Path, timeout: float = 120.0) -> dict[str, dict[str, int]]:
