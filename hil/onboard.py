@@ -122,7 +122,21 @@ class OnBoardDriver(SerialDriver):
         if not self.board_info.caps & P.CAP_LOOP:
             raise DriverError(f"link: the board at {self.url} ('{self.board_info.name}') does not run the loop itself "
                               "(no loop-on-board capability in its INFO); use link.loop = \"host\"")  # fmt: skip
+        self._check_rows(self.cfg)  # before anything is written
         return replace(info, command_latency_ticks=self.cfg.link.loop_latency_ticks)  # none in the board's loop
+
+    def _check_rows(self, cfg: Config) -> int:
+        """The board's log period for ``cfg`` (:func:`link_log_every`), if its rows fill
+        whole LOG frames of ``link.batch`` rows and the period fits LOOP's field."""
+        n, b, every = cfg.n_ticks, self.b, link_log_every(cfg)
+        rows_total = -(-n // every)  # ticks 0, every, 2 every, ... below n
+        if rows_total % b:
+            raise DriverError(f"link: the loop on the board sends whole LOG frames of link.batch = {b} rows: the run's "
+                              f"{rows_total} rows (one every {every} ticks of {n}) are not a multiple of {b}")  # fmt: skip
+        if every > 0xFFFF:
+            raise DriverError(f"link: the board's log period, {every} ticks (run.log_every and run.estimator_every's "
+                              "greatest common divisor), is over 65535")  # fmt: skip
+        return every
 
     def run_loop(self, cfg: Config, controller: Controller, inputs: Inputs, log: RunLog, stats: np.ndarray,
                  watchdog=None) -> None:  # fmt: skip
@@ -133,14 +147,7 @@ class OnBoardDriver(SerialDriver):
         tracking error every ``run.estimator_every`` ticks to ``stats``
         (:func:`kernels.compose.error_stats`), and ``watchdog`` looks at the rows."""
         n, b = cfg.n_ticks, self.b
-        every = link_log_every(cfg)
-        rows_total = -(-n // every)  # ticks 0, every, 2 every, ... below n
-        if rows_total % b:
-            raise DriverError(f"link: the loop on the board sends whole LOG frames of link.batch = {b} rows: the run's "
-                              f"{rows_total} rows (one every {every} ticks of {n}) are not a multiple of {b}")  # fmt: skip
-        if every > 0xFFFF:
-            raise DriverError(f"link: the board's log period, {every} ticks (run.log_every and run.estimator_every's "
-                              "greatest common divisor), is over 65535")  # fmt: skip
+        every = self._check_rows(cfg)
         if self.gains and not (0 <= self.gains[0].tick and self.gains[-1].tick < n):
             raise DriverError(f"link: a gain change outside the run's ticks 0..{n - 1}")
         params = controller.records()[3]
