@@ -1,8 +1,12 @@
 """The C reference: build ``bench/c/servo_ref.c`` with the system C compiler, load it with
 ctypes.
 
-The C code reads the kernels' record arrays in place; its structs are generated here from
-the numpy dtypes (:func:`records_header`), so the layouts cannot drift apart.  Flags
+The reference is the firmware's kernels (``firmware/dahl.c``, ``controller.c``,
+``plant.c``, which ``servo_ref.c`` includes): one C source of each kernel for the board and
+for the benchmarks.  The C code reads the kernels' record arrays in place; its structs
+(``firmware/records.h``) are generated here from the numpy dtypes (:func:`records_file`;
+``python -m bench.cref`` rewrites the file), and :func:`build` refuses a header that is
+not what the dtypes give, so the layouts cannot drift apart.  Flags
 (:data:`CFLAGS`): ``-O2``, ``-march=native`` (Numba also compiles for the host CPU;
 dropped if the compiler refuses it), ``-ffp-contract=off`` (no fused multiply-add: Numba
 does not contract either, and the numbers must match to the bit).  The compiler is
@@ -25,6 +29,8 @@ from kernels.stage import STAGE_PARAMS, STAGE_STATE
 from servo.controllers import pi, track
 
 SOURCE = Path(__file__).with_name("c") / "servo_ref.c"
+FIRMWARE = Path(__file__).resolve().parent.parent / "firmware"
+RECORDS = FIRMWARE / "records.h"
 CFLAGS = ["-O2", "-march=native", "-ffp-contract=off", "-std=c11", "-fPIC", "-shared"]
 
 
@@ -61,14 +67,20 @@ def records_header(names: tuple[str, ...] = CONTROLLER_RECORDS + ("plant_params"
     return "\n".join(out) + "\n"
 
 
+def records_file() -> str:
+    """The text of ``firmware/records.h``: :func:`records_header` of every record, guarded."""
+    return f"#ifndef SERVO_FW_RECORDS_H\n#define SERVO_FW_RECORDS_H\n{records_header()}#endif\n"
+
+
 def build(workdir: Path, cc: str) -> tuple[Path, list[str]]:
     """Compile the reference into ``workdir``; returns the library path and the flags used."""
     workdir = Path(workdir)
-    (workdir / "records.h").write_text(records_header())
+    if RECORDS.read_text() != records_file():
+        raise BuildError(f"{RECORDS} is not what the kernels' dtypes give: regenerate it with python -m bench.cref")
     lib = workdir / "servo_ref.so"
     flags = list(CFLAGS)
     for attempt in (flags, [f for f in flags if f != "-march=native"]):
-        cmd = [cc, *attempt, f"-I{workdir}", str(SOURCE), "-o", str(lib), "-lm"]
+        cmd = [cc, *attempt, f"-I{FIRMWARE}", str(SOURCE), "-o", str(lib), "-lm"]
         r = subprocess.run(cmd, capture_output=True, text=True)
         if r.returncode == 0:
             return lib, attempt
@@ -143,3 +155,8 @@ class CRef:
         return self.lib.ref_loop_closed(n, _ptr(ref), _ptr(noise), ref.shape[0], _ptr(p.state), _ptr(p.params),
                                         _ptr(p.q), _ptr(p.mab), _ptr(p.gain), p.q.shape[0], _ptr(p.ubuf),
                                         p.ubuf.shape[0], _ptr(ss), _ptr(sp), _ptr(cs), _ptr(cp))  # fmt: skip
+
+
+if __name__ == "__main__":
+    RECORDS.write_text(records_file())
+    print(f"wrote {RECORDS}")

@@ -3,7 +3,10 @@
  * of virtual time, counts 40 instructions per step).  Not a board's program: it runs the
  * closed loop of each controller kind against the simulated drive and writes, on UART0,
  *
- *   <kind> controller <instructions/tick> plant <instructions/tick> frames <instructions/tick>
+ *   <kind> controller <n> plant <n> frames <n> refs <n> log <n>
+ *
+ * instructions per tick (controller, plant, frames: host in the loop at b = 1; refs: a
+ * REFS frame of 32 ticks in, per tick) and per LOG frame of one 13-column row (log),
  *
  * then "done", once the host has sent a byte (QEMU drops what a pty nobody reads is sent).  The records come from bench_data.c (hil/firmware.py: each kind's records
  * after its bumpless start, for the drive's config).
@@ -110,23 +113,35 @@ static uint32_t time_plant(void)
     return (t0 - now()) * INSN_PER_COUNT / N;
 }
 
-/* One SAMPLES frame out (b = 1: CRC, COBS) and one COMMANDS frame in (COBS, CRC). */
-static uint32_t time_frames(void)
+/* A body of `out_values` float64 after its 12-byte header out (CRC, COBS) and one of
+ * `in_values` in (COBS, CRC), N times; instructions per time.  Host in the loop, one
+ * tick's frames at b = 1: SAMPLES (3 values) out, COMMANDS (1) in.  The loop on the
+ * board: a LOG frame of one 13-column row out (`in_values` 0), or a REFS frame of 32
+ * ticks (64 values) in (`out_values` 0). */
+#define IN_MAX (12 + 8 * 64 + 4)
+static uint32_t time_frames(int out_values, int in_values)
 {
-    static uint8_t body[40], enc[64], cmd[28], cmd_enc[40], dec[40];
-    memcpy(cmd + 12, &us[0], 8);
-    uint32_t c0 = crc32_bytes(cmd, 20);
-    memcpy(cmd + 20, &c0, 4);
-    size_t cmd_n = cobs_encode(cmd, 24, cmd_enc);
+    static uint8_t body[12 + 8 * 13 + 4], enc[COBS_MAX(12 + 8 * 13 + 4)], in[IN_MAX], in_enc[COBS_MAX(IN_MAX)],
+        dec[IN_MAX];
+    size_t out_n = 12 + 8 * (size_t)out_values, in_n = 12 + 8 * (size_t)in_values;
+    for (int j = 0; j < in_values; j++)
+        memcpy(in + 12 + 8 * j, &us[j], 8);
+    uint32_t c0 = crc32_bytes(in, in_n);
+    memcpy(in + in_n, &c0, 4);
+    size_t in_enc_n = cobs_encode(in, in_n + 4, in_enc);
     uint32_t t0 = now(), sink = 0;
     for (int k = 0; k < N; k++) {
-        memcpy(body + 12, &xs[k], 8);
-        memcpy(body + 20, &vs[k], 8);
-        uint32_t c = crc32_bytes(body, 36);
-        memcpy(body + 36, &c, 4);
-        sink += (uint32_t)cobs_encode(body, 40, enc);
-        long m = cobs_decode(cmd_enc, cmd_n, dec);
-        sink += crc32_bytes(dec, (size_t)m - 4);
+        if (out_values) {
+            for (int j = 0; j < out_values; j++)
+                memcpy(body + 12 + 8 * j, j & 1 ? &vs[k] : &xs[k], 8);
+            uint32_t c = crc32_bytes(body, out_n);
+            memcpy(body + out_n, &c, 4);
+            sink += (uint32_t)cobs_encode(body, out_n + 4, enc);
+        }
+        if (in_values) {
+            long m = cobs_decode(in_enc, in_enc_n, dec);
+            sink += crc32_bytes(dec, (size_t)m - 4);
+        }
     }
     uint32_t t = (t0 - now()) * INSN_PER_COUNT / N;
     return t + (sink == 1u); /* keep the work */
@@ -149,7 +164,8 @@ int main(void)
     for (int i = 0; i < 3; i++) {
         uint32_t c = time_kind(i > 0, rec[i][0], rec[i][1], rec[i][2], rec[i][3]);
         uint32_t p = time_plant();
-        uint32_t f = time_frames();
+        uint32_t f = time_frames(3, 1);
+        uint32_t refs = time_frames(0, 64) / 32u, log = time_frames(13, 0);
         put(names[i]);
         put(" controller ");
         put_u32(c);
@@ -157,6 +173,10 @@ int main(void)
         put_u32(p);
         put(" frames ");
         put_u32(f);
+        put(" refs ");
+        put_u32(refs);
+        put(" log ");
+        put_u32(log);
         put("\n");
     }
     put("done\n");

@@ -8,8 +8,8 @@
 #include "crc32.h"
 #include "hal.h"
 
-enum { HELLO = 0x01, CONFIG = 0x02, START = 0x03, COMMANDS = 0x04, STOP = 0x05, LOOP = 0x06, REFS = 0x07 };
-enum { INFO = 0x81, READY = 0x82, SAMPLES = 0x84, FAULT = 0x85, STATS = 0x86, LOG = 0x87 };
+enum { HELLO = 0x01, CONFIG = 0x02, START = 0x03, COMMANDS = 0x04, STOP = 0x05, LOOP = 0x06, REFS = 0x07, GAINS = 0x08 };
+enum { INFO = 0x81, READY = 0x82, SAMPLES = 0x84, FAULT = 0x85, STATS = 0x86, LOG = 0x87, GAINS_ACK = 0x88 };
 #define STATUS_HELD 0x01
 #define MAX_TEXT 200
 #define BODY_MAX 1024
@@ -18,6 +18,7 @@ enum { INFO = 0x81, READY = 0x82, SAMPLES = 0x84, FAULT = 0x85, STATS = 0x86, LO
 
 static uint16_t get16(const uint8_t *p) { return (uint16_t)(p[0] | p[1] << 8); }
 static uint32_t get32(const uint8_t *p) { return (uint32_t)p[0] | (uint32_t)p[1] << 8 | (uint32_t)p[2] << 16 | (uint32_t)p[3] << 24; }
+static uint64_t get64(const uint8_t *p) { return (uint64_t)get32(p) | (uint64_t)get32(p + 4) << 32; }
 static double getf64(const uint8_t *p)
 {
     uint64_t u = (uint64_t)get32(p) | (uint64_t)get32(p + 4) << 32;
@@ -220,6 +221,8 @@ static void loop_tick(board *bd, uint32_t k, double r, double u_exc)
     else
         u = fw_track_tick(c, &bd->loop.r.sp, &bd->loop.r.k.tr.c, &bd->loop.r.k.tr.p, x, v, r, u_exc);
     bd->applied = hal_write_current(u);
+    if (k % bd->log_every)
+        return; /* only every log_every-th tick's row is sent (LOOP) */
     if (bd->batch_n == 0)
         bd->batch_tick0 = k;
     double row[BOARD_LOG_MAX] = {(double)k, (double)k * bd->loop.r.sp.dt, c->x_prev + c->e, x, c->v, c->u, c->u_n,
@@ -243,12 +246,35 @@ static void loop_tick(board *bd, uint32_t k, double r, double u_exc)
     }
 }
 
+/* GAINS due at tick k: the kind's parameters replaced, GAINS_ACK sent. */
+static void apply_gains(board *bd)
+{
+    if (bd->loop_kind == 1)
+        bd->loop.r.k.pi.p = bd->gains.pi;
+    else
+        bd->loop.r.k.tr.p = bd->gains.tr;
+    bd->gains_pending = 0;
+    uint8_t body[12 + 4];
+    header(bd, body, GAINS_ACK);
+    put32(body + 4, bd->k);
+    body[8] = bd->loop_kind;
+    body[9] = body[10] = body[11] = 0;
+    send(bd, body, 12);
+    text t;
+    t_str(t_u32(t_str(t_session(&t, bd), ": new gains from tick "), bd->k), "");
+    say(bd, &t);
+}
+
 static void advance(board *bd)
 {
     if (bd->loop_kind) {
         while (bd->state == BOARD_ACTIVE) {
             uint32_t i = bd->k % BOARD_RING;
             if (!(bd->valid[i] && bd->ring_tick[i] == bd->k))
+                return;
+            if (bd->gains_pending && bd->gains_tick == bd->k)
+                apply_gains(bd);
+            if (bd->state != BOARD_ACTIVE)
                 return;
             loop_tick(bd, bd->k, bd->ring_val[i], bd->ring_exc[i]);
             bd->k++;
@@ -328,7 +354,8 @@ static void on_hello(board *bd, uint16_t seq, const uint8_t *body)
     memcpy(out + 4, body + 4, 4); /* the nonce */
     out[8] = BOARD_VERSION;
     out[9] = BOARD_VERSION;
-    put16(out + 10, (bd->info.has_velocity ? CAP_VELOCITY : 0) | CAP_CURRENT | (bd->info.lockstep ? CAP_LOCKSTEP : 0));
+    put16(out + 10, (bd->info.has_velocity ? CAP_VELOCITY : 0) | CAP_CURRENT |
+                        (bd->info.lockstep ? CAP_LOCKSTEP | CAP_LOOP : 0)); /* the loop on the board: lockstep only */
     putf64(out + 12, bd->info.sample_rate_hz);
     putf64(out + 20, bd->info.current_limit);
     put16(out + 28, BOARD_MAX_BATCH);
@@ -367,6 +394,8 @@ static int config_problem(const board *bd, const uint8_t *c, text *t)
         t_str(t_u32(t_str(t_u32(t_str(t, "late limit "), late), " ticks is longer than the watchdog ("), wd), " us)");
     } else if (!(fabs(rate - bd->info.sample_rate_hz) <= 1e-12 * fmax(fabs(rate), fabs(bd->info.sample_rate_hz)))) {
         t_str(t_u32(t_str(t, "the host expects another sample rate than the board's "), (uint32_t)bd->info.sample_rate_hz), " Hz");
+    } else if (get64(c + 24) > 0x7FFFFFFFFFFFFFFFu) {
+        t_str(t, "seed over 2^63 - 1");
     } else {
         return 0;
     }
@@ -387,22 +416,25 @@ static void on_config(board *bd, const uint8_t *c, uint32_t now)
     bd->watchdog_us = get32(c + 8);
     bd->late_limit = get16(c + 12);
     bd->ready_us = (uint32_t)get16(c + 14) * 1000u;
+    bd->seed = get64(c + 24); /* before tick 0's sample: a simulated drive seeds its noise with it */
     bd->loop_kind = 0;
     bd->loop_total = bd->loop_got = 0;
+    bd->log_every = 1;
     bd->refs_next = 0;
-    double u_hold = hal_prepare();
+    bd->gains_pending = 0;
+    double u_hold = hal_write_current(bd->info.holding_current);
     bd->u_start = bd->u_last = bd->applied = u_hold;
     double x, v;
-    hal_read_position(&x, &v);
+    hal_read_position(&x, &v); /* tick 0's sample */
     bd->state = BOARD_READY;
     bd->ready_since_us = now;
-    uint8_t out[48 + 4];
+    uint8_t out[56 + 4];
     header(bd, out, READY);
-    memcpy(out + 4, c + 4, 20);
-    putf64(out + 24, x);
-    putf64(out + 32, v);
-    putf64(out + 40, u_hold);
-    send(bd, out, 48);
+    memcpy(out + 4, c + 4, 28);
+    putf64(out + 32, x);
+    putf64(out + 40, v);
+    putf64(out + 48, u_hold);
+    send(bd, out, 56);
 }
 
 static void on_start(board *bd, uint32_t now)
@@ -463,18 +495,21 @@ static void on_commands(board *bd, const uint8_t *body, uint32_t n, uint32_t now
 static void on_loop(board *bd, const uint8_t *body, size_t n)
 {
     uint32_t kind = body[4], off = get16(body + 6), total = get16(body + 8), len = (uint32_t)n - 12;
+    uint32_t every = get16(body + 10) ? get16(body + 10) : 1u; /* 0: every tick (hosts of before) */
     uint32_t want = kind == 1 ? sizeof(stage_state) + sizeof(stage_params) + sizeof(pi_state) + sizeof(pi_params)
                               : sizeof(stage_state) + sizeof(stage_params) + sizeof(track_state) + sizeof(track_params);
     text t = {{0}, 0};
     if (!bd->info.lockstep || (kind != 1 && kind != 2) || total != want || off != bd->loop_got || off + len > total ||
-        12u + 8u * bd->b * (kind == 2 ? 13u : 12u) > BODY_MAX) {
+        12u + 8u * bd->b * (kind == 2 ? 13u : 12u) > BODY_MAX || (off > 0 && every != bd->log_every)) {
         t_u32(t_str(t_u32(t_str(t_u32(t_str(&t, "LOOP kind "), kind), ", records of "), total), " bytes at "), off);
         fault(bd, FAULT_CONFIG, "", t_str(&t, ": not a controller this board runs, a batch too large for its log rows, "
-                                              "or a real-time board (the loop on the board runs in lockstep only)"));
+                                              "another log period in a later piece, or a real-time board (the loop on the "
+                                              "board runs in lockstep only)"));
         return;
     }
     bd->loop_kind = (uint8_t)kind;
     bd->loop_total = total;
+    bd->log_every = every;
     memcpy(bd->loop.bytes + off, body + 12, len); /* the host's buf: the four records back to back */
     bd->loop_got = off + len;
 }
@@ -505,6 +540,85 @@ static void on_refs(board *bd, const uint8_t *body, uint32_t n, uint32_t now)
     advance(bd);
 }
 
+/* A biquad section (b0 b1 b2 1 a1 a2) with no pole outside the unit circle (the Jury
+ * conditions, to 1e-9: an integrator's pole at z = 1 is on it). */
+static int stable_section(const double *s) { return fabs(s[5]) <= 1.0 + 1e-9 && fabs(s[4]) <= 1.0 + s[5] + 1e-9; }
+
+/* Why new parameters of the running kind are refused (1, the reason in t), or 0. */
+static int gains_problem(const board *bd, const double *v, size_t n, text *t)
+{
+    for (size_t i = 0; i < n; i++)
+        if (!isfinite(v[i])) {
+            t_u32(t_str(t, "a non-finite parameter (value "), (uint32_t)i);
+            t_str(t, ")");
+            return 1;
+        }
+    if (bd->loop_kind == 1) {
+        const pi_params *p = (const pi_params *)v, *now = &bd->loop.r.k.pi.p;
+        if (p->dt != now->dt)
+            t_str(t, "another sample period");
+        else if (p->kp < 0.0 || p->ki < 0.0 || p->kd < 0.0)
+            t_str(t, "a negative gain");
+        else if (p->b < 0.0 || p->b > 1.0)
+            t_str(t, "a setpoint weight outside 0..1");
+        else if (!(p->u_n_max > 0.0))
+            t_str(t, "an output limit not above 0 A");
+        else
+            return 0;
+        return 1;
+    }
+    const track_params *q = (const track_params *)v, *now = &bd->loop.r.k.tr.p;
+    if (q->pes_every != now->pes_every || q->n_slow != now->n_slow || q->n_fast != now->n_fast) {
+        t_str(t, "another structure (PES rate or number of biquads)");
+        return 1;
+    }
+    for (int64_t i = 0; i < (int64_t)q->n_slow; i++)
+        if (!stable_section(q->sos_slow[i])) {
+            t_u32(t_str(t, "a biquad with a pole outside the unit circle (slow section "), (uint32_t)i);
+            t_str(t, ")");
+            return 1;
+        }
+    for (int64_t i = 0; i < (int64_t)q->n_fast; i++)
+        if (!stable_section(q->sos_fast[i])) {
+            t_u32(t_str(t, "a biquad with a pole outside the unit circle (fast section "), (uint32_t)i);
+            t_str(t, ")");
+            return 1;
+        }
+    if (!(q->u_n_max > 0.0)) {
+        t_str(t, "an output limit not above 0 A");
+        return 1;
+    }
+    return 0;
+}
+
+/* GAINS (ACTIVE, loop on the board): u32 tick, u8 kernels, u8 reserved, u16 bytes, u32
+ * reserved, then the kind's parameter record; applied before tick `tick` runs. */
+static void on_gains(board *bd, const uint8_t *body, size_t n)
+{
+    uint32_t tick = get32(body + 4), kind = body[8], bytes = get16(body + 10);
+    size_t want = bd->loop_kind == 1 ? sizeof(pi_params) : sizeof(track_params);
+    text t = {{0}, 0};
+    t_str(t_u32(t_str(&t, "GAINS for tick "), tick), ": ");
+    if (kind != bd->loop_kind || bytes != want || n != 16 + want) {
+        t_str(t_u32(t_str(&t, "kernels "), kind), ", not the running kind's parameters");
+    } else if (bd->gains_pending) {
+        t_str(t_u32(t_str(&t, "the GAINS for tick "), bd->gains_tick), " is not applied yet");
+    } else if ((int32_t)(tick - bd->k) < 0) {
+        t_str(t_u32(t_str(&t, "tick "), bd->k), " is already running");
+    } else {
+        double v[sizeof(track_params) / 8];
+        for (size_t i = 0; i < want / 8; i++)
+            v[i] = getf64(body + 16 + 8 * i);
+        if (!gains_problem(bd, v, want / 8, &t)) {
+            memcpy(&bd->gains, v, want);
+            bd->gains_tick = tick;
+            bd->gains_pending = 1;
+            return;
+        }
+    }
+    fault(bd, FAULT_COMMAND, "", &t);
+}
+
 static void on_stop(board *bd)
 {
     enum board_state was = bd->state;
@@ -526,7 +640,7 @@ static size_t expected_len(const uint8_t *body, size_t n)
 {
     switch (body[1]) {
     case HELLO: return 12;
-    case CONFIG: return 24;
+    case CONFIG: return 32;
     case START: case STOP: return 4;
     case COMMANDS:
         if (n < 12 || body[8] < 1 || body[8] > BOARD_MAX_BATCH)
@@ -538,6 +652,8 @@ static size_t expected_len(const uint8_t *body, size_t n)
         if (n < 12 || body[8] < 1 || body[8] > BOARD_MAX_BATCH)
             return (size_t)-1;
         return 12 + 16u * body[8];
+    case GAINS:
+        return n >= 16 && n <= BODY_MAX ? n : (size_t)-1;
     default: return 0;
     }
 }
@@ -593,6 +709,8 @@ static void on_frame(board *bd, const uint8_t *body, size_t n, uint32_t now)
         on_commands(bd, body, body[8], now);
     else if (kind == REFS && bd->state == BOARD_ACTIVE && bd->loop_kind)
         on_refs(bd, body, body[8], now);
+    else if (kind == GAINS && bd->state == BOARD_ACTIVE && bd->loop_kind)
+        on_gains(bd, body, n);
     else if (kind == LOOP && bd->state == BOARD_READY)
         on_loop(bd, body, n);
     else if (kind == CONFIG && (bd->state == BOARD_HELLO || bd->state == BOARD_READY))

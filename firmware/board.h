@@ -1,4 +1,4 @@
-/* The board side of the serial link (docs/protocol.md, version 2): framing, the session
+/* The board side of the serial link (docs/protocol.md, version 3): framing, the session
  * state machine and the safe state, around the four functions of hal.h.
  *
  *   IDLE --HELLO--> HELLO --CONFIG--> READY --START--> ACTIVE --STOP--> HELLO
@@ -6,7 +6,7 @@
  *   timeout, missed deadlines, bad command, output overflow) --> FAULTED
  *
  * Zero current (hal_write_current(0.0)) at board_init and in IDLE, HELLO and FAULTED;
- * READY holds the current hal_prepare returned for at most the CONFIG's ready timeout,
+ * READY holds the board's holding current (board_info) for at most the CONFIG's ready timeout,
  * ACTIVE applies the host's commands for at most the watchdog without a COMMANDS frame.
  * A HELLO while READY or ACTIVE is refused (ignored, counted, logged).  A CONFIG beyond
  * the documented limits (b 1..32, d 0..1000, watchdog 1..60 000 000 us, ready timeout
@@ -15,7 +15,10 @@
  *
  * The loop on the board (docs/protocol.md section 9, lockstep): after READY the host
  * sends the controller's records (LOOP), then each tick's reference (REFS); the board
- * runs the kind's kernels (controller.c) and streams log rows (LOG).
+ * runs the kind's kernels (controller.c) and streams log rows (LOG).  New parameters of
+ * the kind (GAINS) take effect at the tick the host names, before that tick's controller
+ * runs, and are acknowledged (GAINS_ACK); a GAINS out of range (a non-finite value, a
+ * negative gain, an unstable biquad, another structure) is a fault at zero current.
  *
  * No heap, no floating-point exceptions, no library beyond <string.h> and <math.h>
  * (isfinite).  One `board` is about 40 KB (the command ring and the output buffer).
@@ -28,7 +31,7 @@
 
 #include "records.h"
 
-#define BOARD_VERSION 2          /* protocol version spoken (min = max) */
+#define BOARD_VERSION 3          /* protocol version spoken (min = max) */
 #define BOARD_MAX_BATCH 32       /* b, samples per frame */
 #define BOARD_MAX_LATENCY 1000   /* d, ticks */
 #define BOARD_MAX_WATCHDOG_US 60000000u
@@ -41,7 +44,7 @@
 
 enum board_state { BOARD_IDLE, BOARD_HELLO, BOARD_READY, BOARD_ACTIVE, BOARD_FAULTED };
 
-enum { CAP_VELOCITY = 1, CAP_LOCKSTEP = 2, CAP_CURRENT = 4 };
+enum { CAP_VELOCITY = 1, CAP_LOCKSTEP = 2, CAP_CURRENT = 4, CAP_LOOP = 8 };
 
 enum {
     FAULT_WATCHDOG = 1, FAULT_DEADLINE, FAULT_CORRUPT, FAULT_SEQUENCE, FAULT_COMMAND, FAULT_CONFIG,
@@ -59,6 +62,9 @@ typedef struct {
     const char *name;           /* up to 32 bytes UTF-8 */
     double sample_rate_hz;      /* f_s, Hz */
     double current_limit;       /* amplifier limit, A */
+    double holding_current;     /* A: applied in READY and until the first command is due (the
+                                   current that holds the drive at rest: 0.0 for a drive with no
+                                   bias force; READY reports what hal_write_current returned) */
     int has_velocity;           /* 1: hal_read_position measures velocity */
     int lockstep;               /* 1: advance when commands arrive (simulation); 0: board_tick paces */
     void (*log)(const char *line); /* one line per session event; may be NULL */
@@ -100,12 +106,21 @@ typedef struct {
      * reference and excitation per tick */
     uint8_t loop_kind;          /* 0: host in the loop; 1: pi; 2: two-rate cascade (track, nss) */
     uint32_t loop_total, loop_got;
+    uint64_t seed;              /* CONFIG: the seed of a simulated drive's sensor noise (a real drive ignores it) */
+    uint32_t log_every;         /* the LOG rows are those of ticks k with k % log_every == 0 (LOOP) */
     union {
         uint8_t bytes[BOARD_LOOP_BYTES];
         struct { stage_state ss; stage_params sp; union { struct { pi_state c; pi_params p; } pi;
                                                          struct { track_state c; track_params p; } tr; } k; } r;
     } loop;
     uint32_t refs_next;         /* tick of the next reference expected */
+    /* new parameters of the kind (GAINS), applied before tick gains_tick runs */
+    int gains_pending;
+    uint32_t gains_tick;
+    union {
+        pi_params pi;
+        track_params tr;
+    } gains;
 } board;
 
 /* Power-up: zero current, IDLE. */

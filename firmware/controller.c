@@ -13,12 +13,7 @@
 #include <stdint.h>
 
 #include "dahl.h"
-
-#define PI 3.141592653589793 /* == math.pi */
-
-/* Python's and Numba's max(a, b) / min(a, b): b if it compares greater (less), else a. */
-static inline double py_max(double a, double b) { return b > a ? b : a; }
-static inline double py_min(double a, double b) { return b < a ? b : a; }
+#include "fwmath.h"
 
 /* dahl_update: the state (s, x_r, H_r, x_ext) in place; returns H_hat. */
 static double dahl_update(double x, double s_new, double *s, double *x_r, double *H_r, double *x_ext,

@@ -10,12 +10,10 @@
  *   hal_stream         the byte stream to the host (UART, USB CDC, a pty): takes what it
  *                      can of the bytes to send, returns the bytes received, never blocks.
  *
- * and one hook the session calls at every CONFIG, hal_prepare: the holding current the
- * drive starts READY with (a real amplifier: the current it applies now, often 0; the
- * simulated drive rebuilds its plant there, so every run starts from the same state).
- *
- * The safe state is hal_write_current(0.0): the board calls it at power-up (board_init)
- * and on every fault, STOP and timeout.
+ * Nothing else: the holding current of READY is a constant of the board (board_info's
+ * holding_current, applied with hal_write_current), and the safe state is
+ * hal_write_current(0.0): the board calls it at power-up (board_init), at every CONFIG
+ * before the holding current, and on every fault, STOP and timeout.
  */
 #ifndef SERVO_FW_HAL_H
 #define SERVO_FW_HAL_H
@@ -35,9 +33,5 @@ uint32_t hal_now_us(void);
 /* Offer tx[0..tx_len) to the host (*tx_taken: bytes accepted), and copy up to rx_cap
  * received bytes into rx; returns the count received (0: none now).  Never blocks. */
 size_t hal_stream(const uint8_t *tx, size_t tx_len, size_t *tx_taken, uint8_t *rx, size_t rx_cap);
-
-/* At every accepted CONFIG: ready the drive for a run; returns the holding current (A)
- * applied in READY and until the first command is due. */
-double hal_prepare(void);
 
 #endif

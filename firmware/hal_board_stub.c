@@ -1,7 +1,13 @@
-/* What a real board provides: the four functions of hal.h and the CONFIG hook, for an
- * amplifier, an encoder, a timer and a UART.  A template, not built by default: copy it,
- * fill in the register accesses of your part, build it with the portable sources (cobs.c,
- * crc32.c, board.c) and your main (see docs/firmware.md, "Porting to a real board").
+/* What a real board provides: the four functions of hal.h, for an amplifier, an encoder,
+ * a timer and a UART.  A template, not built by default: copy it, fill in the register
+ * accesses of your part, build it with the portable sources (cobs.c, crc32.c, board.c,
+ * controller.c, dahl.c) and your main (see docs/firmware.md, "Porting to a real board").
+ *
+ * Your main also fills board_info: the board's name, sample rate f_s (Hz, the timer's),
+ * the amplifier's current limit (A), whether hal_read_position measures velocity, the
+ * holding current (A) the session applies in READY (0.0 unless the drive needs a bias
+ * current to rest where it is, e.g. against a flex cable's spring), lockstep = 0 (real
+ * time), and a log function or NULL.
  */
 #ifndef SERVO_FW_PORT
 #error "hal_board_stub.c is a template: copy it and fill in your board's registers (docs/firmware.md)"
@@ -50,11 +56,4 @@ size_t hal_stream(const uint8_t *tx, size_t tx_len, size_t *tx_taken, uint8_t *r
     (void)rx_cap;
     *tx_taken = 0;
     return 0;
-}
-
-/* At CONFIG: the current the drive is held with in READY (what the amplifier applies now,
- * so the host's controller takes over without a bump; 0.0 for a drive at rest). */
-double hal_prepare(void)
-{
-    return 0.0;
 }

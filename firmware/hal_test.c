@@ -6,6 +6,7 @@
 #include "board.h"
 #include "drive.h"
 #include "hal.h"
+#include "noise.h"
 
 static uint8_t in[1 << 16], out[1 << 16];
 static size_t in_len, in_pos, out_len;
@@ -29,9 +30,11 @@ size_t hal_stream(const uint8_t *tx, size_t tx_len, size_t *tx_taken, uint8_t *r
 /* Power up a board (lockstep 1/0) with a session log of none. */
 void fwt_init(int lockstep)
 {
-    board_info info = {"firmware under test", FW_SAMPLE_RATE_HZ, FW_DRIVE.p.u_max, FW_HAS_VELOCITY, lockstep, 0};
+    board_info info = {"firmware under test", FW_SAMPLE_RATE_HZ, FW_DRIVE.p.u_max, FW_DRIVE.u_hold, FW_HAS_VELOCITY,
+                       lockstep, 0};
     in_len = in_pos = out_len = 0;
     board_init(&bd, &info);
+    sim_park();
 }
 
 /* Bytes from the host at time now_us: polled until consumed and the answers flushed. */
@@ -42,15 +45,15 @@ void fwt_feed(const uint8_t *p, size_t n, uint32_t now_us)
     memcpy(in, p, n < sizeof in ? n : sizeof in);
     in_len = n < sizeof in ? n : sizeof in;
     while (in_pos < in_len)
-        board_poll(&bd);
-    board_poll(&bd);
+        sim_poll(&bd);
+    sim_poll(&bd);
 }
 
 /* Time passes: poll at now_us (the watchdog and the ready timeout). */
 void fwt_poll(uint32_t now_us)
 {
     clock_us = now_us;
-    board_poll(&bd);
+    sim_poll(&bd);
 }
 
 /* Real time: one tick at now_us, its output flushed. */
@@ -58,7 +61,7 @@ void fwt_tick(uint32_t now_us)
 {
     clock_us = now_us;
     board_tick(&bd);
-    board_poll(&bd);
+    sim_poll(&bd);
 }
 
 /* The bytes the board sent since the last call. */
@@ -86,4 +89,20 @@ void fwt_plant_run(int n, const double *u, const double *d, double *out)
         plant_measure(&pl, 0.0, 0.0, out + 2 * k, out + 2 * k + 1);
         plant_step(&pl, u[k], d[k]);
     }
+}
+
+/* The sensor noise generator alone: n pairs of standard-normal draws from `seed`. */
+void fwt_noise(uint64_t seed, int n, double *out)
+{
+    static noise_gen g;
+    noise_seed(&g, seed);
+    for (int k = 0; k < n; k++)
+        noise_pair(&g, out + 2 * k, out + 2 * k + 1);
+}
+
+/* The simulated drive's disturbance force (A) over periods 0 .. n-1. */
+void fwt_disturbance(int n, double *out)
+{
+    for (int k = 0; k < n; k++)
+        out[k] = sim_disturbance((uint32_t)k);
 }

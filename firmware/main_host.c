@@ -77,9 +77,10 @@ int main(int argc, char **argv)
     signal(SIGINT, on_signal);
 
     static board bd;
-    board_info info = {"servo firmware (host build)", FW_SAMPLE_RATE_HZ, FW_DRIVE.p.u_max, FW_HAS_VELOCITY,
-                       !realtime, log_line};
+    board_info info = {"servo firmware (host build)", FW_SAMPLE_RATE_HZ, FW_DRIVE.p.u_max, FW_DRIVE.u_hold,
+                       FW_HAS_VELOCITY, !realtime, log_line};
     board_init(&bd, &info);
+    sim_park();
     printf("servo firmware: listening on %s (%s)\n", path, realtime ? "real time" : "lockstep");
     fflush(stdout);
     uint64_t period = (uint64_t)(1e9 / FW_SAMPLE_RATE_HZ + 0.5), next = 0;
@@ -89,7 +90,7 @@ int main(int argc, char **argv)
                 next = now_ns();
             struct timespec at = {(time_t)(next / 1000000000u), (long)(next % 1000000000u)};
             clock_nanosleep(CLOCK_MONOTONIC, TIMER_ABSTIME, &at, NULL); /* the tick's deadline */
-            board_poll(&bd);
+            sim_poll(&bd);
             board_tick(&bd);
             next += period;
             continue;
@@ -97,7 +98,7 @@ int main(int argc, char **argv)
         next = 0;
         struct pollfd p = {master, (short)(POLLIN | (bd.tx_len ? POLLOUT : 0)), 0};
         poll(&p, 1, 1);
-        board_poll(&bd);
+        sim_poll(&bd);
     }
     hal_write_current(0.0);
     printf("servo firmware: stopped; drive at zero current\n");

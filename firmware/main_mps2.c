@@ -57,10 +57,12 @@ int main(void)
     TIMER_VALUE = 0xFFFFFFFFu;
     TIMER_CTRL = 1u;
     last_raw = TIMER_VALUE;
-    board_info info = {"servo firmware (mps2-an500)", FW_SAMPLE_RATE_HZ, FW_DRIVE.p.u_max, FW_HAS_VELOCITY, 1, 0};
+    board_info info = {"servo firmware (mps2-an500)", FW_SAMPLE_RATE_HZ, FW_DRIVE.p.u_max, FW_DRIVE.u_hold,
+                       FW_HAS_VELOCITY, 1, 0};
     board_init(&bd, &info);
+    sim_park();
     for (;;)
-        board_poll(&bd);
+        sim_poll(&bd);
 }
 
 /* ------------------------------------------------------------------ startup */

@@ -3,12 +3,7 @@
 #include <math.h>
 
 #include "dahl.h"
-
-#define PI 3.141592653589793 /* == math.pi */
-
-/* Python's max(a, b) / min(a, b): b if it compares greater (less), else a. */
-static double py_max(double a, double b) { return b > a ? b : a; }
-static double py_min(double a, double b) { return b < a ? b : a; }
+#include "fwmath.h"
 
 static double force_constant(double x, const plant_params *p)
 {
@@ -89,60 +84,60 @@ static void rigid_substep(plant_state *st, const plant_params *p, double u, doub
     st->H = H1;
 }
 
-static void modes_advance(plant *pl, int part, double u)
+/* q: (n_modes, 2) row-major; mab: (n_modes, 2, 6) row-major. */
+static void modes_advance(double *q, const double *mab, int64_t n_modes, int64_t part, double u)
 {
-    for (int i = 0; i < pl->n_modes; i++) {
-        const double *m = pl->mab[i][part];
-        double q0 = pl->q[i][0], q1 = pl->q[i][1];
-        pl->q[i][0] = m[0] * q0 + m[1] * q1 + m[4] * u;
-        pl->q[i][1] = m[2] * q0 + m[3] * q1 + m[5] * u;
+    for (int64_t i = 0; i < n_modes; i++) {
+        const double *m = mab + (i * 2 + part) * 6;
+        double q0 = q[2 * i], q1 = q[2 * i + 1];
+        q[2 * i] = m[0] * q0 + m[1] * q1 + m[4] * u;
+        q[2 * i + 1] = m[2] * q0 + m[3] * q1 + m[5] * u;
     }
 }
 
 static void rigid_advance(plant_state *st, const plant_params *p, double u, double d, double h)
 {
-    long n = (long)p->n_sub;
+    int64_t n = (int64_t)p->n_sub;
     double hs = h / (double)n;
-    for (long i = 0; i < n; i++)
+    for (int64_t i = 0; i < n; i++)
         rigid_substep(st, p, u, d, hs);
 }
 
 /* kernels/delay.py shift_in: push u, return the value pushed out. */
-static double shift_in(double *buf, int n, double u)
+static double shift_in(double *buf, int64_t n, double u)
 {
     if (n == 0)
         return u;
     double out = buf[n - 1];
-    for (int i = n - 1; i > 0; i--)
+    for (int64_t i = n - 1; i > 0; i--)
         buf[i] = buf[i - 1];
     buf[0] = u;
     return out;
 }
 
-void plant_step(plant *pl, double u_cmd, double d)
+void plant_step_on(plant_state *st, const plant_params *p, double *q, const double *mab, int64_t n_modes,
+                   double *ubuf, int64_t n_ubuf, double u_cmd, double d)
 {
-    const plant_params *p = &pl->p;
     double u = py_min(py_max(u_cmd, -p->u_max), p->u_max);
-    shift_in(pl->ubuf, pl->n_ubuf, u);
-    int m = (int)p->delay_whole;
-    double u_late = pl->ubuf[m];
-    double u_early = pl->ubuf[m + 1];
+    shift_in(ubuf, n_ubuf, u);
+    int64_t m = (int64_t)p->delay_whole;
+    double u_late = ubuf[m];
+    double u_early = ubuf[m + 1];
     if (p->delay_frac > 0.0) {
-        rigid_advance(&pl->st, p, u_early, d, p->delay_frac);
-        modes_advance(pl, 0, u_early);
+        rigid_advance(st, p, u_early, d, p->delay_frac);
+        modes_advance(q, mab, n_modes, 0, u_early);
     }
-    rigid_advance(&pl->st, p, u_late, d, p->dt - p->delay_frac);
-    modes_advance(pl, 1, u_late);
+    rigid_advance(st, p, u_late, d, p->dt - p->delay_frac);
+    modes_advance(q, mab, n_modes, 1, u_late);
 }
 
-void plant_measure(plant *pl, double nx, double nv, double *x, double *v)
+void plant_measure_on(plant_state *st, const plant_params *p, const double *q, const double *gain, int64_t n_modes,
+                      double nx, double nv, double *out)
 {
-    const plant_params *p = &pl->p;
-    plant_state *st = &pl->st;
     double y = st->x, yd = st->v;
-    for (int i = 0; i < pl->n_modes; i++) {
-        y += pl->gain[i] * pl->q[i][0];
-        yd += pl->gain[i] * pl->q[i][1];
+    for (int64_t i = 0; i < n_modes; i++) {
+        y += gain[i] * q[2 * i];
+        yd += gain[i] * q[2 * i + 1];
     }
     if (p->sensor_a > 0.0) {
         st->y_lp += p->sensor_a * (y - st->y_lp);
@@ -155,6 +150,19 @@ void plant_measure(plant *pl, double nx, double nv, double *x, double *v)
         yd += p->noise_v * nv;
     else
         yd = NAN;
-    *x = y;
-    *v = yd;
+    out[0] = y;
+    out[1] = yd;
+}
+
+void plant_step(plant *pl, double u_cmd, double d)
+{
+    plant_step_on(&pl->st, &pl->p, &pl->q[0][0], &pl->mab[0][0][0], pl->n_modes, pl->ubuf, pl->n_ubuf, u_cmd, d);
+}
+
+void plant_measure(plant *pl, double nx, double nv, double *x, double *v)
+{
+    double out[2];
+    plant_measure_on(&pl->st, &pl->p, &pl->q[0][0], pl->gain, pl->n_modes, nx, nv, out);
+    *x = out[0];
+    *v = out[1];
 }

@@ -2,27 +2,22 @@
  * hysteresis, bias, cogging, force-constant variation, hard stops, input delay, flexible
  * modes, sensor low-pass and quantiser), same operations in the same order.
  *
- * Not ported: the sensor noise draws (numpy's generator) and the scenario's disturbance
- * force; the firmware's drive is the noise-free, undisturbed plant (a simulated drive
- * with position_noise = velocity_noise = 0 and no disturbance gives the same bits).
+ * The kernels come twice: on the records and arrays of kernels/plant.py as the Numba
+ * kernels take them (plant_step_on, plant_measure_on: what the benchmarks' C reference,
+ * bench/c/servo_ref.c, calls), and on one `plant` holding them all (plant_step,
+ * plant_measure: the firmware's simulated drive).  The noise draws and the disturbance
+ * force are arguments; hal_sim.c supplies them (noise.c, the drive's disturbance).
  * The parameters come from the Python side (hil/firmware.py writes them as C source).
  */
 #ifndef SERVO_FW_PLANT_H
 #define SERVO_FW_PLANT_H
 
+#include <stdint.h>
+
+#include "records.h" /* plant_params, plant_state: kernels.plant's PLANT_PARAMS, PLANT_STATE */
+
 #define PLANT_MAX_MODES 8
 #define PLANT_MAX_UBUF 64
-
-/* kernels.plant.PLANT_PARAMS, field for field (SI units; forces in A of VCM current). */
-typedef struct {
-    double J, B, b_asym, Fc, Fs, fc_asym, vs, sigma, Ha, alpha, K, h0, cog_amp, cog_period, cog_phase, kf1, kf2,
-        stroke, u_max, dt, delay_frac, delay_whole, n_sub, noise_x, noise_v, quantum, has_velocity, sensor_a;
-} plant_params;
-
-/* kernels.plant.PLANT_STATE: position (m), velocity (m/s), Dahl force (A), sensor low-pass (m). */
-typedef struct {
-    double x, v, H, y_lp;
-} plant_state;
 
 /* The whole drive: parameters, state, modes q[i] = (q_i, q_i'), their matrices
  * mab[i][part] = (a11, a12, a21, a22, b1, b2), gains, and the input-delay buffer. */
@@ -38,10 +33,22 @@ typedef struct {
     double u_hold;
 } plant;
 
-/* Advance one sample period under command u_cmd (A, clipped to u_max) and force d (A). */
+/* kernels.plant.plant_step: advance one sample period under command u_cmd (A, clipped to
+ * u_max) and force d (A).  q: (n_modes, 2) and mab: (n_modes, 2, 6), row-major; ubuf:
+ * the input-delay buffer, n_ubuf values. */
+void plant_step_on(plant_state *st, const plant_params *p, double *q, const double *mab, int64_t n_modes,
+                   double *ubuf, int64_t n_ubuf, double u_cmd, double d);
+
+/* kernels.plant.plant_measure: the sensors now, out[0] = x (m), out[1] = v (m/s, NaN
+ * without velocity); nx, nv: standard-normal noise draws (scaled by noise_x, noise_v).
+ * Updates the sensor low-pass in st. */
+void plant_measure_on(plant_state *st, const plant_params *p, const double *q, const double *gain, int64_t n_modes,
+                      double nx, double nv, double *out);
+
+/* plant_step_on on the whole drive. */
 void plant_step(plant *pl, double u_cmd, double d);
 
-/* The sensors now: *x (m), *v (m/s, NaN without velocity); nx, nv: noise draws (0 here). */
+/* plant_measure_on on the whole drive: *x (m), *v (m/s, NaN without velocity). */
 void plant_measure(plant *pl, double nx, double nv, double *x, double *v);
 
 #endif

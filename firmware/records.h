@@ -86,4 +86,42 @@ typedef struct {
     double z_fast[8][2];
 } track_state;
 _Static_assert(sizeof(track_state) == 424, "track_state layout");
+typedef struct {
+    double J;
+    double B;
+    double b_asym;
+    double Fc;
+    double Fs;
+    double fc_asym;
+    double vs;
+    double sigma;
+    double Ha;
+    double alpha;
+    double K;
+    double h0;
+    double cog_amp;
+    double cog_period;
+    double cog_phase;
+    double kf1;
+    double kf2;
+    double stroke;
+    double u_max;
+    double dt;
+    double delay_frac;
+    double delay_whole;
+    double n_sub;
+    double noise_x;
+    double noise_v;
+    double quantum;
+    double has_velocity;
+    double sensor_a;
+} plant_params;
+_Static_assert(sizeof(plant_params) == 224, "plant_params layout");
+typedef struct {
+    double x;
+    double v;
+    double H;
+    double y_lp;
+} plant_state;
+_Static_assert(sizeof(plant_state) == 32, "plant_state layout");
 #endif

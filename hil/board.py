@@ -70,8 +70,10 @@ class Board:
     """
 
     def __init__(self, cfg: Config, lockstep: bool = True, name: str = "servo emulator",
-                 log: Callable[[str], None] | None = None):  # fmt: skip
+                 log: Callable[[str], None] | None = None, seed: int | None = None):  # fmt: skip
         self.cfg = cfg
+        self.seed = seed
+        """A fixed noise seed for every run; None: each CONFIG's (the host's ``run.seed``)."""
         self.lockstep = lockstep
         self.name = name
         self.log = log or (lambda line: None)
@@ -365,6 +367,8 @@ class Board:
                     f"watchdog ({m.watchdog_us / 1e3:g} ms)")  # fmt: skip
         if not math.isclose(m.sample_rate_hz, self.rate, rel_tol=1e-12):
             return f"the host expects {m.sample_rate_hz:g} Hz, the board samples at {self.rate:g} Hz"
+        if m.seed > P.MAX_SEED:
+            return f"seed {m.seed} > {P.MAX_SEED}"
         return None
 
     def _on_config(self, m: P.ConfigMsg, now_ns: int) -> None:
@@ -375,7 +379,8 @@ class Board:
         self._safe()
         self._reset_run()
         self._in_session = True
-        sim = SimDriver(self._drive_cfg, self._inputs)
+        seed = m.seed if self.seed is None else self.seed  # the host's run.seed, unless fixed
+        sim = SimDriver(self._drive_cfg.replace(run={"seed": seed}), self._inputs)
         sim.configure()
         sim.activate()
         self.sim = sim

@@ -8,10 +8,13 @@ makes for a config as C source (hexadecimal float literals: every bit kept).
 pseudo-terminal, ``firmware/main_host.c``) into a directory, once per source and drive;
 :func:`serve_host` runs it and yields its port.
 
-The firmware's drive has no sensor noise and no disturbance force (numpy's generator is
-not ported): a config run against it is compared with the simulated drive of the same
-config with ``drive.position_noise = drive.velocity_noise = 0`` and
-``scenario.disturbance_amplitude = 0`` (:func:`comparable`).
+The firmware's drive applies the steps scenario's disturbance force (the same bits as
+:mod:`servo.scenarios.steps`) and draws its sensor noise from its own generator
+(``firmware/noise.c``, seeded at every run with the seed the host sends in CONFIG, the
+run's ``run.seed``, not the build's): with the noise on, a run is equal to the
+Python simulated drive's in distribution, not in bits.  A config run against it is
+compared bit for bit with the simulated drive of the same config with
+``drive.position_noise = drive.velocity_noise = 0`` (:func:`comparable`).
 """
 from __future__ import annotations
 
@@ -20,6 +23,7 @@ import os
 import re
 import select
 import shutil
+import struct
 import subprocess
 import time
 from contextlib import contextmanager
@@ -27,11 +31,13 @@ from pathlib import Path
 
 import numpy as np
 
+from hil import protocol as P
+from hil.process import end, read_line
 from kernels.plant import PLANT_PARAMS, PLANT_STATE
 from servo.config import Config
 
 ROOT = Path(__file__).resolve().parent.parent / "firmware"
-PORTABLE = ("cobs.c", "crc32.c", "board.c", "dahl.c", "plant.c", "controller.c", "hal_sim.c")
+PORTABLE = ("cobs.c", "crc32.c", "board.c", "dahl.c", "plant.c", "controller.c", "noise.c", "hal_sim.c")
 """The portable sources (everything but a target's main and its stream/clock half of the HAL)."""
 HOST = PORTABLE + ("main_host.c",)
 CFLAGS = ("-std=c99", "-O2", "-ffp-contract=off", "-Wall", "-Wextra", "-Werror")
@@ -40,9 +46,9 @@ MAX_MODES, MAX_UBUF = 8, 64  # firmware/plant.h
 
 
 def comparable(cfg: Config) -> Config:
-    """``cfg`` with what the firmware's drive does not model set to zero: sensor noise
-    and the disturbance force."""
-    return cfg.replace(drive={"position_noise": 0.0, "velocity_noise": 0.0}, scenario={"disturbance_amplitude": 0.0})
+    """``cfg`` without sensor noise: the firmware's drive then gives the Python simulated
+    drive's bits (its noise generator is not numpy's)."""
+    return cfg.replace(drive={"position_noise": 0.0, "velocity_noise": 0.0})
 
 
 def _c(x: float) -> str:
@@ -76,7 +82,23 @@ def drive_source(cfg: Config) -> str:
         f"{_c(p.u_hold)}}};\n"
         f"const double FW_SAMPLE_RATE_HZ = {_c(cfg.run.sample_rate_hz)};\n"
         f"const int FW_HAS_VELOCITY = {1 if cfg.drive.measures_velocity else 0};\n"
+        f"const disturbance FW_DISTURBANCE = {{{', '.join(map(_c, _disturbance(cfg)))}}};\n"
     )
+
+
+def _disturbance(cfg: Config) -> tuple[float, float, float, float]:
+    """The drive's disturbance force as ``(amplitude A, Hz, start s, dt s)``: the steps
+    scenario's sinusoid; another scenario kind's only if it has none."""
+    from servo.scenarios import scenario_inputs
+    from servo.scenarios.steps import ScenarioInputs
+
+    inputs = scenario_inputs(cfg)
+    if isinstance(inputs, ScenarioInputs):
+        return inputs.amplitude, inputs.hz, inputs.start_s, inputs.dt
+    if np.any(inputs.disturbance(np.arange(cfg.n_ticks)) != 0.0):
+        raise ValueError(f"the firmware's simulated drive applies the steps scenario's sinusoidal disturbance only; "
+                         f"scenario.kind = {cfg.scenario.kind} has another")  # fmt: skip
+    return 0.0, 0.0, 0.0, cfg.dt
 
 
 def find_cc() -> str | None:
@@ -130,7 +152,7 @@ def serve_qemu(elf: Path, timeout: float = 30.0, icount: bool = False):
             raise RuntimeError(f"qemu did not start: {line!r}")
         yield proc, m.group(1)
     finally:
-        _end(proc)
+        end(proc)
 
 
 KINDS = ("pi", "track", "nss")
@@ -163,9 +185,102 @@ def build_mps2_bench(cfg: Config, workdir: Path) -> Path:
     return _build(cfg, workdir, sources, MPS2_FLAGS, "servo_fw_bench.elf", ARM_CC, records_source(cfg))
 
 
+BENCH_TICKS = 1920
+"""Ticks of each recorded session of :func:`board_instructions_per_tick` (60 REFS frames)."""
+
+
+def session_source(cfg: Config, periods: tuple[int, ...]) -> str:
+    """C arrays of the host's bytes of a loop-on-board session per kind and log period:
+    HELLO, CONFIG (b = 1), the kind's LOOP records (started at rest with the holding
+    current) with the period, START, REFS frames of 32 ticks for :data:`BENCH_TICKS`
+    ticks (a reference step at a quarter of them); for ``firmware/bench_board_mps2.c``."""
+    from hil.framing import encode_frame
+    from hil.onboard import CHUNK, KIND_CODES, LOOP, REFS, _LOOP_HEAD
+    from servo.runtime.controller import Controller
+    from servo.runtime.simplant import build_plant
+
+    u_hold = build_plant(cfg.drive, cfg.dt).u_hold
+    labels, arrays, lens, setups = [], [], [], []
+    for kind in KINDS:
+        ctl = Controller(cfg.replace(controller={"kind": kind}))
+        ctl.start(0.0, 0.0, u_hold)
+        data, code = ctl.buf.tobytes(), KIND_CODES[kind]
+        for p in periods:
+            bodies = [P.hello(0, 1), P.config(1, P.ConfigMsg(P.VERSION, 1, 0, 1_000_000, 0, cfg.run.sample_rate_hz))]
+            for off in range(0, len(data), CHUNK):
+                bodies.append(_LOOP_HEAD.pack(P.VERSION, LOOP, len(bodies), code, 0, off, len(data), p)
+                              + data[off : off + CHUNK])  # fmt: skip
+            bodies.append(P.start(len(bodies)))
+            setup = sum(len(encode_frame(b)) for b in bodies)
+            for k0 in range(0, BENCH_TICKS, 32):
+                pairs = [v for k in range(k0, k0 + 32) for v in ((1e-6 if k > BENCH_TICKS // 4 else 0.0), 0.0)]
+                bodies.append(struct.pack(f"<BBHIBBH{len(pairs)}d", P.VERSION, REFS, len(bodies) % P.SEQ_MOD, k0,
+                                          32, 0, 0, *pairs))  # fmt: skip
+            wire = b"".join(encode_frame(b) for b in bodies)
+            labels.append(f"{kind}/{p}")
+            arrays.append(wire)
+            lens.append(len(wire))
+            setups.append(setup)
+    out = ["#include <stdint.h>", f"const int BENCH_SESSIONS = {len(arrays)};",
+           f"const uint32_t BENCH_TICKS = {BENCH_TICKS}u;",
+           f"const double BENCH_RATE_HZ = {_c(cfg.run.sample_rate_hz)}, BENCH_U_MAX = {_c(cfg.drive.current_limit)};"]
+    for i, wire in enumerate(arrays):
+        out.append(f"static const uint8_t S{i}[] = {{{', '.join(map(str, wire))}}};")
+    out.append(f"const uint8_t *const BENCH_BYTES[] = {{{', '.join(f'S{i}' for i in range(len(arrays)))}}};")
+    out.append(f"const uint32_t BENCH_LEN[] = {{{', '.join(map(str, lens))}}};")
+    out.append(f"const uint32_t BENCH_SETUP[] = {{{', '.join(map(str, setups))}}};")
+    out.append(f"const char *const BENCH_LABEL[] = {{{', '.join(chr(34) + s + chr(34) for s in labels)}}};")
+    return "\n".join(out) + "\n"
+
+
+def board_instructions_per_tick(cfg: Config, workdir: Path, periods: tuple[int, ...] = (1, 5),
+                                timeout: float = 120.0) -> dict[str, dict[int, int]]:  # fmt: skip
+    """Instructions per tick of the whole board with the loop on it (``board.c``: the
+    frames, the kind, a LOG row every ``p``-th tick), counted by QEMU with ``-icount
+    shift=0`` over :data:`BENCH_TICKS` ticks of a recorded session
+    (``firmware/bench_board_mps2.c``); ``{kind: {p: n}}``."""
+    if shutil.which(ARM_CC) is None:
+        raise RuntimeError(f"no {ARM_CC} on the PATH")
+    sources = ("cobs.c", "crc32.c", "board.c", "dahl.c", "controller.c", "bench_board_mps2.c")
+    elf = _build(cfg, workdir, sources, MPS2_FLAGS, "servo_fw_board_bench.elf", ARM_CC,
+                 session_source(cfg, periods))  # fmt: skip
+    buf = _qemu_output(elf, timeout)
+    out: dict[str, dict[int, int]] = {}
+    for line in buf.decode().splitlines():
+        f = line.split()
+        if len(f) == 3 and f[1] == "board":
+            kind, p = f[0].split("/")
+            out.setdefault(kind, {})[int(p)] = int(f[2])
+    if set(out) != set(KINDS) or any(set(v) != set(periods) for v in out.values()):
+        raise RuntimeError(f"the board bench on QEMU gave {buf!r}")
+    return out
+
+
+def _qemu_output(elf: Path, timeout: float) -> bytes:
+    """What a bench program under QEMU (``-icount shift=0``) writes until "done"."""
+    with serve_qemu(elf, icount=True) as (proc, url):
+        fd = os.open(url, os.O_RDWR | os.O_NOCTTY)
+        try:
+            import tty
+
+            tty.setraw(fd)
+            os.write(fd, b"g")  # the program waits for it
+            buf, end = b"", time.monotonic() + timeout
+            while b"done" not in buf and time.monotonic() < end:
+                ready, _, _ = select.select([fd], [], [], 1.0)
+                if ready:
+                    buf += os.read(fd, 4096)
+        finally:
+            os.close(fd)
+    return buf
+
+
 def instructions_per_tick(cfg: Config, workdir: Path, timeout: float = 120.0) -> dict[str, dict[str, int]]:
     """Run :func:`build_mps2_bench`'s program under QEMU with ``-icount shift=0``;
-    ``{kind: {"controller": n, "plant": n, "frames": n}}``, instructions per tick."""
+    ``{kind: {"controller": n, "plant": n, "frames": n, "refs": n, "log": n}}``,
+    instructions per tick (``frames``: SAMPLES out and COMMANDS in, host in the loop at
+    b = 1; ``refs``: the loop on the board's REFS frames in, 32 ticks a frame) and per log
+    row sent (``log``: a LOG frame of one 13-column row out, CRC and COBS)."""
     elf = build_mps2_bench(cfg, workdir)
     out: dict[str, dict[str, int]] = {}
     with serve_qemu(elf, icount=True) as (proc, url):
@@ -184,8 +299,8 @@ def instructions_per_tick(cfg: Config, workdir: Path, timeout: float = 120.0) ->
             os.close(fd)
     for line in buf.decode().splitlines():
         f = line.split()
-        if len(f) == 7:
-            out[f[0]] = {f[1]: int(f[2]), f[3]: int(f[4]), f[5]: int(f[6])}
+        if len(f) == 11:
+            out[f[0]] = {f[i]: int(f[i + 1]) for i in range(1, 11, 2)}
     if set(out) != set(KINDS):
         raise RuntimeError(f"the bench program on QEMU gave {buf!r}")
     return out
@@ -228,31 +343,4 @@ def serve_host(exe: Path, *args: str, timeout: float = 10.0):
             raise RuntimeError(f"the firmware did not start: {line!r}")
         yield proc, m.group(1)
     finally:
-        _end(proc)
-
-
-def _end(proc) -> None:
-    if proc.poll() is None:
-        proc.terminate()
-        try:
-            proc.wait(5)
-        except subprocess.TimeoutExpired:
-            proc.kill()
-            proc.wait()
-    for f in (proc.stdout, proc.stderr):
-        if f is not None:
-            f.close()
-
-
-def read_line(proc, timeout: float) -> str | None:
-    """The process's next stdout line, or None at EOF or after ``timeout`` s."""
-    end = time.monotonic() + timeout
-    fd = proc.stdout.fileno()
-    while b"\n" not in proc.pending:
-        ready, _, _ = select.select([fd], [], [], max(0.0, end - time.monotonic()))
-        chunk = os.read(fd, 4096) if ready else b""
-        if not chunk:
-            return None
-        proc.pending += chunk
-    line, _, proc.pending = proc.pending.partition(b"\n")
-    return line.decode()
+        end(proc)

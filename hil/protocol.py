@@ -1,4 +1,4 @@
-"""The messages of the serial link, protocol version 2 (``docs/protocol.md`` is the spec).
+"""The messages of the serial link, protocol version 3 (``docs/protocol.md`` is the spec).
 
 Every body (what :mod:`hil.framing` stuffs and checksums) starts with a 4-byte header,
 then a fixed, type-specific payload; all fields little-endian, floats IEEE-754 binary64::
@@ -21,10 +21,12 @@ from functools import lru_cache
 from struct import Struct
 from typing import NamedTuple
 
-VERSION = 2
-"""Version 2: CONFIG carries the ready timeout (version 1: a reserved field)."""
-VERSION_MIN = 2
-VERSION_MAX = 2
+VERSION = 3
+"""Version 3: CONFIG carries the seed of a simulated drive's sensor noise (32 bytes) and
+READY echoes it (56 bytes); version 2: CONFIG carries the ready timeout (version 1: a
+reserved field)."""
+VERSION_MIN = 3
+VERSION_MAX = 3
 MAX_BATCH = 32
 """Samples per SAMPLES frame (and commands per COMMANDS frame), at most."""
 MAX_LATENCY = 1000
@@ -33,6 +35,8 @@ MAX_WATCHDOG_US = 60_000_000
 """Watchdog (us) a board accepts at most: 60 s.  A board may hold its drive energised for
 no host longer than this."""
 MAX_READY_TIMEOUT_MS = 60_000
+MAX_SEED = 2**63 - 1
+"""The largest noise seed a CONFIG may carry (``run.seed``'s range)."""
 """Ready timeout (ms) a board accepts at most: 60 s."""
 DEFAULT_READY_TIMEOUT_MS = 2_000
 """The ready timeout (ms) of ``link.ready_timeout_s``'s default: 2 s."""
@@ -51,6 +55,7 @@ TYPE_NAMES = {HELLO: "HELLO", CONFIG: "CONFIG", START: "START", COMMANDS: "COMMA
 CAP_VELOCITY = 0x0001  # samples carry a measured velocity (else v is NaN)
 CAP_LOCKSTEP = 0x0002  # the board advances when commands arrive (emulator), not on its clock
 CAP_CURRENT = 0x0004  # samples carry the applied current
+CAP_LOOP = 0x0008  # the board runs the loop itself (LOOP, REFS, GAINS; docs/protocol.md section 9)
 
 # SAMPLES status bits
 STATUS_HELD = 0x01  # a tick of this frame ran on the previous current: its command was late
@@ -91,8 +96,8 @@ STATS_FIELDS = (
 HEADER = Struct("<BBH")
 _HELLO = Struct("<BBHIBBH")  # header, nonce u32, v_min u8, v_max u8, reserved u16
 _INFO = Struct("<BBHIBBHddHH")  # header, nonce, v_min, v_max, caps, rate, current limit, max batch, max latency
-_CONFIG = Struct("<BBHBBHIHHd")  # header, version, batch, latency, watchdog_us, late_limit, ready_timeout_ms, rate
-_READY = Struct("<BBHBBHIHHdddd")  # CONFIG fields echoed, then x, v, i of tick 0
+_CONFIG = Struct("<BBHBBHIHHdQ")  # header, version, batch, latency, watchdog_us, late_limit, ready_timeout_ms, rate, seed
+_READY = Struct("<BBHBBHIHHdQddd")  # CONFIG fields echoed, then x, v, i of tick 0
 _CMD_HEAD = Struct("<BBHIBBH")  # header, tick0 u32, count u8, reserved u8, reserved u16
 _SMP_HEAD = Struct("<BBHIBBH")  # header, tick0 u32, count u8, status u8, missed u16
 _FAULT = Struct("<BBHHHI")  # header, code u16, reserved u16, tick u32
@@ -130,6 +135,9 @@ class ConfigMsg(NamedTuple):
     late_limit: int
     sample_rate_hz: float
     ready_timeout_ms: int = DEFAULT_READY_TIMEOUT_MS
+    seed: int = 0
+    """The seed of a simulated drive's sensor noise (``run.seed``); a board with a real
+    drive ignores it."""
 
 
 class Ready(NamedTuple):
@@ -191,13 +199,13 @@ def info(seq: int, m: Info) -> bytes:
 
 def config(seq: int, m: ConfigMsg) -> bytes:
     return _CONFIG.pack(VERSION, CONFIG, seq, m.version, m.batch, m.latency, m.watchdog_us, m.late_limit,
-                        m.ready_timeout_ms, m.sample_rate_hz)  # fmt: skip
+                        m.ready_timeout_ms, m.sample_rate_hz, m.seed)  # fmt: skip
 
 
 def ready(seq: int, m: Ready) -> bytes:
     c = m.config
     return _READY.pack(VERSION, READY, seq, c.version, c.batch, c.latency, c.watchdog_us, c.late_limit,
-                       c.ready_timeout_ms, c.sample_rate_hz, m.x, m.v, m.i)  # fmt: skip
+                       c.ready_timeout_ms, c.sample_rate_hz, c.seed, m.x, m.v, m.i)  # fmt: skip
 
 
 def start(seq: int) -> bytes:
@@ -298,10 +306,10 @@ def parse(body: bytes):
         return kind, seq, Info(*v[3:], name=_decode_text(body[_INFO.size:]))
     if kind == CONFIG:
         v = _exact(body, _CONFIG, "CONFIG")
-        return kind, seq, ConfigMsg(v[3], v[4], v[5], v[6], v[7], v[9], v[8])
+        return kind, seq, ConfigMsg(v[3], v[4], v[5], v[6], v[7], v[9], v[8], v[10])
     if kind == READY:
         v = _exact(body, _READY, "READY")
-        return kind, seq, Ready(ConfigMsg(v[3], v[4], v[5], v[6], v[7], v[9], v[8]), v[10], v[11], v[12])
+        return kind, seq, Ready(ConfigMsg(v[3], v[4], v[5], v[6], v[7], v[9], v[8], v[10]), v[11], v[12], v[13])
     if kind == START:
         _exact(body, _EMPTY, "START")
         return kind, seq, Start()

@@ -112,7 +112,8 @@ class SerialDriver(Driver):
                               f"{info.max_latency} ticks (link.batch = {self.b}, "
                               f"link.command_latency_ticks = {self.d})")  # fmt: skip
         cfg_msg = P.ConfigMsg(self.version, self.b, self.d, max(1, int(round(link.watchdog_s * 1e6))),
-                              link.late_limit_ticks, rate, max(1, int(round(link.ready_timeout_s * 1e3))))  # fmt: skip
+                              link.late_limit_ticks, rate, max(1, int(round(link.ready_timeout_s * 1e3))),
+                              self.cfg.run.seed)  # fmt: skip
         self._send(P.config(self._tx_seq, cfg_msg))
         kind, msg = self._next_message(time.perf_counter_ns() + int(self._handshake_s * 1e9), "READY")
         if kind != P.READY or msg.config != cfg_msg:
@@ -380,25 +381,31 @@ class Sessions:
     then gets it for its first run and a fresh session for each later one.  Use as a
     context manager: the first session is closed on leaving, whatever happened.
 
-    ``make_driver(cfg, inputs)`` has the signature the jobs' ``make_driver`` takes.
+    ``make_driver(cfg, inputs)`` has the signature the jobs' ``make_driver`` takes;
+    ``driver``: the driver class of every session (:class:`SerialDriver`, or
+    :class:`hil.onboard.OnBoardDriver` for the loop on the board).
     Every kernel the runs call is compiled first
     (:func:`~servo.runtime.loop.compile_kernels`), before the board is put in READY: a
     board holds its drive for the ready timeout only (``link.ready_timeout_s``)."""
 
-    def __init__(self, cfg: Config, url: str):
+    def __init__(self, cfg: Config, url: str, driver: type[SerialDriver] = SerialDriver):
         from servo.runtime.loop import compile_kernels
 
         compile_kernels(cfg)
         self.url = url
-        self.first = SerialDriver(cfg, url)
+        self.driver = driver
+        self.first = driver(cfg, url)
         self.first.configure()
         self._pending = [self.first]
 
     def make_driver(self, cfg: Config, inputs=None) -> SerialDriver:
-        return self._pending.pop() if self._pending else SerialDriver(cfg, self.url)
+        return self._pending.pop() if self._pending else self.driver(cfg, self.url)
 
     def where(self, cfg: Config) -> str:
-        """The board as a job's summary names it: its name, latency and batch."""
+        """The board as a job's summary names it: its name, latency and batch (or that it
+        runs the loop)."""
+        if self.first.closes_loop:
+            return f"{self.first.info.name} (the loop on the board, batch = {cfg.link.batch})"
         return f"{self.first.info.name} (d = {cfg.link.command_latency_ticks}, batch = {cfg.link.batch})"
 
     def __enter__(self) -> "Sessions":

@@ -90,7 +90,11 @@ class DriveConfig:
 class LinkConfig:
     """The command path between controller and drive."""
 
-    command_latency_ticks: int = P(0, "ticks", "a command computed at tick k is applied at k+d", 0, 1000)
+    loop: str = P("host", "-", "where the loop closes: 'host' (the host's controller, its commands over the link) or "
+                  "'board' (the board runs the controller kind; the host sends references and gain changes and "
+                  "records the board's log; no link latency in the loop; docs/firmware.md)", choices=("host", "board"))
+    command_latency_ticks: int = P(0, "ticks", "a command computed at tick k is applied at k+d (the host's loop; a "
+                                   "loop on the board has none)", 0, 1000)
     batch: int = P(1, "samples", "serial link: samples per frame (and commands per reply); needs d >= batch - 1, "
                    "and d >= batch on a real-time board", 1, 32)
     timeout_s: float = P(0.2, "s", "serial link: the host stops when no frame has come from the board for this long",
@@ -103,6 +107,15 @@ class LinkConfig:
                               "current when a command is late; one more is a fault", 0, 65535)
     baudrate: int = P(921600, "bit/s", "serial link: line rate of a real UART (pty, socket:// and USB CDC ignore it)",
                       50, 100_000_000)
+
+    @property
+    def loop_latency_ticks(self) -> int:
+        """Ticks from a command to the drive inside the loop: ``command_latency_ticks``
+        when the host closes the loop, 0 when the board does (``loop = "board"``: the
+        command never crosses the link).  The one place that decides it: the simulated
+        drive, the drivers' info and the design code (``servo.lti``,
+        ``servo.loop.design``, ``servo.experiments``) read it."""
+        return self.command_latency_ticks if self.loop == "host" else 0
 
 
 def _kind_names() -> tuple[str, ...]:

@@ -55,8 +55,8 @@ def drive(cfg: Config, discrete: bool = True, compensated: bool = False, stiffne
     cancelled: the double integrator and the modes, eq. 10); ``stiffness`` (force/m): the
     pivot's small-signal stiffness to add (``drive.sigma`` in pre-sliding; 0: the pivot
     left out).  ``discrete``: at ``cfg.dt`` as the simulated drive applies a command
-    (zero-order hold, ``drive.input_delay_s`` and ``link.command_latency_ticks``
-    exact); its frequency response is :func:`servo.loop.design.plant_response`'s."""
+    (zero-order hold, ``drive.input_delay_s`` and the link's latency in the loop,
+    :attr:`~servo.config.LinkConfig.loop_latency_ticks`, exact); its frequency response is :func:`servo.loop.design.plant_response`'s."""
     from servo.design.loop import zoh_delay
     from servo.loop.design import _state_space
 
@@ -64,7 +64,7 @@ def drive(cfg: Config, discrete: bool = True, compensated: bool = False, stiffne
     names = dict(inputs=[f"u ({force_unit})"], outputs=["x (m)"], name="drive")
     if not discrete:
         return control.ss(a, b.reshape(-1, 1), c.reshape(1, -1), 0.0, **names)
-    delay = cfg.drive.input_delay_s + cfg.link.command_latency_ticks * cfg.dt
+    delay = cfg.drive.input_delay_s + cfg.link.loop_latency_ticks * cfg.dt
     A, B, C, D = zoh_delay(a, b, c.reshape(1, -1), cfg.dt, delay)
     return control.ss(A, B, C, D, cfg.dt, **names)
 

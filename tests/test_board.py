@@ -35,7 +35,8 @@ class Host:
 
     def start(self, d=0, b=1, watchdog_ms=5, late=0, rate=None, now=0):
         self.send(lambda s: P.hello(s, 42), now)
-        self.send(lambda s: P.config(s, P.ConfigMsg(P.VERSION, b, d, watchdog_ms * 1000, late, rate or self.board.rate)), now)
+        self.send(lambda s: P.config(s, P.ConfigMsg(P.VERSION, b, d, watchdog_ms * 1000, late, rate or self.board.rate,
+                                                    P.DEFAULT_READY_TIMEOUT_MS, self.board.cfg.run.seed)), now)  # fmt: skip
         msgs = self.recv()
         assert [type(m) for m in msgs] == [P.Info, P.Ready], msgs
         self.send(P.start, now)
@@ -199,10 +200,17 @@ def test_stop_answers_stats_and_a_new_config_starts_the_drive_afresh():
     assert board.state == HELLO and board.applied_current == 0.0
     (stats,) = host.recv()
     assert stats.counters["ticks"] == 5 and stats.counters["rx_frames"] == 3 + 5 + 1
-    host.send(lambda s: P.config(s, P.ConfigMsg(P.VERSION, 1, 0, 1000, 0, board.rate)))
+    seed = board.cfg.run.seed
+    host.send(lambda s: P.config(s, P.ConfigMsg(P.VERSION, 1, 0, 1000, 0, board.rate, 2000, seed)))
     host.send(P.start)
     again = samples(host.recv())
     assert board.state == ACTIVE and again[0].values == host.first.values  # same initial state and noise
+    host.send(P.stop)
+    host.recv()
+    host.send(lambda s: P.config(s, P.ConfigMsg(P.VERSION, 1, 0, 1000, 0, board.rate, 2000, seed + 1)))
+    host.send(P.start)
+    other = samples(host.recv())  # the CONFIG's seed, not the emulator's config's: other noise
+    assert board.state == ACTIVE and other[0].values[1] != host.first.values[1]  # v: its noise is not quantised
 
 
 def test_bytes_outside_a_session_are_ignored_and_a_hello_is_refused_while_a_session_holds_the_board():
@@ -275,6 +283,8 @@ LIMITS = [  # (field changes, what the refusal names)
     ({"ready_timeout_ms": 65535}, "ready timeout 65535 ms outside"),
     ({"late_limit": 101, "watchdog_us": 5000}, "late limit 101 ticks (5.05 ms) is longer than the watchdog (5 ms)"),
     ({"late_limit": 65535, "watchdog_us": 1000}, "late limit 65535 ticks"),
+    ({"seed": 2**63}, "seed 9223372036854775808 > 9223372036854775807"),
+    ({"seed": 2**64 - 1}, "seed 18446744073709551615 >"),
 ]
 
 
@@ -349,3 +359,18 @@ def test_ready_state_needs_start_before_commands():
     assert board.state == READY
     host.command(0, 0.1)
     assert board.state == FAULTED and host.recv()[-2].code == P.FAULT_PROTOCOL
+
+
+def test_a_fixed_seed_overrides_the_hosts():
+    """``servo emulate --seed N``: every run draws seed N's noise, whatever seed the
+    host's CONFIG carries; without it, the CONFIG's seed decides."""
+    first = {}
+    for fixed, seed in ((5, 1), (5, 2), (None, 5), (None, 2)):
+        board = Board(CFG, seed=fixed)
+        host = Host(board)
+        host.send(lambda s: P.hello(s, 42))
+        host.send(lambda s: P.config(s, P.ConfigMsg(P.VERSION, 1, 0, 5000, 0, board.rate, 2000, seed)))
+        host.recv()
+        host.send(P.start)
+        first[fixed, seed] = samples(host.recv())[0].values
+    assert first[5, 1] == first[5, 2] == first[None, 5] != first[None, 2]

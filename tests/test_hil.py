@@ -11,7 +11,6 @@
 import math
 import os
 import re
-import select
 import signal
 import subprocess
 import sys
@@ -24,6 +23,7 @@ import pytest
 from hil.board import ACTIVE, FAULTED, HELLO, Board
 from hil import protocol as P
 from hil.emulator import start_in_thread
+from hil.process import end, read_line
 from hil.serialdriver import SerialDriver
 from kernels.compose import LOG_COLUMNS
 from servo.config import Config, to_toml
@@ -53,22 +53,14 @@ def emulator(*args, timeout=60.0, preexec_fn=None):
     """``servo emulate ARGS`` in a subprocess; yields (process, url).  Always ends it."""
     proc = subprocess.Popen(servo_cmd("emulate", *args), stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
                             preexec_fn=preexec_fn)  # fmt: skip
-    proc.pending = b""  # stdout read by _read_line only
+    proc.pending = b""  # stdout read by read_line only
     try:
-        line = _read_line(proc, time.monotonic() + timeout) or ""
+        line = read_line(proc, timeout) or ""
         m = re.search(r"listening on (\S+)", line)
         assert m, f"emulator did not start: {line!r} {proc.stderr.read() if proc.poll() is not None else ''}"
         yield proc, m.group(1)
     finally:
-        if proc.poll() is None:
-            proc.terminate()
-            try:
-                proc.wait(5)
-            except subprocess.TimeoutExpired:
-                proc.kill()
-                proc.wait()
-        proc.stdout.close()
-        proc.stderr.close()
+        end(proc)
 
 
 def run_log(cfg, driver, tmp_path, name, controller=None):
@@ -235,7 +227,7 @@ def test_a_host_too_slow_for_a_real_time_board_is_a_deadline_fault(tmp_path):
             run_log(cfg, drv, tmp_path, "log")
         emu.terminate()
         out, _ = emu.communicate(timeout=10)
-        out = getattr(emu, "pending", b"").decode() + out  # what _read_line had already taken
+        out = getattr(emu, "pending", b"").decode() + out  # what read_line had already taken
     assert drv.board_stats["missed_deadlines"] >= 1 and drv.board_stats["faults"] == 1
     assert "FAULT deadline missed" in out and "drive at zero current" in out
     rows = np.load(tmp_path / "log.npz")["tick"].shape[0]
@@ -268,10 +260,10 @@ def test_the_handshake_checks_versions_and_sample_rate(tmp_path):
             super()._on_hello(seq, msg)
             self.out.clear()
             self.tx_seq = 0
-            self._send(P.info(0, P.Info(msg.nonce, 3, 4, self.caps, self.rate, 1.0, 32, 1000, "future")))
+            self._send(P.info(0, P.Info(msg.nonce, 4, 5, self.caps, self.rate, 1.0, 32, 1000, "future")))
 
     with start_in_thread(FutureBoard(FAULT_CFG)) as url:
-        with pytest.raises(DriverError, match=r"speaks protocol versions 3..4, this host 2..2"):
+        with pytest.raises(DriverError, match=r"speaks protocol versions 4..5, this host 3..3"):
             SerialDriver(FAULT_CFG, url).configure()
     board = Board(FAULT_CFG)
     with start_in_thread(board) as url:
@@ -340,27 +332,11 @@ def test_emulate_rejects_bad_options_in_one_line(cli):
 # ---------------------------------------------------------------- safe state in every board state (issue 9)
 
 
-def _read_line(proc, deadline: float) -> str | None:
-    """The emulator's next stdout line, or None at EOF or ``deadline`` (monotonic s).
-    Read from the pipe's descriptor with our own buffer: a ``select`` on the pipe beside
-    the text wrapper's ``readline`` would miss lines the wrapper has already buffered
-    (two lines arriving together, as a fault line and the interrupt's)."""
-    fd = proc.stdout.fileno()
-    while b"\n" not in proc.pending:
-        ready, _, _ = select.select([fd], [], [], max(0.0, deadline - time.monotonic()))
-        chunk = os.read(fd, 4096) if ready else b""
-        if not chunk:
-            return None
-        proc.pending += chunk
-    line, _, proc.pending = proc.pending.partition(b"\n")
-    return line.decode() + "\n"
-
-
 def _wait_session_line(proc, needle: str, timeout: float = 10.0) -> str:
     """Read the emulator's stdout until a line containing ``needle`` (or fail)."""
-    end = time.monotonic() + timeout
+    until = time.monotonic() + timeout
     seen = []
-    while (line := _read_line(proc, end)) is not None:
+    while (line := read_line(proc, max(0.0, until - time.monotonic()))) is not None:
         seen.append(line)
         if needle in line:
             return line

@@ -130,3 +130,30 @@ def test_frequency_responses_round_trip_through_python_control_mat_hdf5(tmp_path
         np.testing.assert_array_equal(back.H, r.H)
         np.testing.assert_array_equal(back.f_hz, r.f_hz)
         np.testing.assert_array_equal(back.coherence, r.coherence)
+
+
+@pytest.mark.parametrize("name", ["pi", "track"])
+def test_the_loop_on_the_board_has_no_link_latency_in_its_design(name):
+    """``link.loop = "board"``: the command never crosses the link, so every design-side
+    figure (the sampled plant, servo loop's margins, python-control's loop, the delays
+    the Bode and square-wave experiments fit) equals that of the same config with latency
+    0, and the host-closed loop with the same latency differs."""
+    from servo.experiments.bode_analysis import loop_delay
+    from servo.experiments.square_wave import force_lag
+
+    base = Config().replace(controller={"kind": name})
+    board = base.replace(link={"loop": "board", "command_latency_ticks": 3, "batch": 4})
+    none = base.replace(link={"command_latency_ticks": 0})
+    host = base.replace(link={"command_latency_ticks": 3})
+    assert (board.link.loop_latency_ticks, none.link.loop_latency_ticks, host.link.loop_latency_ticks) == (0, 0, 3)
+    f = np.geomspace(20.0, 2000.0, 600)
+
+    def figures(cfg):
+        d = loop_design(cfg, f, "drive", True)
+        m = margins(d.f_hz, d.L, dense=True)
+        gm, pm = control.stability_margins(lti.loop(cfg))[:2]
+        return d.L, m["phase_margins_deg"], (gm, pm), lti.drive(cfg).A.shape, loop_delay(cfg), force_lag(cfg)
+
+    fb, fn, fh = figures(board), figures(none), figures(host)
+    assert np.array_equal(fb[0], fn[0]) and fb[1:] == fn[1:]
+    assert not np.allclose(fh[0], fn[0]) and fh[1] != fn[1] and fh[4] > fn[4] and fh[3] != fn[3]

@@ -13,7 +13,7 @@ from hil.framing import MAX_ENCODED, FrameDecoder, encode_frame
 
 DOC = Path(__file__).resolve().parents[1] / "docs" / "protocol.md"
 
-u8, u16, u32 = (st.integers(0, 2**n - 1) for n in (8, 16, 32))
+u8, u16, u32, u64 = (st.integers(0, 2**n - 1) for n in (8, 16, 32, 64))
 f64 = st.floats(allow_nan=True, allow_infinity=True) | st.builds(
     lambda b: struct.unpack("<d", b)[0], st.binary(min_size=8, max_size=8)
 )  # every bit pattern, NaN payloads included
@@ -21,7 +21,7 @@ text = st.text(max_size=60)
 
 
 def messages():
-    cfg = st.builds(P.ConfigMsg, u8, u8, u16, u32, u16, f64, u16)
+    cfg = st.builds(P.ConfigMsg, u8, u8, u16, u32, u16, f64, u16, u64)
     return st.one_of(
         st.builds(P.Hello, u32, u8, u8),
         st.builds(P.Info, u32, u8, u8, u16, f64, f64, u16, u16, st.text(max_size=10)),
@@ -99,9 +99,9 @@ def test_errors_are_counted_by_kind():
     [
         (b"\x02\x84\x00", "shorter than its header"),
         (P.samples(0, 0, 0, 0, (1.0, 2.0, 3.0))[:-1], "SAMPLES frame of"),
-        (b"\x02\x84\x00\x00" + struct.pack("<IBBH", 0, 0, 0, 0), "with 0 samples"),
+        (bytes([P.VERSION]) + b"\x84\x00\x00" + struct.pack("<IBBH", 0, 0, 0, 0), "with 0 samples"),
         (b"\x01\x84\x00\x00", "protocol version 1"),
-        (b"\x02\x7f\x00\x00", "unknown message type 0x7f"),
+        (bytes([P.VERSION]) + b"\x7f\x00\x00", "unknown message type 0x7f"),
         (P.stop(0) + b"\x00", "STOP frame of 5 bytes"),
     ],
 )

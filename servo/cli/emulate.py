@@ -16,10 +16,12 @@ def register(sub) -> None:
         "(docs/protocol.md), on a pseudo-terminal (prints its path) or a TCP port on 127.0.0.1. In lockstep "
         "(default) the board advances when commands arrive, so a run through it is bit-identical to the "
         "simulator; with --realtime it is the clock master at run.sample_rate_hz. Give it the config the host "
-        "runs with (the disturbance and the noise seed come from it). Stop with Ctrl-C or SIGTERM.",
+        "runs with (the disturbance comes from it; the noise seed from each run's CONFIG, the host's run.seed). "
+        "Stop with Ctrl-C or SIGTERM.",
     )
     add_config_options(p)
-    p.add_argument("--seed", type=int, help="sensor-noise seed (default: run.seed)")
+    p.add_argument("--seed", type=int, help="a fixed sensor-noise seed for every run (default: each run's, sent by "
+                   "the host in CONFIG)")  # fmt: skip
     p.add_argument("--duration", type=float, metavar="S", help="length of the scenario's disturbance array "
                    "(default: run.duration_s; give the host's)")  # fmt: skip
     where = p.add_mutually_exclusive_group()
@@ -45,12 +47,12 @@ def handle(args: argparse.Namespace) -> int:
 
     if args.sessions is not None and args.sessions < 1:
         raise ServoError("emulate: --sessions must be >= 1")
-    cfg = config_from_args(args, run={"seed": args.seed, "duration_s": args.duration})
+    cfg = config_from_args(args, run={"seed": args.seed, "duration_s": args.duration})  # --seed checked here
 
     def say(line: str) -> None:
         print(f"servo emulate: {line}", flush=True)
 
-    board = Board(cfg, lockstep=not args.realtime, name=args.name, log=say)
+    board = Board(cfg, lockstep=not args.realtime, name=args.name, log=say, seed=args.seed)
     try:
         transport = open_transport("tcp" if args.tcp is not None else "pty", args.tcp or 0)
     except OSError as exc:
@@ -59,7 +61,8 @@ def handle(args: argparse.Namespace) -> int:
     ctx = (realtime_section(args.cpu, args.fifo, args.lock_memory) if args.realtime else nullcontext())
     try:  # it says "stop with Ctrl-C": servo.cli.main takes SIGINT back if it was ignored
         with ctx as grant:
-            say(f"listening on {transport.url} ({mode}, {cfg.run.sample_rate_hz:g} Hz, seed {cfg.run.seed}); "
+            seed = "the host's seed" if args.seed is None else f"seed {args.seed}"
+            say(f"listening on {transport.url} ({mode}, {cfg.run.sample_rate_hz:g} Hz, {seed}); "
                 "stop with Ctrl-C")  # fmt: skip
             for note in getattr(grant, "notes", []):
                 say(note)

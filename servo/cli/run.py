@@ -2,6 +2,8 @@
 from __future__ import annotations
 
 import argparse
+import math
+from functools import partial
 from pathlib import Path
 
 from servo.cli import UsageError
@@ -33,6 +35,13 @@ def register(sub) -> None:
     p.add_argument("--port", metavar="URL", help="run against a DSP/VCM board (or `servo emulate`) over this "
                    "pyserial URL: a device or pseudo-terminal path, socket://HOST:PORT, ... (the [link] section "
                    "sets latency, batching, timeouts)")  # fmt: skip
+    p.add_argument("--loop-on-board", action="store_true", help="with --port: the board runs the controller kind "
+                   "itself; the host sends the references and records the board's log (link.loop = \"board\"; a "
+                   "lockstep board such as the reference firmware, docs/firmware.md)")  # fmt: skip
+    p.add_argument("--gains", action="append", metavar="S=TOML", default=[],
+                   help="with --loop-on-board: from S seconds into the run, the gains of the [controller] table of "
+                        "the TOML file (same kind; repeat for more changes; the board applies each at its tick and "
+                        "acknowledges it)")  # fmt: skip
     rt = p.add_argument_group(
         "real-time pacing",
         "Pace each tick on the wall clock at the sample rate (absolute deadlines, sleep then spin), as against "
@@ -85,7 +94,9 @@ def handle(args: argparse.Namespace) -> int:
     from servo.run.job import default_out_dir, format_summary, prepare, run_job
 
     realtime = realtime_options(args)
-    cfg = config_from_args(args, run={"duration_s": args.duration, "seed": args.seed})
+    cfg = config_from_args(args, run={"duration_s": args.duration, "seed": args.seed},
+                           link={"loop": "board" if args.loop_on_board else None})  # fmt: skip
+    gains = _gain_changes(cfg, args)
     out = Path(args.out) if args.out else default_out_dir()
     formats = ("npz", "csv") if args.log_format == "both" else (args.log_format,)
     check_output(out)
@@ -99,23 +110,47 @@ def handle(args: argparse.Namespace) -> int:
                 summary = run_job(cfg, tmp, compensation=args.compensation, fast=False if realtime else args.fast,
                                   realtime=realtime, log_formats=formats, provenance=prov, inputs=inputs)  # fmt: skip
         else:
-            summary = _run_on_port(cfg, out, args, formats, prov, inputs)
+            summary = _run_on_port(cfg, out, args, formats, prov, inputs, gains)
     print(format_summary(summary, out))
     return 0
 
 
-def _run_on_port(cfg, out: Path, args: argparse.Namespace, formats: tuple[str, ...], prov: dict, inputs) -> dict:
+def _gain_changes(cfg, args: argparse.Namespace) -> list:
+    """The ``--gains S=TOML`` changes (:func:`hil.onboard.gain_changes_from_files`)."""
+    if not args.gains:
+        return []
+    if args.port is None or cfg.link.loop != "board":
+        raise UsageError("servo run: --gains needs --port URL and --loop-on-board (the board changes its gains)")
+    changes = []
+    for spec in args.gains:
+        t, sep, path = spec.partition("=")
+        try:
+            t_s = float(t)
+        except ValueError:
+            t_s = math.nan
+        if not sep or not path or not (math.isfinite(t_s) and t_s >= 0.0):
+            raise UsageError(f"servo run: --gains {spec!r}: give S=TOML, seconds into the run and a TOML file")
+        changes.append((t_s, path))
+    from hil.onboard import gain_changes_from_files
+
+    return gain_changes_from_files(cfg, changes)
+
+
+def _run_on_port(cfg, out: Path, args: argparse.Namespace, formats: tuple[str, ...], prov: dict, inputs,
+                 gains=()) -> dict:  # fmt: skip
     """The same job against the serial link: a fresh session (driver) per run.  The first
     driver is configured (handshake, version and rate checks) before anything is written,
     so a bad URL or an absent board leaves no output folder."""
     from servo.io.outdir import staged
-    from hil.serialdriver import Sessions
+    from hil.onboard import OnBoardDriver
+    from hil.serialdriver import SerialDriver, Sessions
     from servo.run.job import run_job
     from servo.runtime.pacing import realtime_section
 
     if args.fast or (args.fast is None and cfg.run.fast_path):
         raise UsageError("servo run: --port runs tick by tick through the link; drop --fast (run.fast_path)")
     # the collection that pauses the garbage collector comes before the board is put in READY
-    with realtime_section(), Sessions(cfg, args.port) as ports, staged(out, keep_partial="log_*") as tmp:
+    driver = partial(OnBoardDriver, gains=gains) if cfg.link.loop == "board" else SerialDriver
+    with realtime_section(), Sessions(cfg, args.port, driver) as ports, staged(out, keep_partial="log_*") as tmp:
         return run_job(cfg, tmp, compensation=args.compensation, fast=False, make_driver=ports.make_driver,
                        where=ports.where(cfg), log_formats=formats, provenance=prov, inputs=inputs)  # no GC pauses while the board waits

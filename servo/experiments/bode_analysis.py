@@ -64,7 +64,7 @@ def linearity(sweeps: list[Sweep], band_max: float) -> dict:
 def loop_delay(cfg: Config) -> float:
     """Pure delay (s) between command and response on the simulated drive: the input
     delay, the link latency and half a sample of zero-order hold."""
-    return cfg.drive.input_delay_s + cfg.link.command_latency_ticks * cfg.dt + 0.5 * cfg.dt
+    return cfg.drive.input_delay_s + cfg.link.loop_latency_ticks * cfg.dt + 0.5 * cfg.dt
 
 
 def band_max(cfg: Config) -> float:

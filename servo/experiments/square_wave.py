@@ -86,7 +86,7 @@ def force_lag(cfg: Config) -> dict[str, float]:
     the drive's input delay and the link latency; the robust path adds the half sample of
     the zero-order hold (the paper path's rows already pair each interval with its held
     command)."""
-    delay = cfg.drive.input_delay_s + cfg.link.command_latency_ticks * cfg.dt
+    delay = cfg.drive.input_delay_s + cfg.link.loop_latency_ticks * cfg.dt
     return {"paper": delay, "robust": delay + 0.5 * cfg.dt}
 
 

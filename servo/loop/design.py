@@ -138,7 +138,8 @@ def plant_response(cfg: Config, f_hz, model: str = "nominal", compensated: bool 
 
     Sampling as the simulated drive applies the command: held over the sample (zero-order
     hold), delayed by ``drive.input_delay_s`` (whole samples and a fraction) and by
-    ``link.command_latency_ticks``.  Exact for the linear model (matrix exponentials of
+    the link's latency in the loop (:attr:`~servo.config.LinkConfig.loop_latency_ticks`:
+    none with the loop on the board).  Exact for the linear model (matrix exponentials of
     the two constant-input pieces of each sample, :func:`servo.runtime.simplant.mode_matrices`
     does the same for the modes).
     """
@@ -157,7 +158,7 @@ def sampled_plant(cfg: Config, model: str = "nominal", compensated: bool = True,
     phi = phi2 @ phi1
     g_prev = phi2 @ g1
     n = a.shape[0]
-    lag = whole + cfg.link.command_latency_ticks
+    lag = whole + cfg.link.loop_latency_ticks
 
     def response(f_hz) -> np.ndarray:
         f = np.asarray(f_hz, dtype=float)

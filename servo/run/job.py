@@ -227,8 +227,9 @@ def format_summary(summary: dict, out_dir: Path) -> str:
     for lab in labels:
         r = runs[lab]
         if "link" in r:  # the tick includes waiting for the board's sample: not a compute figure
-            lines.append(f"  tick ({lab}, read to last task, incl. waiting for the board): {r['tick_us_median']:.1f} us "
-                         f"median, {r['tick_us_p99']:.1f} us p99, {r['tick_us_max']:.0f} us max")  # fmt: skip
+            if "tick_us_median" in r:  # (none when the loop runs on the board)
+                lines.append(f"  tick ({lab}, read to last task, incl. waiting for the board): {r['tick_us_median']:.1f} "
+                             f"us median, {r['tick_us_p99']:.1f} us p99, {r['tick_us_max']:.0f} us max")  # fmt: skip
             lines.append(f"  link ({lab}): " + format_link(r["link"]))
         elif "tick_us_median" in r:
             lines.append(

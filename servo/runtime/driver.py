@@ -17,6 +17,11 @@ Modelled on ros2_control's hardware interface::
 * ``report`` returns what the run summary records about the drive or its link (a dict,
   or None when there is nothing to report: the default).
 
+A driver whose drive runs the controller itself (a board with the loop on it,
+:class:`hil.onboard.OnBoardDriver`) sets :attr:`Driver.closes_loop` and implements
+:meth:`Driver.run_loop`; :func:`servo.runtime.loop.run_closed_loop` then hands it the run
+(it activates the drive itself, after sending the controller).
+
 The base class owns the state machine; subclasses implement the ``_on_*`` hooks.  The safe
 state cannot be skipped: ``close`` deactivates, the context manager closes on every exit
 path (exceptions and Ctrl-C included), and any exception escaping ``read``/``write``
@@ -52,6 +57,9 @@ class DriverInfo:
 
 class Driver(ABC):
     """Base class of every driver; see the module doc for the lifecycle."""
+
+    closes_loop: bool = False
+    """True: the drive runs the controller itself (:meth:`run_loop`), the host supervises."""
 
     def __init__(self) -> None:
         self.state = DriverState.UNCONFIGURED
@@ -144,6 +152,13 @@ class Driver(ABC):
 
     def _on_close(self) -> None:
         pass
+
+    def run_loop(self, cfg, controller, inputs, log, stats, watchdog) -> None:
+        """Run the whole loop on the drive (a driver with :attr:`closes_loop` only): start
+        ``controller`` bumplessly, activate, run ``cfg.n_ticks`` ticks with the reference
+        and excitation of ``inputs``; the rows go to ``log``, the tracking error to
+        ``stats`` (:func:`kernels.compose.error_stats`), ``watchdog`` looks at the rows."""
+        raise NotImplementedError(f"{type(self).__name__} does not run the loop itself")
 
     def report(self) -> dict | None:
         """What the run summary records about the drive/link; None for a drive with

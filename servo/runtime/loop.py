@@ -91,19 +91,24 @@ def run_closed_loop(
     """
     if fast and not isinstance(driver, SimDriver):
         raise ValueError("the compiled fast path runs against the simulated drive only")
+    if driver.closes_loop and pacer is not None:
+        raise ValueError("a drive that runs the loop itself is its own clock: it cannot be paced")
     if fast and pacer is not None:
         raise ValueError("the compiled fast path cannot be paced: real-time pacing needs the tick path")
     with gc_paused():
         if driver.state is DriverState.UNCONFIGURED:
             driver.configure()
         stats = np.zeros(STATS_SIZE)
-        durations = Durations() if (timing and not fast) else None
+        durations = Durations() if (timing and not fast and not driver.closes_loop) else None
         _warm_up(controller, log)
         watchdog = Watchdog(cfg)
-        driver.activate()
+        if not driver.closes_loop:
+            driver.activate()
         t0 = time.perf_counter()
         try:
-            if fast:
+            if driver.closes_loop:  # the loop on the drive: the host supervises and records
+                driver.run_loop(cfg, controller, inputs, log, stats, watchdog)
+            elif fast:
                 _run_fast(cfg, driver, controller, inputs, log, stats, watchdog)
             else:
                 _run_ticks(cfg, driver, controller, inputs, log, stats, pacer, durations, watchdog)

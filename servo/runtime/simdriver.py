@@ -7,7 +7,8 @@ counter.  Sensor noise is drawn from ``numpy.random.default_rng(seed)`` in block
 given seed gives the same noise whether the run goes tick by tick or in compiled blocks.
 
 The link's command latency ``d`` is modelled here like on the board: the command of tick
-k enters the plant at tick k+d.  The drive starts at rest, held at its initial position
+k enters the plant at tick k+d; with the loop on the board (``link.loop = "board"``) the
+command does not cross the link, and ``d`` is 0.  The drive starts at rest, held at its initial position
 by the holding current (as if handed over by a previous controller); its safe state is
 zero current.
 """
@@ -49,7 +50,7 @@ class SimDriver(Driver):
     def _on_configure(self) -> DriverInfo:
         cfg = self.cfg
         self.plant = build_plant(cfg.drive, cfg.dt)
-        self.latency = np.full(cfg.link.command_latency_ticks, self.plant.u_hold)
+        self.latency = np.full(cfg.link.loop_latency_ticks, self.plant.u_hold)
         self._x = self.plant.state.view(np.float64)  # [x, v, H]: a float view for the finiteness check
         self._rng = np.random.default_rng(cfg.run.seed)
         self._noise = np.empty((NOISE_BLOCK, 2))
@@ -59,7 +60,7 @@ class SimDriver(Driver):
             name="sim",
             sample_rate_hz=cfg.run.sample_rate_hz,
             has_velocity=cfg.drive.measures_velocity,
-            command_latency_ticks=cfg.link.command_latency_ticks,
+            command_latency_ticks=cfg.link.loop_latency_ticks,
             current_limit=cfg.drive.current_limit,
         )
 
