@@ -105,3 +105,7 @@ STARTUP_OVER_DEPENDENCIES_MAX = 3.0
 #: yet measured idle); the code that imported scipy.signal and matplotlib before the
 #: first tick: 5.4 at load 13, 4.8 at load 7.  The bound: ~1.45x the worst seen.
 STARTUP_OVER_IMPORT_FLOOR_MAX = 4.5
+#: The fast path with its run log (``servo run --fast``: windows, noise blocks, watchdog,
+#: journal writer thread) over the same closed loop in C writing the same rows to memory,
+#: paired rounds (issue 29's goal: 1.2).
+FAST_PATH_OVER_C_MAX = 1.2
