@@ -147,10 +147,14 @@ def _run_ticks(cfg, driver, controller, inputs, log, stats, pacer, durations, wa
     def estimator(k: int) -> None:
         error_stats(stats, state[0]["e"])
 
+    look_at = [watchdog.next_look(log)]
+
     def logger(k: int) -> None:
         log_row(log.data[log.rows], k, dt, data.x, data.u_exc)
         log.rows += 1
-        watchdog.maybe_look(log)  # and the log's block hand-over
+        if log.rows >= look_at[0]:
+            watchdog.flush(log)  # and the log's block hand-over
+            look_at[0] = watchdog.next_look(log)
 
     sched.before = [Task("excitation", cfg.run.excitation_every, excitation)]
     sched.after = [

@@ -76,10 +76,17 @@ class Watchdog:
         log.maybe_flush()
         self.start = min(self.start, log.rows)
 
+    def next_look(self, log) -> int:
+        """The value of ``log.rows`` at which the tick path calls :meth:`flush` next: after
+        :data:`CHECK_ROWS` rows, or when the log's block is full.  The loop compares its row
+        count with it after each logged row (an integer comparison, where a method call per
+        tick cost ~0.2 us of a ~4 us tick)."""
+        return min(self.start + CHECK_ROWS, getattr(log, "block_rows", 1 << 62))
+
     def maybe_look(self, log) -> None:
         """On the tick path, after each logged row: look every :data:`CHECK_ROWS` rows and
         before the log's block is handed over."""
-        if log.rows - self.start >= CHECK_ROWS or log.rows >= getattr(log, "block_rows", np.inf):
+        if log.rows >= self.next_look(log):
             self.flush(log)
 
 
