@@ -256,7 +256,15 @@ class RunLog:
                 self._stop_writer()
                 self.closed = True
         with interrupts_deferred():  # a second Ctrl-C must not leave half the files
-            finalise_journal(self.journal_path, self.formats, consumers, meta=self.meta)
+            try:
+                finalise_journal(self.journal_path, self.formats, consumers, meta=self.meta)
+            except OSError:
+                if err is None:
+                    raise
+                # the disk that failed the journal (found after the last hand-over: the
+                # loop ran ahead of the writer) fails its NPZ too: the journal's failure
+                # is the fault to report, and the journal keeps what it holds
+                raise err from None
         self.finalised = True
         if err is not None:
             raise err
