@@ -69,22 +69,26 @@ def records_header(names: tuple[str, ...] = CONTROLLER_RECORDS + ("plant_params"
 
 def records_file() -> str:
     """The text of ``firmware/records.h``: :func:`records_header` of every record, guarded."""
-    return f"#ifndef SERVO_FW_RECORDS_H\n#define SERVO_FW_RECORDS_H\n{records_header()}#endif\n"
+    return f"#ifndef SERVO_FW_RECORDS_H
+#define SERVO_FW_RECORDS_H
+{records_header()}#endif
+"
 
 
-def build(workdir: Path, cc: str) -> tuple[Path, list[str]]:
-    """Compile the reference into ``workdir``; returns the library path and the flags used."""
+def build(workdir: Path, cc: str, source: Path = SOURCE) -> tuple[Path, list[str]]:
+    """Compile ``source`` (the reference, or a file of ``bench/c/`` that includes it) into
+    ``workdir``; returns the library path and the flags used."""
     workdir = Path(workdir)
     if RECORDS.read_text() != records_file():
         raise BuildError(f"{RECORDS} is not what the kernels' dtypes give: regenerate it with python -m bench.cref")
-    lib = workdir / "servo_ref.so"
+    lib = workdir / f"{Path(source).stem}.so"
     flags = list(CFLAGS)
     for attempt in (flags, [f for f in flags if f != "-march=native"]):
-        cmd = [cc, *attempt, f"-I{FIRMWARE}", str(SOURCE), "-o", str(lib), "-lm"]
+        cmd = [cc, *attempt, f"-I{FIRMWARE}", str(source), "-o", str(lib), "-lm"]
         r = subprocess.run(cmd, capture_output=True, text=True)
         if r.returncode == 0:
             return lib, attempt
-    raise BuildError(f"{cc} failed on {SOURCE.name}: {r.stderr.strip().splitlines()[-1] if r.stderr.strip() else r.returncode}")
+    raise BuildError(f"{cc} failed on {Path(source).name}: {r.stderr.strip().splitlines()[-1] if r.stderr.strip() else r.returncode}")
 
 
 def _ptr(a: np.ndarray) -> int:

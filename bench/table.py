@@ -44,6 +44,7 @@ RATIOS = [
     ("tick_path_every_term_over_paper", "tick path, every compensator term / the paper's terms (rounds alternated)"),
     ("python_over_numba_controller_tick", "Python / Numba, controller tick"),
     ("cold_start_over_dependencies", "cold start / import of numba+numpy+scipy+matplotlib"),
+    ("fast_path_over_c_with_logging", "fast path with its run log / C logging the same rows (loop thread's CPU)"),
 ]
 
 

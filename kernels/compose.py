@@ -161,14 +161,15 @@ class Composed(NamedTuple):
     closed_loop: object
 
 
-def _specialise(template, name: str, env: dict, signature):
-    """``template`` compiled under ``name`` with ``env`` added to its globals."""
+def _specialise(template, name: str, env: dict, signature, **options):
+    """``template`` compiled under ``name`` with ``env`` added to its globals (``options``:
+    Numba's, e.g. ``nogil``)."""
     g = dict(template.__globals__)
     g.update(env)
     fn = types.FunctionType(template.__code__, g, name)
     fn.__qualname__ = name
     fn.__doc__ = template.__doc__
-    return kernel(signature)(fn)
+    return kernel(signature, **options)(fn)
 
 
 _COMPOSED: dict[tuple, Composed] = {}
@@ -219,6 +220,7 @@ def compose(name: str, tag: str, state_dtype, params_dtype, start, tick, log) ->
             float64[::1], float64[::1], float64[::1], float64[:, ::1],
             int64, int64, int64, int64, float64[::1], float64[:, ::1], int64, int64, float64,
         ),
+        nogil=True,  # a block of ticks runs while the run log's writer thread journals the last
     )  # fmt: skip
     out = _COMPOSED[key] = Composed(dtype, s_start, s_tick, s_step, s_log, s_loop)
     return out

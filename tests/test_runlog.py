@@ -233,3 +233,38 @@ def test_the_current_folder_is_refused_as_an_output_folder(tmp_path):
                        capture_output=True, text=True)  # fmt: skip
     assert r.returncode == 2 and r.stderr.count("\n") == 1 and "is the current folder" in r.stderr, r.stderr
     assert list(tmp_path.iterdir()) == [] and not (tmp_path.parent / f"{tmp_path.name}.incomplete").exists()
+
+
+def test_a_journal_failure_found_after_the_last_hand_over_is_the_fault_reported(tmp_path, monkeypatch):
+    """The loop can run ahead of the journal's writer (the compiled loop releases the
+    interpreter lock): a write that fails after the last hand-over is found when the log
+    closes, where the NPZ fails on the same disk.  The journal's error is raised, and the
+    journal keeps its rows."""
+    import errno
+
+    import servo.io.runlog as runlog
+
+    log = runlog.RunLog(tmp_path, "r", ("tick", "x"), block_rows=8)
+
+    class Full:
+        def __init__(self, fh):
+            self.fh = fh
+
+        def write(self, b):
+            raise OSError(errno.EFBIG, "File too large")
+
+        def __getattr__(self, name):
+            return getattr(self.fh, name)
+
+    log._writer.fh = Full(log._writer.fh)
+    log.data[:8] = 1.0
+    log.rows = 8
+    log.maybe_flush()  # handed over; the writer fails after it
+
+    def npz_fails(*a, **k):
+        raise OSError(errno.EFBIG, "File too large")
+
+    monkeypatch.setattr(runlog, "finalise_journal", npz_fails)
+    with pytest.raises(runlog.JournalError, match="File too large"):
+        log.close()
+    assert log.journal_path.exists() and not log.finalised

@@ -24,6 +24,7 @@ from __future__ import annotations
 import numpy as np
 
 from kernels.compose import LOG_COLUMNS
+from kernels.watch import first_outside, first_over_share
 from servo.config import Config
 from servo.errors import UnstableLoop
 
@@ -44,35 +45,30 @@ class Watchdog:
         self.window = max(1, int(round(r.fault_window_s / self.dt_row)))
         self.ix, self.iu = LOG_COLUMNS.index("x"), LOG_COLUMNS.index("u")
         self.start = 0  # first row of the log's block not looked at yet
-        self.recent = np.zeros(0, dtype=bool)  # at-limit flags of the latest window of rows
+        self.ring = np.zeros(self.window, dtype=np.uint8)  # at-limit flags of the latest window of rows (kernels.watch)
+        self.carry = np.zeros(3, dtype=np.int64)
 
     def look(self, log) -> None:
         """Check the rows ``log.data[start:log.rows]``; raises :class:`UnstableLoop`."""
-        rows = log.data[self.start : log.rows]
+        rows = np.ascontiguousarray(log.data[self.start : log.rows], dtype=np.float64)
         self.start = log.rows
         if rows.shape[0] == 0:
             return
-        x, u = rows[:, self.ix], rows[:, self.iu]
-        out = np.flatnonzero(~(np.abs(x) < self.position))  # NaN counts as out
-        if out.size:
-            i = out[0]
-            raise UnstableLoop(f"unstable loop: the position reached {x[i] * 1e3:.3f} mm at t = {rows[i, 1]:.4f} s, "
+        i = first_outside(rows, self.ix, self.position)
+        if i >= 0:
+            x = rows[i, self.ix]
+            raise UnstableLoop(f"unstable loop: the position reached {x * 1e3:.3f} mm at t = {rows[i, 1]:.4f} s, "
                                f"outside +-{self.position * 1e3:.4g} mm (run.fault_position); run stopped, drive set "
                                "to zero current")  # fmt: skip
         if self.share >= 1.0:
             return
-        flags = np.concatenate([self.recent, np.abs(u) >= self.limit])
-        if flags.shape[0] >= self.window:
-            c = np.concatenate([[0], np.cumsum(flags)])
-            sums = c[self.window :] - c[: -self.window]
-            bad = np.flatnonzero(sums > self.share * self.window)
-            if bad.size:
-                t = rows[-1, 1]
-                raise UnstableLoop(f"unstable loop: the current command sat at its limit (+-{self.limit:.4g} A) on "
-                                   f"{100 * sums[bad[0]] / self.window:.0f} % of a {self.window * self.dt_row:g} s "
-                                   f"window ending near t = {t:.4f} s (run.fault_limit_share = {self.share:g}); run "
-                                   "stopped, drive set to zero current")  # fmt: skip
-        self.recent = flags[-(self.window - 1) :] if self.window > 1 else flags[:0]
+        j, count = first_over_share(rows, self.iu, self.limit, self.ring, self.carry, self.share * self.window)
+        if j >= 0:
+            t = rows[-1, 1]
+            raise UnstableLoop(f"unstable loop: the current command sat at its limit (+-{self.limit:.4g} A) on "
+                               f"{100 * count / self.window:.0f} % of a {self.window * self.dt_row:g} s "
+                               f"window ending near t = {t:.4f} s (run.fault_limit_share = {self.share:g}); run "
+                               "stopped, drive set to zero current")  # fmt: skip
 
     def flush(self, log) -> None:
         """Look at what is left of the block, then let the log hand it over."""
@@ -80,10 +76,17 @@ class Watchdog:
         log.maybe_flush()
         self.start = min(self.start, log.rows)
 
+    def next_look(self, log) -> int:
+        """The value of ``log.rows`` at which the tick path calls :meth:`flush` next: after
+        :data:`CHECK_ROWS` rows, or when the log's block is full.  The loop compares its row
+        count with it after each logged row (an integer comparison, where a method call per
+        tick cost ~0.2 us of a ~4 us tick)."""
+        return min(self.start + CHECK_ROWS, getattr(log, "block_rows", 1 << 62))
+
     def maybe_look(self, log) -> None:
         """On the tick path, after each logged row: look every :data:`CHECK_ROWS` rows and
         before the log's block is handed over."""
-        if log.rows - self.start >= CHECK_ROWS or log.rows >= getattr(log, "block_rows", np.inf):
+        if log.rows >= self.next_look(log):
             self.flush(log)
 
 

@@ -35,7 +35,7 @@ class Window:
         base = k - k % self.size
         if base != self.base:
             ticks = np.arange(base, base + self.size, dtype=np.int64)
-            self.values[:] = self.signal(ticks - ticks % self.hold)
+            self.values[:] = self.signal(ticks - ticks % self.hold if self.hold > 1 else ticks)
             self.base = base
         return k - base
 

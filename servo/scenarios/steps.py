@@ -72,14 +72,16 @@ class ScenarioInputs(Inputs):
     def reference(self, ticks):
         """Piecewise constant (m): ``step_positions[i]`` from ``step_times[i]`` on, 0 before."""
         ticks = np.asarray(ticks)
-        r = np.zeros(ticks.shape)
-        for k, pos in zip(self.step_ticks, self.step_positions):
-            r[ticks >= k] = pos
-        return r
+        # the last step at or before each tick (step times are non-decreasing: a later
+        # step at the same tick wins, as it did when each step overwrote the ones before)
+        levels = np.concatenate([[0.0], self.step_positions])
+        return levels[np.searchsorted(self.step_ticks, ticks, side="right")]
 
     def disturbance(self, ticks):
         """``amplitude*sin(2*pi*hz*(t - start_s))`` from ``start_s`` on, 0 before (A)."""
         t = np.asarray(ticks) * self.dt
+        if t.size and t.max() < self.start_s:  # not started in these ticks: no sine to evaluate
+            return np.zeros(t.shape)
         d = self.amplitude * np.sin(2.0 * np.pi * self.hz * (t - self.start_s))
         d[t < self.start_s] = 0.0
         return d

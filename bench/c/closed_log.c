@@ -1,0 +1,56 @@
+/* The fast path's closed loop in C, logging: the loop body of kernels/compose.py's
+ * closed_loop for the PI kind, on the functions of servo_ref.c (included, so that gcc
+ * may inline them as it inlines its own loops there), with the fast path's estimator and
+ * its log rows written to memory.  Per tick k (inputs at index i = k - k0):
+ *
+ *     plant_measure -> controller tick -> link latency (shift_in) -> plant_step
+ *     -> error_stats every est_every ticks -> one log row every log_every ticks
+ *
+ * The log row is kernels/compose.py's log_row for the PI kind (which logs no columns of
+ * its own): tick, t, r, x, v, u, u_n, u_c, u_exc, h_hat, regime, e.  Built by
+ * bench/cref.py with the same flags as servo_ref.c; bench/test_fastpath_c.py checks that
+ * it logs the same bits as the Numba loop, then times the two.
+ */
+#include "servo_ref.c"
+
+/* Returns the next free row of log (rows of `width` >= 12 doubles). */
+int64_t ref_closed_loop_logged(plant_state *st, const plant_params *p, double *q, const double *mab,
+                               const double *gain, int64_t n_modes, double *ubuf, int64_t n_ubuf, double *latency,
+                               int64_t n_latency, stage_state *c, const stage_params *sp, pi_state *ci,
+                               const pi_params *cp, const double *r, const double *u_exc, const double *d,
+                               const double *noise, int64_t k0, int64_t n, int64_t est_every, int64_t log_every,
+                               double *stats, double *log, int64_t width, int64_t row)
+{
+    double dt = p->dt, xv[2];
+    for (int64_t k = k0; k < k0 + n; k++) {
+        int64_t i = k - k0;
+        ref_plant_measure(st, p, q, gain, n_modes, noise[2 * i], noise[2 * i + 1], xv);
+        double x = xv[0];
+        double u = ref_controller_tick(c, sp, ci, cp, x, xv[1], r[i], u_exc[i]);
+        ref_plant_step(st, p, q, mab, n_modes, ubuf, n_ubuf, shift_in(latency, n_latency, u), d[i]);
+        if (k % est_every == 0) {
+            double e = c->e;
+            stats[0] += e * e;
+            stats[1] += 1.0;
+            if (fabs(e) > stats[2])
+                stats[2] = fabs(e);
+        }
+        if (k % log_every == 0) {
+            double *o = log + width * row;
+            o[0] = (double)k;
+            o[1] = (double)k * dt;
+            o[2] = c->x_prev + c->e;
+            o[3] = x;
+            o[4] = c->v;
+            o[5] = c->u;
+            o[6] = c->u_n;
+            o[7] = c->u_c;
+            o[8] = u_exc[i];
+            o[9] = c->H_dahl;
+            o[10] = c->regime;
+            o[11] = c->e;
+            row++;
+        }
+    }
+    return row;
+}

@@ -1,0 +1,68 @@
+"""Blocks of a generator computed one ahead, in a thread of their own.
+
+The compiled fast path runs a block of ticks per call with the interpreter lock released;
+the inputs of the next block (the scenario's windows, the disturbance, the sensor
+noise: NumPy work that releases the lock too) are computed meanwhile by a
+:class:`Prefetch` thread, in the order the loop consumes them, so a run computes the
+same numbers as when it drew them itself, and its own thread does not pay them.
+"""
+from __future__ import annotations
+
+import queue
+import threading
+from typing import Iterator
+
+
+class Prefetch:
+    """Iterate ``items`` (a generator) in a daemon thread, at most ``ahead`` items ahead of
+    the consumer.  An exception in the generator is raised to the consumer at the item
+    where it happened; :meth:`close` (or leaving the ``with`` block) stops the thread."""
+
+    _END = object()
+
+    def __init__(self, items: Iterator, ahead: int = 2):
+        self._items = items
+        self._q: queue.Queue = queue.Queue(maxsize=ahead)
+        self._stop = threading.Event()
+        self._thread = threading.Thread(target=self._run, name="fast-path-inputs", daemon=True)
+        self._thread.start()
+
+    def _put(self, item) -> bool:
+        while not self._stop.is_set():
+            try:
+                self._q.put(item, timeout=0.05)
+                return True
+            except queue.Full:
+                continue
+        return False
+
+    def _run(self) -> None:
+        try:
+            for item in self._items:
+                if not self._put((item, None)):
+                    return
+        except BaseException as exc:  # handed to the consumer
+            self._put((None, exc))
+            return
+        self._put((self._END, None))
+
+    def __iter__(self):
+        return self
+
+    def __next__(self):
+        item, exc = self._q.get()
+        if exc is not None:
+            raise exc
+        if item is self._END:
+            raise StopIteration
+        return item
+
+    def close(self) -> None:
+        self._stop.set()
+        self._thread.join()
+
+    def __enter__(self) -> "Prefetch":
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.close()
