@@ -69,10 +69,7 @@ def records_header(names: tuple[str, ...] = CONTROLLER_RECORDS + ("plant_params"
 
 def records_file() -> str:
     """The text of ``firmware/records.h``: :func:`records_header` of every record, guarded."""
-    return f"#ifndef SERVO_FW_RECORDS_H
-#define SERVO_FW_RECORDS_H
-{records_header()}#endif
-"
+    return f"#ifndef SERVO_FW_RECORDS_H\n#define SERVO_FW_RECORDS_H\n{records_header()}#endif\n"
 
 
 def build(workdir: Path, cc: str, source: Path = SOURCE) -> tuple[Path, list[str]]:
