@@ -16,7 +16,7 @@ def register(sub) -> None:
         description="Hold a model (a term set of eq. 3 fitted on the training part, or a model file) against a "
         "recording; locate where the residual is structured (time, state, frequency); name the missing physics "
         "from a vocabulary of candidate terms (blocked cross-validation, family-wise false-alarm level); fit it "
-        "and prove the improvement on held-out data.  Writes report.json, final_model.toml and PNGs into --out.",
+        "and prove the improvement on held-out data.  Writes report.json, report.html, final_model.toml and PNGs into --out.",
     )
     add_recording_options(p)
     g = p.add_mutually_exclusive_group()
@@ -30,7 +30,7 @@ def register(sub) -> None:
     add_decimate_option(p)
     p.add_argument("--force-unit", help="unit of the input column for the report (default: the unit the file "
                    "declares, u [N], else A; N for EMPS)")  # fmt: skip
-    p.add_argument("--no-plots", action="store_true", help="write report.json and final_model.toml only")
+    p.add_argument("--no-plots", action="store_true", help="write report.json, report.html and final_model.toml only")
     p.add_argument("--out", metavar="DIR", help="output folder (default servo-out/diagnose-<time>)")
     add_quiet_option(p)
     p.set_defaults(handler=handle)
@@ -75,7 +75,7 @@ def parse_decimate(value: str) -> tuple[str, int | None]:
 def _diagnose(args: argparse.Namespace, stage) -> tuple[dict, Path]:
     from servo.io.outdir import staged
     from servo.diagnose.job import Options, diagnose
-    from servo.diagnose.report import build_report, write_drive_toml, write_report
+    from servo.diagnose.folder import write_outputs
     from servo.identify.regressors import RobustSettings
 
     if not 0.0 < args.alpha < 0.5:
@@ -92,17 +92,9 @@ def _diagnose(args: argparse.Namespace, stage) -> tuple[dict, Path]:
     D = diagnose(rec, opt)  # everything computed before any file is written
     stage("plots and the report")
     out = Path(args.out) if args.out else Path("servo-out") / time.strftime("diagnose-%Y%m%d-%H%M%S")
+    from servo.io.provenance import provenance
+
+    prov = provenance(None, [args.recording] + ([args.model] if args.model else []), args.argv)
     with staged(out) as tmp:  # the folder appears complete, or not at all
-        files = ["report.json"]
-        if not args.no_plots:
-            from servo.diagnose.plots import write_plots
-
-            files += write_plots(D, tmp)
-        from servo.io.provenance import provenance
-
-        report = build_report(D, files + ["final_model.toml"])
-        report["provenance"] = provenance(None, [args.recording] + ([args.model] if args.model else []), args.argv)
-        if not write_drive_toml(report, tmp):
-            report["files"].remove("final_model.toml")
-        write_report(report, tmp)
+        report = write_outputs(D, tmp, prov, plots=not args.no_plots)
     return report, out

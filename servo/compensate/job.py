@@ -5,7 +5,7 @@ section (:mod:`servo.compensate.propose`); :func:`recommend` proposes both eq. 9
 the augmented one and checks them on the model (:mod:`servo.compensate.check`), which is
 what the command writes; :func:`section_text` is the TOML written (the ``[compensator]``
 section alone, or the whole base config with it); :func:`write` the output folder
-(``compensator.toml`` and ``summary.json``); :func:`format_summary` what is printed: each
+(``compensator.toml``, ``summary.json`` and ``report.html``, :mod:`servo.compensate.page`); :func:`format_summary` what is printed: each
 term and its fields with their units, what was left out and why, what cannot be
 cancelled and what to do instead, the authority and the check's figures.
 """
@@ -150,13 +150,18 @@ def summary(r: Recommendation, residual: Residual | None = None) -> dict:
 
 def write(r: Recommendation, base: Config, folder: Path, full: bool = False, extra: dict | None = None,
           residual: Residual | None = None) -> list[str]:  # fmt: skip
-    """Write :data:`SECTION_FILE` (:func:`section_text`) and ``summary.json``
-    (:func:`summary`, with ``extra`` such as the provenance) into ``folder`` (a staging
+    """Write :data:`SECTION_FILE` (:func:`section_text`), ``summary.json``
+    (:func:`summary`, with ``extra`` such as the provenance) and its page ``report.html`` into ``folder`` (a staging
     folder: :func:`servo.io.outdir.staged`); returns the names written."""
+    from servo.compensate.page import page
+
     text = section_text(r.proposal, base, full)
+    files = [SECTION_FILE, "report.html", "summary.json"]
     atomic_write(folder / SECTION_FILE, lambda f: Path(f).write_text(text))
-    write_json(folder / "summary.json", {**summary(r, residual), "files": [SECTION_FILE, "summary.json"], **(extra or {})})
-    return [SECTION_FILE, "summary.json"]
+    content = {**summary(r, residual), "files": files, **(extra or {})}
+    write_json(folder / "summary.json", content)
+    page(content).write(folder)
+    return files
 
 
 _UNITS = {f.name: f.metadata.get("unit", "-") for f in documented(CompensatorConfig)}

@@ -168,9 +168,12 @@ class Diagnosis:
         return "<Diagnosis " + "; ".join(self._lines()) + ">"
 
     def _repr_html_(self) -> str:
-        from html import escape
+        """The summary lines as a report page's content (:mod:`servo.io.page`; the whole
+        page of a folder is :func:`servo.diagnose.report.write_outputs`')."""
+        from servo.io.page import Page
 
-        return "<b>Diagnosis</b><ul>" + "".join(f"<li>{escape(x)}</li>" for x in self._lines()) + "</ul>"
+        status = verdict_mod.PAGE_STATUS.get(self.verdict.get("verdict"), "info")
+        return Page("Diagnosis", self._lines(), status).fragment()
 
 
 def heldout_residual(design: Design, model: Model, blocks, test_rows: np.ndarray) -> np.ndarray:

@@ -15,7 +15,8 @@ one writer per output (a second fleet given the same ``OUT`` is refused):
 * ``dask.log``: the records and warnings of Dask itself, when there are some (they
   stay off stderr);
 * ``histograms.png``, ``scatter.png`` and, for a diagnosis, ``findings.png``
-  (:mod:`servo.fleet.plots`), unless ``plots`` is off.
+  (:mod:`servo.fleet.plots`), unless ``plots`` is off;
+* ``report.html``: all of it on one self-contained page (:mod:`servo.fleet.page`).
 
 ``resume``: an earlier fleet (its folder, its ``fleet.parquet``, or the folder of an
 interrupted one, whose staging folder is then continued when it is ``out``'s own).  A
@@ -36,9 +37,11 @@ from servo.fleet import plots as fleet_plots
 from servo.fleet import runner, table
 from servo.fleet.outliers import THRESHOLD, outliers, unscored
 from servo.fleet.report import format_report
+from servo.fleet.page import page
 from servo.fleet.task import ADAPTERS, Task, canonical, code_versions
 from servo.io.atomic import atomic_write, write_json
 from servo.io.outdir import staged, staging_dir
+from servo.io.page import NAME as PAGE
 from servo.io.progress import stage
 
 CHECKPOINT_S = 5.0
@@ -125,7 +128,7 @@ def _outputs(command, adapter, rows, settings, tmp: Path, out: Path, plots: bool
     scored, pairs = adapter.scored(cols), adapter.pairs(cols)
     shown = adapter.figures(cols) if hasattr(adapter, "figures") else scored
     found = outliers(rows, scored)
-    files = [table.NAME, "fleet.json", "fleet_report.md"] + [DASK_LOG] * (tmp / DASK_LOG).exists()
+    files = [table.NAME, "fleet.json", "fleet_report.md", PAGE] + [DASK_LOG] * (tmp / DASK_LOG).exists()
     if plots:
         fleet_plots.save(fleet_plots.histograms(rows, shown), tmp / "histograms.png")
         fleet_plots.save(fleet_plots.scatters(rows, pairs), tmp / "scatter.png")
@@ -154,6 +157,7 @@ def _outputs(command, adapter, rows, settings, tmp: Path, out: Path, plots: bool
         summary["flagged"] = [r["drive"] for r in ok if r.get("flagged")]
     atomic_write(tmp / "fleet_report.md", lambda p: Path(p).write_text(format_report(summary, rows, shown, found)))
     write_json(tmp / "fleet.json", summary)
+    page(summary, rows, shown, tmp).write(tmp)
     return summary
 
 
