@@ -78,6 +78,6 @@ def handle(args: argparse.Namespace) -> int:
         files = write(r, base, tmp, args.full, {"provenance": provenance(base, inputs, args.argv)}, residual)
     print(text)
     if residual is not None:
-        print(format_residual(residual, r.proposal.unit))
+        print(format_residual(residual, r.proposal.unit, r.proposal.position_unit))
     print(f"  wrote {out}/: " + ", ".join(files))
     return 0

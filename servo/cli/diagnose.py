@@ -5,7 +5,8 @@ import argparse
 import time
 from pathlib import Path
 
-from servo.cli.common import add_quiet_option, add_recording_options, progress_from_args, recording_from_args
+from servo.cli.common import (add_position_unit_option, add_quiet_option, add_recording_options, progress_from_args,
+                              recording_from_args)
 from servo.errors import ConfigError
 
 
@@ -30,6 +31,7 @@ def register(sub) -> None:
     add_decimate_option(p)
     p.add_argument("--force-unit", help="unit of the input column for the report (default: the unit the file "
                    "declares, u [N], else A; N for EMPS)")  # fmt: skip
+    add_position_unit_option(p)
     p.add_argument("--no-plots", action="store_true", help="write report.json, report.html and final_model.toml only")
     p.add_argument("--out", metavar="DIR", help="output folder (default servo-out/diagnose-<time>)")
     add_quiet_option(p)
@@ -88,6 +90,7 @@ def _diagnose(args: argparse.Namespace, stage) -> tuple[dict, Path]:
     settings = None if q is None else RobustSettings(cutoff_hz=args.cutoff_hz, decimate=q)
     opt = Options(baseline=args.baseline, model=args.model, test_fraction=args.test_fraction, blocks=args.blocks,
                   alpha=args.alpha, horizon_s=args.horizon, force_unit=args.force_unit, settings=settings,
+                  position_unit=args.position_unit,
                   cutoff_hz=args.cutoff_hz, band=rule)  # fmt: skip
     D = diagnose(rec, opt)  # everything computed before any file is written
     stage("plots and the report")

@@ -40,7 +40,8 @@ def page(summary: dict) -> Page:
     """The page of ``servo compensate``'s ``summary`` (:func:`servo.compensate.job.summary`)."""
     u, c = summary["unit"], summary.get("check")
     cancelled = ", ".join(t["name"] for t in summary["cancelled"]) or "nothing"
-    lines = [f"proposed: the {summary['proposed']} compensator, cancelling {cancelled} (forces in {u})"]
+    lines = [f"proposed: the {summary['proposed']} compensator, cancelling {cancelled} (forces in {u}, positions in "
+             f"{summary.get('position_unit', 'm')})"]  # fmt: skip
     status = "ok"
     if summary.get("refused"):
         lines.insert(0, f"REFUSED: {summary['refused']} (written with --allow-worse)")
@@ -68,7 +69,9 @@ def page(summary: dict) -> Page:
     if summary["not_cancelled"]:
         terms.append(Table([[t["name"], t["advice"]] for t in summary["not_cancelled"]], ["cannot cancel", "instead"]))
     a = summary["authority"]
-    authority = Table([[k, v] for k, v in a.items() if not isinstance(v, (list, dict))], ["authority", f"value ({u}, m/s, dB)"])
+    pu = summary.get("position_unit", "m")
+    authority = Table([[k, v] for k, v in a.items() if not isinstance(v, (list, dict))],
+                      ["authority", f"value ({u}, {pu}/s, dB)"])  # fmt: skip
     sections = []
     if c is not None and c.get("figures"):
         figs = c["figures"]

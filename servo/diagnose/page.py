@@ -23,7 +23,7 @@ def page(report: dict, folder: str | Path | None = None) -> Page:
              + (f", output NRMSE {be['test_output_nrmse']:.3g} -> {fe['test_output_nrmse']:.3g}"
                 if be["test_output_nrmse"] is not None and fe["test_output_nrmse"] is not None else ""),
              f"{rc['source']}: {rc['samples']} samples at {rc['sample_rate_hz']:.6g} Hz, {rc['duration_s']:.3g} s, "
-             f"forces in {rc['force_unit']}"]  # fmt: skip
+             f"forces in {rc['force_unit']}, positions in {rc.get('position_unit', 'm')}"]  # fmt: skip
     found = Table([[i, f["physics"], _fmt_params(f["params"], f["units"], f["std"]), f["where"].get("text", ""), _change(f)]
                    for i, f in enumerate(report["findings"], 1)],
                   ["#", "physics", "parameters", "where", "held-out error before -> after"])  # fmt: skip
@@ -36,6 +36,7 @@ def page(report: dict, folder: str | Path | None = None) -> Page:
     dropped += [[name, "", f"not named: {why}"] for name, why in report["implausible"].items()]
     rec = Table([["source", rc["source"]], ["samples", rc["samples"]], ["sample rate (Hz)", rc["sample_rate_hz"]],
                  ["duration (s)", rc["duration_s"]], ["force unit", rc["force_unit"]],
+                 ["position unit", rc.get("position_unit", "m")],
                  ["rows (training / held out)", f"{rows['train']} / {rows['test']}"],
                  ["usable fraction", rows["usable_fraction"]], ["band of the rows (Hz)", rows["band_hz"][1]],
                  ["band note", rows["band_note"]]])  # fmt: skip

@@ -30,11 +30,13 @@ COHERENCE_MIN = 0.9
 
 
 def estimate_frf(rec: Recording, closed_loop: bool = False, settings: WelchSettings | None = None,
-                 force_unit: str = "A", f_min: float = 0.0, f_max: float = np.inf) -> FrequencyResponse:  # fmt: skip
-    """The response from ``rec.u`` to ``rec.x`` (m per ``force_unit``) between ``f_min``
-    and ``f_max`` Hz: H1 (open loop) or, with ``closed_loop``, ``P_ry/P_ru`` with the
-    recording's reference ``rec.r`` as instrument (:mod:`servo.frf.estimate`)."""
-    unit = f"m/{force_unit}"
+                 force_unit: str = "A", f_min: float = 0.0, f_max: float = np.inf,
+                 position_unit: str = "m") -> FrequencyResponse:  # fmt: skip
+    """The response from ``rec.u`` to ``rec.x`` (``position_unit`` per ``force_unit``:
+    m/A, m/N, rad/(N*m) for a rotary axis) between ``f_min`` and ``f_max`` Hz: H1 (open
+    loop) or, with ``closed_loop``, ``P_ry/P_ru`` with the recording's reference
+    ``rec.r`` as instrument (:mod:`servo.frf.estimate`)."""
+    unit = f"{position_unit}/({force_unit})" if "*" in force_unit or "/" in force_unit else f"{position_unit}/{force_unit}"
     if closed_loop:
         if rec.r is None:
             raise RecordingError("frf --closed-loop needs the reference (or the injected excitation) as column r; "
