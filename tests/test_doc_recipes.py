@@ -211,3 +211,25 @@ def test_hdd_page_runs_give_its_pes_table(tmp_path):
         pes = json.loads((out / "summary.json").read_text())["runs"]["uncompensated"]["pes_tracks"]
         for key, text in zip(("sigma3", "rro_pp", "nrro_3sigma"), rows[kind]):
             assert _close(pes[key] * 100, text), (kind, key, pes[key] * 100, text)
+
+
+@pytest.mark.slow  # the README's tour: a run, an identification, a diagnosis of EMPS, a loop, a fleet
+def test_the_readme_tour_runs_as_written(tmp_path, monkeypatch, capsys):
+    """Every command of the README's five-minute tour, in order, in a fresh folder beside
+    ``shared/`` (the HIL row needs a second process and is docs/hil.md's).  Each exits 0
+    and writes its page.  (Before: the compensate row was refused, the EMPS model being in
+    N against the default 1 A current limit.)"""
+    import re
+    import shlex
+
+    readme = (ROOT / "README.md").read_text()
+    tour = readme[readme.index("## A five-minute tour"):readme.index("## Headline figures")]
+    commands = [c for c in re.findall(r"^\| [a-z, ]+ \| `(servo [^`]+)`", tour, re.M) if "--port" not in c]
+    assert [shlex.split(c)[1] for c in commands] == ["run", "identify", "diagnose", "compensate", "loop", "fleet"]
+    work = tmp_path / "work"
+    work.mkdir()
+    (tmp_path / "shared").symlink_to(ROOT.parent / "shared")
+    monkeypatch.chdir(work)
+    for command in commands:
+        assert run_doc_command(command + " --quiet") == 0, (command, capsys.readouterr().err)
+    assert (work / "emps-comp" / "compensator.toml").is_file() and (work / "emps" / "report.html").is_file()
