@@ -64,6 +64,12 @@ def test_identify_writes_and_prints_rad(recordings, capsys):
     assert "A*s^2/rad" in out["rot"] and "A*s^2/m" in out["lin"]
     assert not any(METRE.search(u) for u in fr["units"].values())
     assert "A*s/rad" in (d / "id_rot" / "params_robust.csv").read_text()
+    from servo.identify.identification import identify
+    from servo.identify.plots import plot_acceleration
+    from servo.io.recording import load_recording
+
+    fig = plot_acceleration(identify(load_recording(d / "rot.csv"), "robust"), position_unit="rad")
+    assert fig.axes[0].get_ylabel() == "acceleration (rad/s^2)"
 
 
 def test_position_unit_option_overrides_the_file_and_is_checked(recordings, capsys):

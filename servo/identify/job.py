@@ -42,7 +42,7 @@ def write_identification(ident: Identification, out: Path, force_unit: str = "A"
                    f"relative error {fit.rel_error_pct:.3g} %")  # fmt: skip
     names.append(f"force_fit_{p}.png")
     if "J" in reg.terms:
-        plot_acceleration(ident, out / f"acceleration_{p}.png")
+        plot_acceleration(ident, out / f"acceleration_{p}.png", position_unit=position_unit)
         names.append(f"acceleration_{p}.png")
     return names
 
