@@ -168,7 +168,8 @@ class Page:
                 f"<body><main>{self.fragment()}</main></body></html>\n")  # fmt: skip
 
     def _repr_html_(self) -> str:
-        return f"<style>{STYLE}</style>" + self.fragment()
+        """:meth:`fragment` (the page's styles would restyle the whole notebook)."""
+        return self.fragment()
 
     def write(self, folder: str | Path, name: str = NAME) -> Path:
         """Write :meth:`html` to ``folder/name`` atomically; returns the path."""
