@@ -233,3 +233,35 @@ def test_the_readme_tour_runs_as_written(tmp_path, monkeypatch, capsys):
     for command in commands:
         assert run_doc_command(command + " --quiet") == 0, (command, capsys.readouterr().err)
     assert (work / "emps-comp" / "compensator.toml").is_file() and (work / "emps" / "report.html").is_file()
+
+
+def _recipes() -> list[tuple[str, str]]:
+    """Every command line of docs/ and the README's tour that is a recipe (not a synopsis
+    with ``[options]``, nor a line of a command's output)."""
+    import re
+
+    pages = sorted((ROOT / "docs").glob("*.md"))
+    out = [(p.name, c.rstrip("&").strip()) for p in pages for c in doc_commands(p)]
+    readme = (ROOT / "README.md").read_text()
+    out += [("README.md", c) for c in re.findall(r"^\| [a-z, ]+ \| `(servo [^`]+)`", readme, re.M)]
+    return [(page, c) for page, c in out if "[" not in c and not re.match(r"servo [\w-]+:", c)]
+
+
+def test_every_documented_command_line_is_one_the_cli_accepts():
+    """Each recipe of docs/ and the README parses with the CLI's own parser: a renamed or
+    removed option, a subcommand that moved, a bad value type fail here (the recipes a
+    test runs to the end are the ones above; this covers the other pages' too)."""
+    import shlex
+
+    from servo.cli import build_parser
+
+    recipes = _recipes()
+    assert len(recipes) >= 35, recipes
+    parser = build_parser()
+    bad = []
+    for page, command in recipes:
+        try:
+            parser.parse_args(shlex.split(command)[1:])
+        except (SystemExit, Exception) as exc:  # noqa: BLE001  (argparse exits; the CLI's own parser raises)
+            bad.append(f"{page}: {command}: {exc}")
+    assert not bad, "\n".join(bad)
