@@ -143,7 +143,8 @@ def test_run_page_shows_the_summary_figures(outputs, shown):
         for seg, v in r["error_rms_by_segment_m"].items():
             assert f"{seg}\t" in page["text"] and number(v * 1e9, 5) in page["text"]
         for st in r["steps"]:
-            assert number(st["overshoot_pct"]) in page["text"] and number(st["settling_ms"]) in page["text"]
+            settle = "never" if st["settling_ms"] is None else number(st["settling_ms"])
+            assert number(st["overshoot_pct"]) in page["text"] and settle in page["text"]
     assert f"{s['ticks']} ticks" in page["summary"] and s["provenance"]["config_sha256"] in page["text"]
 
 
@@ -191,7 +192,8 @@ def test_compensate_page_shows_the_proposal_and_the_check(outputs, shown):
         assert "WARNING: worse than no compensator: " + "; ".join(c["steps_worse_than_none"]) in page["summary"]
     for name, f in c["figures"].items():
         for st in f["run"]["steps"]:
-            assert name in page["text"] and number(st["overshoot_pct"]) in page["text"]
+            settle = "never" if st["settling_ms"] is None else number(st["settling_ms"])
+            assert name in page["text"] and number(st["overshoot_pct"]) in page["text"] and settle in page["text"]
     for k, v in s["section"].items():
         assert k in page["text"] and (not isinstance(v, float) or f"{v:.4g}" in page["text"])
 

@@ -26,6 +26,9 @@ def step_plot(figures: dict):
         got = figures[name]["run"]["steps"]
         a.bar(x + i * w, [s["overshoot_pct"] for s in got], w, label=name)
         b.bar(x + i * w, [np.nan if s["settling_ms"] is None else s["settling_ms"] for s in got], w, label=name)
+        for j, s in enumerate(got):  # a step that never settles has no bar: say so where it would be
+            if s["settling_ms"] is None:
+                b.text(x[j] + i * w, 0, "never", rotation=90, ha="center", va="bottom", fontsize=7)
     labels = [f"{s['size_m'] * 1e6:+.3g} um" for s in steps]
     for ax, what in ((a, "overshoot (%)"), (b, "settling (ms)")):
         ax.set_xticks(x + w * (len(names) - 1) / 2, labels)
@@ -75,7 +78,7 @@ def page(summary: dict) -> Page:
     sections = []
     if c is not None and c.get("figures"):
         figs = c["figures"]
-        rows = [[name, f"{s['size_m'] * 1e6:+.3g} um", s["overshoot_pct"], s["settling_ms"],
+        rows = [[name, f"{s['size_m'] * 1e6:+.3g} um", s["overshoot_pct"], "never" if s["settling_ms"] is None else s["settling_ms"],
                  f["run"]["error_rms_by_segment_m"].get("disturbance")]
                 for name, f in figs.items() for s in f["run"]["steps"]]  # fmt: skip
         sections.append(Section("The check on the model", [

@@ -16,6 +16,10 @@ def nm(v) -> float | None:
     return None if v is None else v * 1e9
 
 
+def _settling(step: dict):
+    return "never" if step["settling_ms"] is None else step["settling_ms"]
+
+
 def page(summary: dict, folder: str | Path | None = None) -> Page:
     """The page of a run's ``summary`` (:func:`servo.run.job.run_job`); the plots are read
     from ``folder`` when given."""
@@ -32,10 +36,10 @@ def page(summary: dict, folder: str | Path | None = None) -> Page:
     tracking = [Table(segs, ["tracking error RMS (nm)"] + labels, digits=5)]
     if first.get("steps"):
         rows = [[f"{st['size_m'] * 1e6:+.3g} um at {st['t_s']:g} s"]
-                + [x for lab in labels for x in (runs[lab]["steps"][i]["overshoot_pct"], runs[lab]["steps"][i]["settling_ms"])]
+                + [x for lab in labels for x in (runs[lab]["steps"][i]["overshoot_pct"], _settling(runs[lab]["steps"][i]))]
                 for i, st in enumerate(first["steps"])]  # fmt: skip
         tracking.append(Table(rows, ["step"] + [f"{lab} {q}" for lab in labels for q in ("overshoot (%)", "settling (ms)")],
-                              "Steps (settling: none = never within the band)"))  # fmt: skip
+                              "Steps (settling: within the band from then on; never: not by the run's end)"))  # fmt: skip
     if "pes_tracks" in first:
         keys = (("sigma3", "PES 3 sigma"), ("rro_pp", "RRO peak-to-peak"), ("nrro_3sigma", "NRRO 3 sigma"))
         tracking.append(Table([[name] + [runs[lab]["pes_tracks"][k] * 100 for lab in labels] for k, name in keys],
