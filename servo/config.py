@@ -248,6 +248,8 @@ class Config:
     def replace(self, **sections: dict) -> "Config":
         """A copy with some fields changed: ``cfg.replace(run={"duration_s": 1.0})``."""
         data = to_dict(self)
+        if self.drive == _default_drive(self.scenario):  # a drive left at its default follows the scenario
+            data["drive"] = {}
         for name, values in sections.items():
             into = data.setdefault(name, {})
             for k, v in values.items():  # a kind's section is updated, not replaced
@@ -281,9 +283,24 @@ def from_dict(data: dict) -> Config:
             sections[name] = _controller_section(values)
         else:
             sections[name] = _section(name, SECTIONS[name], values)
+    defaults = _drive_defaults(sections.get("scenario") or ScenarioConfig())
+    if defaults:  # the scenario's drive (the HDD benchmark's plant of its version), then the document's [drive]
+        sections["drive"] = _section("drive", DriveConfig, {**defaults, **data.get("drive", {})})
     cfg = Config(**sections)
     _check_consistency(cfg)
     return cfg
+
+
+def _drive_defaults(scenario: "ScenarioConfig") -> dict:
+    """The ``[drive]`` values the scenario kind stands for (``ScenarioKind.drive_defaults``)."""
+    from servo.scenarios import KINDS
+
+    return KINDS[scenario.kind].drive_defaults(scenario)
+
+
+def _default_drive(scenario: "ScenarioConfig") -> "DriveConfig":
+    """The drive a config with this scenario and no ``[drive]`` values has."""
+    return _section("drive", DriveConfig, _drive_defaults(scenario))
 
 
 def _section(key: str, cls: type, values: dict, extra=()):
