@@ -192,7 +192,8 @@ class ScenarioConfig:
     kind: str = P("steps", "-", "steps: the fields below; hdd_benchmark: follow a track with the NSS HDD "
                   "benchmark's runout, force disturbance and noise, reported as PES figures (docs/hdd.md)",
                   choices=_scenario_kind_names)  # fmt: skip
-    hdd_version: int = P(2, "-", "hdd_benchmark: the benchmark's version (1 or 2)", 1, 2)
+    hdd_version: int = P(2, "-", "hdd_benchmark: the benchmark's version (1 or 2); its nominal plant is the drive "
+                         "where [drive] sets nothing (docs/hdd.md)", 1, 2)  # fmt: skip
     hdd_package: str = P("", "-", "hdd_benchmark: folder of your copy of the NSS HDD benchmark package (relative to "
                          "the working directory); its RROSequence.mat, the written-in runout, is added to the RRO. "
                          "Empty: the RRO is the three harmonics alone")  # fmt: skip
