@@ -205,7 +205,8 @@ class ScenarioConfig:
     kind: str = P("steps", "-", "steps: the fields below; hdd_benchmark: follow a track with the NSS HDD "
                   "benchmark's runout, force disturbance and noise, reported as PES figures (docs/hdd.md)",
                   choices=_scenario_kind_names)  # fmt: skip
-    hdd_version: int = P(2, "-", "hdd_benchmark: the benchmark's version (1 or 2)", 1, 2)
+    hdd_version: int = P(2, "-", "hdd_benchmark: the benchmark's version (1 or 2); its nominal plant is the drive "
+                         "where [drive] sets nothing (docs/hdd.md)", 1, 2)  # fmt: skip
     hdd_package: str = P("", "-", "hdd_benchmark: folder of your copy of the NSS HDD benchmark package (relative to "
                          "the working directory); its RROSequence.mat, the written-in runout, is added to the RRO. "
                          "Empty: the RRO is the three harmonics alone")  # fmt: skip
@@ -261,6 +262,8 @@ class Config:
     def replace(self, **sections: dict) -> "Config":
         """A copy with some fields changed: ``cfg.replace(run={"duration_s": 1.0})``."""
         data = to_dict(self)
+        if self.drive == _default_drive(self.scenario):  # a drive left at its default follows the scenario
+            data["drive"] = {}
         for name, values in sections.items():
             into = data.setdefault(name, {})
             for k, v in values.items():  # a kind's section is updated, not replaced
@@ -294,9 +297,24 @@ def from_dict(data: dict) -> Config:
             sections[name] = _controller_section(values)
         else:
             sections[name] = _section(name, SECTIONS[name], values)
+    defaults = _drive_defaults(sections.get("scenario") or ScenarioConfig())
+    if defaults:  # the scenario's drive (the HDD benchmark's plant of its version), then the document's [drive]
+        sections["drive"] = _section("drive", DriveConfig, {**defaults, **data.get("drive", {})})
     cfg = Config(**sections)
     _check_consistency(cfg)
     return cfg
+
+
+def _drive_defaults(scenario: "ScenarioConfig") -> dict:
+    """The ``[drive]`` values the scenario kind stands for (``ScenarioKind.drive_defaults``)."""
+    from servo.scenarios import KINDS
+
+    return KINDS[scenario.kind].drive_defaults(scenario)
+
+
+def _default_drive(scenario: "ScenarioConfig") -> "DriveConfig":
+    """The drive a config with this scenario and no ``[drive]`` values has."""
+    return _section("drive", DriveConfig, _drive_defaults(scenario))
 
 
 def _section(key: str, cls: type, values: dict, extra=()):

@@ -191,7 +191,7 @@ def test_out_is_a_folder_and_never_an_input(tmp_path, capsys):
     assert code == 2 and "not an empty folder" in err and rig.read_text() == before
     code, out, err = _cli(capsys, rig, "--no-check", "--quiet", "--out", tmp_path / "comp")
     assert code == 0 and err == "", err
-    assert sorted(p.name for p in (tmp_path / "comp").iterdir()) == ["compensator.toml", "summary.json"]
+    assert sorted(p.name for p in (tmp_path / "comp").iterdir()) == ["compensator.toml", "report.html", "summary.json"]
     s = json.loads((tmp_path / "comp" / "summary.json").read_text())
     assert s["unit"] == "A" and s["section"]["B"] == Config().drive.B and s["provenance"]["inputs"]
     assert f"wrote {tmp_path / 'comp'}/" in out

@@ -10,6 +10,7 @@ import dataclasses
 import importlib
 import inspect
 import json
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -143,9 +144,7 @@ def _merge(a: dict, b: dict) -> dict:
 AUDIT = fields_to_audit()
 #: Fields the audit finds acting on nothing, kept as known defects (strict: fixing one fails
 #: its xfail, so that the entry is removed).
-KNOWN = {"scenario.hdd_version": "version 1 and 2 give the same run at 52.8 kHz: the version changes no "
-                                 "disturbance the scenario draws (found by this audit; before, the run was "
-                                 "refused at 50 kHz and the check was empty)"}
+KNOWN: dict[str, str] = {}
 PARAMS = [pytest.param(*a, id=a[0], marks=pytest.mark.xfail(strict=True, reason=KNOWN[a[0]])) if a[0] in KNOWN
           else pytest.param(*a, id=a[0]) for a in AUDIT]  # fmt: skip
 
@@ -212,3 +211,28 @@ def test_asking_for_the_disabled_compensator_is_one_line(tmp_path, capsys):
     err = capsys.readouterr().err
     assert code == 2 and err.count("\n") == 1 and "servo: error:" in err and "enabled = false" in err
     assert not (tmp_path / "r").exists()
+
+
+def test_hdd_version_selects_the_benchmarks_own_plant():
+    """``scenario.hdd_version`` once changed nothing at 52.8 kHz: the two versions' parameter
+    files differ only in the plant (``hdd_plantparam_v1/v2.m``; the disturbance files are the
+    same), and a run's plant was the example's written-out ``[drive]``.  The scenario now
+    stands for the plant of its version where the config leaves the drive at its default,
+    as the examples do; a ``[drive]`` value set still wins."""
+    from servo.config import load_config
+    from servo.hdd.benchmark import benchmark
+
+    root = Path(__file__).resolve().parents[1]
+    v2 = load_config(root / "examples" / "hdd-nss-v2.toml")
+    v1 = v2.replace(scenario={"hdd_version": 1})
+    for cfg, b in ((v1, benchmark(1)), (v2, benchmark(2))):
+        d = cfg.drive
+        assert d.J == pytest.approx(b.m / b.Kf) and d.K == pytest.approx(b.m / b.Kf * (2 * np.pi * b.mode_hz[0]) ** 2)
+        assert (d.mode_hz, d.mode_zeta, d.mode_gain) == tuple(list(map(float, a[1:])) for a in (b.mode_hz, b.mode_zeta, b.mode_gain))
+        assert d.input_delay_s == b.Td and d.position_noise == pytest.approx(b.sensor_noise * b.Tp)
+    assert v1.drive.J != v2.drive.J  # Kf = 0.9512 against 1.0 N/A
+    back = v1.replace(scenario={"hdd_version": 2})
+    assert back.drive == v2.drive
+    own = v2.replace(drive={"J": 2e-3}).replace(scenario={"hdd_version": 1})  # a drive of one's own stays
+    assert own.drive.J == 2e-3 and own.drive.mode_hz == v2.drive.mode_hz
+    assert Config().replace(scenario={"kind": "steps"}).drive == Config().drive

@@ -196,7 +196,7 @@ def test_a_fleet_stopped_half_way_continues_with_resume(small_fleet, tmp_path, m
     assert [r["drive"] for r in partial] == sorted(truth)[:3]
     summary = run_fleet("identify", tasks, s, out, Where(workers=0), resume=out, plots=False)
     assert (summary["resumed"], summary["ok"]) == (3, 6)
-    assert sorted(p.name for p in out.iterdir()) == ["fleet.json", "fleet.parquet", "fleet_report.md"]
+    assert sorted(p.name for p in out.iterdir()) == ["fleet.json", "fleet.parquet", "fleet_report.md", "report.html"]
     assert not (tmp_path / "out.incomplete").exists()
     fresh = run_fleet("identify", tasks, s, tmp_path / "fresh", Where(workers=0), plots=False)
     assert fresh["resumed"] == 0

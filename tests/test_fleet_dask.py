@@ -143,3 +143,54 @@ def test_a_real_scheduler_loses_nothing_when_a_worker_is_killed_mid_run(fleet, t
             except subprocess.TimeoutExpired:
                 p.kill()
         log.close()
+
+
+#: a controller plug-in that, in a Dask worker process only, warns, logs and prints when
+#: loaded and on every configure: what a user's module or a library may do in a task
+NOISY = '''
+import logging
+import multiprocessing
+import warnings
+
+import numpy as np
+
+from servo.controllers.pi import PI
+
+
+def noise():
+    if multiprocessing.parent_process() is not None:  # a worker, not the command's process
+        warnings.warn("noisy: a warning raised in a worker", UserWarning)
+        np.log(np.zeros(1))  # numpy's own RuntimeWarning
+        logging.getLogger("noisy").warning("noisy: a log record in a worker")
+        print("noisy: printed by a worker")
+
+
+noise()
+
+
+class Noisy(PI):
+    name = "noisy"
+'''
+
+
+def test_fleet_on_a_local_cluster_prints_only_its_own_lines(tmp_path):
+    """``servo fleet simulate`` on a local cluster of 2 workers whose tasks warn, log
+    and print (a plug-in loaded in each worker): stderr holds nothing but the command's
+    own progress lines, stdout nothing but its summary; all the workers wrote is in
+    ``dask.log``.  (Before: the workers, which inherit the command's descriptors, wrote
+    their warnings and prints between its lines.)"""
+    (tmp_path / "noisy.py").write_text(NOISY)
+    out = tmp_path / "fleet"
+    r = subprocess.run([sys.executable, "-m", "servo", "fleet", "simulate", "--plugin", "noisy",
+                        "--set", "controller.kind=noisy", "--vary", "drive.B=normal(2e-3, 20%)", "--drives", "6", "--duration", "0.05", "--workers", "2",
+                        "--no-plots", "--out", str(out)], cwd=tmp_path, capture_output=True, text=True,
+                       timeout=900)  # fmt: skip
+    assert r.returncode == 0, r.stderr
+    assert "noisy" not in r.stderr and "Warning" not in r.stderr, r.stderr
+    assert all(line.startswith("servo fleet simulate: ") for line in r.stderr.splitlines()), r.stderr
+    assert "noisy" not in r.stdout and r.stdout.startswith("servo fleet simulate: 6 drives, 6 ok"), r.stdout
+    assert "a local Dask cluster of 2 worker processes" in r.stdout
+    log = (out / "dask.log").read_text()
+    for said in ("noisy: a warning raised in a worker", "RuntimeWarning: divide by zero", "noisy: printed by a worker"):
+        assert said in log, log
+    assert "dask.log" in json.loads((out / "fleet.json").read_text())["files"]

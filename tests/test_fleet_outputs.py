@@ -430,3 +430,28 @@ def test_a_synthetic_recording_longer_than_a_recording_may_hold_is_one_line(tmp_
     err = capsys.readouterr().err
     assert err.startswith("servo: error: --duration") and err.count("\n") == 1 and "per recording" in err, err
     assert not list(tmp_path.iterdir())
+
+
+def test_the_table_and_fleet_json_carry_the_provenance_and_the_units(recs, tmp_path, capsys):
+    """fleet.json and the Parquet schema hold the same provenance (version, commit, the
+    command line, the libraries), and the schema each column's unit.  (Before: the
+    table's schema had no metadata and fleet.json only the versions.)"""
+    import json
+
+    from servo.fleet.table import units_of
+
+    d, _ = recs
+    code, out, err = _identify([str(d / "drive*.npz"), "--out", str(tmp_path / "a")], capsys)
+    assert code == 0, err
+    summary = json.loads((tmp_path / "a" / "fleet.json").read_text())
+    prov = summary["provenance"]
+    assert prov["servo_version"] and prov["source"]["commit"] and prov["libraries"]["pyarrow"] and prov["libraries"]["dask"]
+    md = pq.read_schema(tmp_path / "a" / "fleet.parquet").metadata
+    assert json.loads(md[b"servo.provenance"]) == prov
+    units = json.loads(md[b"servo.units"])
+    assert units["J"] == units["J_std"] == "A*s^2/m" and units["B"] == "A*s/m" and units["Fc"] == "A"
+    assert units["sample_rate_hz"] == "Hz"
+    cols = ["inertia.J", "hysteresis.sigma_std", "hysteresis.dahl_length", "test_force_rel_pct_after", "error_rms_m",
+            "settling_ms", "drive", "verdict"]  # fmt: skip
+    assert units_of(cols, "N") == {"inertia.J": "N*s^2/m", "hysteresis.sigma_std": "N/m", "hysteresis.dahl_length": "m",
+                                   "test_force_rel_pct_after": "%", "error_rms_m": "m", "settling_ms": "ms"}  # fmt: skip

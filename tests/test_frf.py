@@ -153,7 +153,7 @@ def test_frf_command_writes_loadable_files_and_converts_to_python_control(tmp_pa
                  "--out", str(out)]) == 0  # fmt: skip
     text = capsys.readouterr().out
     assert "instrumental" in text and "coherence >= 0.9" in text
-    assert {p.name for p in out.iterdir()} == {"frf.npz", "frf.csv", "frf.mat", "frf.h5", "frf.png", "summary.json"}
+    assert {p.name for p in out.iterdir()} == {"frf.npz", "frf.csv", "frf.mat", "frf.h5", "frf.png", "report.html", "summary.json"}
     loaded = load_frequency_responses(out / "frf.npz")
     (label, resp), = loaded.items()
     assert label == "u -> x (instrument r)" and resp.unit == "m/A"

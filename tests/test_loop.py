@@ -188,7 +188,7 @@ def test_servo_loop_writes_loadable_responses_and_a_summary(tmp_path, capsys):
     code, stdout, err = servo(capsys, "loop", *CLI_BAND, "--compensator", "both", "--quiet", "--out", str(out))
     assert code == 0, err
     assert re.search(r"crossover moves from 1\d\d\.\d to 1\d\d\.\d Hz \(\+\d+ %\)", stdout), stdout
-    assert sorted(p.name for p in out.iterdir()) == ["frd.npz", "loop.csv", "loop.png", "sensitivity.png", "summary.json"]
+    assert sorted(p.name for p in out.iterdir()) == ["frd.npz", "loop.csv", "loop.png", "report.html", "sensitivity.png", "summary.json"]
     frd = load_frequency_responses(out / "frd.npz")
     L = frd["L, compensator on, 0.2 mA"]
     assert isinstance(L.to_control(), control.FrequencyResponseData) and L.f_hz.size == 4

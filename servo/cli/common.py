@@ -43,13 +43,25 @@ def add_recording_options(p: argparse.ArgumentParser, optional: bool = False) ->
 def recording_from_args(args: argparse.Namespace):
     """Load and validate the recording of :func:`add_recording_options`.  A command with
     ``--force-unit`` not given takes the unit the file declares for ``u`` (a CSV header
-    ``u [N]``), else A: what it prints follows the data."""
+    ``u [N]``), else A; one with ``--position-unit`` (:func:`add_position_unit_option`)
+    not given, the file's unit of ``x``, else m: what it prints follows the data."""
     from servo.io.recording import load_recording, parse_mapping
 
     rec = load_recording(args.recording, parse_mapping(args.columns, "--columns"), parse_mapping(args.scale, "--scale"))
+    declared = (rec.meta or {}).get("units") or {}
     if getattr(args, "force_unit", "") is None:
-        args.force_unit = ((rec.meta or {}).get("units") or {}).get("u") or "A"
+        args.force_unit = declared.get("u") or "A"
+    if hasattr(args, "position_unit"):
+        from servo.io.units import position_unit
+
+        args.position_unit = position_unit(args.position_unit, declared.get("x"))
     return rec
+
+
+def add_position_unit_option(p: argparse.ArgumentParser) -> None:
+    """``--position-unit``: m, or rad for a rotary axis (:mod:`servo.io.units`)."""
+    p.add_argument("--position-unit", choices=("m", "rad"), help="unit of the position column x: m, or rad for a "
+                   "rotary axis (default: the unit the file declares, x [rad], else m)")  # fmt: skip
 
 
 def levels_from_arg(text: str, option: str = "--levels") -> tuple:

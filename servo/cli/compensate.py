@@ -75,9 +75,9 @@ def handle(args: argparse.Namespace) -> int:
 
     inputs = [args.source, args.config, args.recording]
     with staged(out) as tmp:  # the folder appears complete, or not at all
-        write(r, base, tmp, args.full, {"provenance": provenance(base, inputs, args.argv)}, residual)
+        files = write(r, base, tmp, args.full, {"provenance": provenance(base, inputs, args.argv)}, residual)
     print(text)
     if residual is not None:
-        print(format_residual(residual, r.proposal.unit))
-    print(f"  wrote {out}/: compensator.toml, summary.json")
+        print(format_residual(residual, r.proposal.unit, r.proposal.position_unit))
+    print(f"  wrote {out}/: " + ", ".join(files))
     return 0

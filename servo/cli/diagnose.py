@@ -5,7 +5,8 @@ import argparse
 import time
 from pathlib import Path
 
-from servo.cli.common import add_quiet_option, add_recording_options, progress_from_args, recording_from_args
+from servo.cli.common import (add_position_unit_option, add_quiet_option, add_recording_options, progress_from_args,
+                              recording_from_args)
 from servo.errors import ConfigError
 
 
@@ -16,7 +17,7 @@ def register(sub) -> None:
         description="Hold a model (a term set of eq. 3 fitted on the training part, or a model file) against a "
         "recording; locate where the residual is structured (time, state, frequency); name the missing physics "
         "from a vocabulary of candidate terms (blocked cross-validation, family-wise false-alarm level); fit it "
-        "and prove the improvement on held-out data.  Writes report.json, final_model.toml and PNGs into --out.",
+        "and prove the improvement on held-out data.  Writes report.json, report.html, final_model.toml and PNGs into --out.",
     )
     add_recording_options(p)
     g = p.add_mutually_exclusive_group()
@@ -30,7 +31,8 @@ def register(sub) -> None:
     add_decimate_option(p)
     p.add_argument("--force-unit", help="unit of the input column for the report (default: the unit the file "
                    "declares, u [N], else A; N for EMPS)")  # fmt: skip
-    p.add_argument("--no-plots", action="store_true", help="write report.json and final_model.toml only")
+    add_position_unit_option(p)
+    p.add_argument("--no-plots", action="store_true", help="write report.json, report.html and final_model.toml only")
     p.add_argument("--out", metavar="DIR", help="output folder (default servo-out/diagnose-<time>)")
     add_quiet_option(p)
     p.set_defaults(handler=handle)
@@ -75,7 +77,7 @@ def parse_decimate(value: str) -> tuple[str, int | None]:
 def _diagnose(args: argparse.Namespace, stage) -> tuple[dict, Path]:
     from servo.io.outdir import staged
     from servo.diagnose.job import Options, diagnose
-    from servo.diagnose.report import build_report, write_drive_toml, write_report
+    from servo.diagnose.folder import write_outputs
     from servo.identify.regressors import RobustSettings
 
     if not 0.0 < args.alpha < 0.5:
@@ -88,21 +90,14 @@ def _diagnose(args: argparse.Namespace, stage) -> tuple[dict, Path]:
     settings = None if q is None else RobustSettings(cutoff_hz=args.cutoff_hz, decimate=q)
     opt = Options(baseline=args.baseline, model=args.model, test_fraction=args.test_fraction, blocks=args.blocks,
                   alpha=args.alpha, horizon_s=args.horizon, force_unit=args.force_unit, settings=settings,
+                  position_unit=args.position_unit,
                   cutoff_hz=args.cutoff_hz, band=rule)  # fmt: skip
     D = diagnose(rec, opt)  # everything computed before any file is written
     stage("plots and the report")
     out = Path(args.out) if args.out else Path("servo-out") / time.strftime("diagnose-%Y%m%d-%H%M%S")
+    from servo.io.provenance import provenance
+
+    prov = provenance(None, [args.recording] + ([args.model] if args.model else []), args.argv)
     with staged(out) as tmp:  # the folder appears complete, or not at all
-        files = ["report.json"]
-        if not args.no_plots:
-            from servo.diagnose.plots import write_plots
-
-            files += write_plots(D, tmp)
-        from servo.io.provenance import provenance
-
-        report = build_report(D, files + ["final_model.toml"])
-        report["provenance"] = provenance(None, [args.recording] + ([args.model] if args.model else []), args.argv)
-        if not write_drive_toml(report, tmp):
-            report["files"].remove("final_model.toml")
-        write_report(report, tmp)
+        report = write_outputs(D, tmp, prov, plots=not args.no_plots)
     return report, out

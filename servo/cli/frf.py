@@ -5,7 +5,8 @@ import argparse
 import time
 from pathlib import Path
 
-from servo.cli.common import add_quiet_option, add_recording_options, progress_from_args, recording_from_args
+from servo.cli.common import (add_position_unit_option, add_quiet_option, add_recording_options, progress_from_args,
+                              recording_from_args)
 from servo.errors import ConfigError
 
 
@@ -29,6 +30,7 @@ def register(sub) -> None:
     p.add_argument("--f-max", type=float, default=float("inf"), help="highest frequency written, Hz (default: Nyquist)")
     p.add_argument("--force-unit", help="unit of u, for the response's unit m/UNIT (default: the unit the file "
                    "declares, u [N], else A)")  # fmt: skip
+    add_position_unit_option(p)
     p.add_argument("--out", metavar="DIR", help="output folder (default servo-out/frf-<time>)")
     add_quiet_option(p)
     p.set_defaults(handler=handle)
@@ -51,7 +53,7 @@ def _handle(args: argparse.Namespace) -> int:
         raise ConfigError(f"--f-min {args.f_min:g} and --f-max {args.f_max:g}: need 0 <= --f-min < --f-max (Hz)")
     rec = recording_from_args(args)
     settings = WelchSettings(nperseg=args.nperseg, overlap=args.overlap, window=args.window, detrend=args.detrend)
-    resp = estimate_frf(rec, args.closed_loop, settings, args.force_unit, args.f_min, args.f_max)
+    resp = estimate_frf(rec, args.closed_loop, settings, args.force_unit, args.f_min, args.f_max, args.position_unit)
     out = Path(args.out) if args.out else Path("servo-out") / time.strftime("frf-%Y%m%d-%H%M%S")
     from servo.io.provenance import provenance
 

@@ -8,7 +8,8 @@ import time
 from pathlib import Path
 
 from servo.cli.common import (
-    add_config_options, add_quiet_option, add_recording_options, config_from_args, progress_from_args, recording_from_args,
+    add_config_options, add_position_unit_option, add_quiet_option, add_recording_options, config_from_args,
+    progress_from_args, recording_from_args,
 )
 from servo.errors import ConfigError
 
@@ -42,6 +43,7 @@ def register(sub) -> None:
                    "(+ half a sample on the robust path)")  # fmt: skip
     p.add_argument("--force-unit", help="unit of the force column, for the report (default: the unit the file "
                    "declares, u [N], else A; N for EMPS)")  # fmt: skip
+    add_position_unit_option(p)
     p.add_argument("--simulate", action="store_true", help="run the square-wave experiment on the simulated drive instead")
     p.add_argument("--amplitude", type=float, default=0.02, help="--simulate: square-wave amplitude, A (default 0.02)")
     p.add_argument("--hz", type=float, default=25.0, help="--simulate: square-wave frequency (default 25)")
@@ -115,7 +117,8 @@ def _handle(args: argparse.Namespace) -> int:
 
     prov = provenance(cfg if args.simulate else None, [] if args.simulate else [args.recording], args.argv)
     with staged(out) as tmp:  # the folder appears complete, or not at all
-        summary = run_identify(rec, tmp, paths, terms, settings, args.force_unit or "A", reference, lag, prov)
+        summary = run_identify(rec, tmp, paths, terms, settings, args.force_unit or "A", reference, lag, prov,
+                               args.position_unit or "m")  # fmt: skip
         if args.simulate:
             from servo.identify.job import paper_path_note
 

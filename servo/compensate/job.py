@@ -5,7 +5,7 @@ section (:mod:`servo.compensate.propose`); :func:`recommend` proposes both eq. 9
 the augmented one and checks them on the model (:mod:`servo.compensate.check`), which is
 what the command writes; :func:`section_text` is the TOML written (the ``[compensator]``
 section alone, or the whole base config with it); :func:`write` the output folder
-(``compensator.toml`` and ``summary.json``); :func:`format_summary` what is printed: each
+(``compensator.toml``, ``summary.json`` and ``report.html``, :mod:`servo.compensate.page`); :func:`format_summary` what is printed: each
 term and its fields with their units, what was left out and why, what cannot be
 cancelled and what to do instead, the authority and the check's figures.
 """
@@ -73,6 +73,9 @@ def recommend(source: str | Path | dict, base: Config, paper: bool = False, forc
     if model.force_unit != "A":
         return Recommendation(chosen, eq9, aug, None, kept, f"not checked: the model's forces are in {model.force_unit}, "
                               "and the base config's loop is not the recorded axis's")  # fmt: skip
+    if model.position_unit != "m":
+        return Recommendation(chosen, eq9, aug, None, kept, f"not checked: the model's positions are in "
+                              f"{model.position_unit} (a rotary axis), and the base config's loop is a linear one in m")  # fmt: skip
     alone = paper or same(aug, eq9)  # one candidate: eq. 9's, or the augmented one holding nothing beyond it
     c = choose(kept, base, eq9, None if alone else aug, label="eq. 9" if paper else "proposed")
     if not paper and c.chosen == "eq. 9" and not same(aug, eq9):
@@ -103,9 +106,9 @@ def on_recording(source: str | Path | dict, base: Config, rec, force_constant: f
     return compensated_residual(rec, configs, J, test_fraction)
 
 
-def format_residual(r: Residual, unit: str = "A") -> str:
+def format_residual(r: Residual, unit: str = "A", position_unit: str = "m") -> str:
     lines = [f"  on the recording, held-out force residual beyond J*x'' (% of the force, {r.rows} rows; "
-             f"J = {r.J:.4g} {unit}*s^2/m):", f"    no compensator: {r.none_pct:.2f} %"]  # fmt: skip
+             f"J = {r.J:.4g} {unit}*s^2/{position_unit}):", f"    no compensator: {r.none_pct:.2f} %"]  # fmt: skip
     lines += [f"    {name}: {pct:.2f} %" for name, pct in r.pct.items()]
     return "\n".join(lines)
 
@@ -116,6 +119,8 @@ def section_text(p: Proposal, base: Config, full: bool = False) -> str:
     head = [f"# servo compensate: from {p.source}" + (" (eq. 9 only, the paper's compensator)" if p.paper else "")]
     if p.unit != "A":
         head += [f"#   forces in {p.unit}: the loop that runs it commands {p.unit}"]
+    if p.position_unit != "m":
+        head += [f"#   positions in {p.position_unit} (a rotary axis): every m of a field's unit reads {p.position_unit}"]
     head += [f"#   {t.name}" for t in p.cancelled]
     head += [f"#   left out: {t.physics} (not distinguishable from zero)" for t in p.left_out]
     head += [f"#   not cancelled: {t.name}" for t in p.not_cancelled]
@@ -133,9 +138,9 @@ def summary(r: Recommendation, residual: Residual | None = None) -> dict:
     """``summary.json``'s content (schema in docs/compensate.md)."""
     p = r.proposal
     out = {
-        "source": p.source, "model_kind": r.model.kind, "unit": p.unit, "paper": p.paper,
+        "source": p.source, "model_kind": r.model.kind, "unit": p.unit, "position_unit": p.position_unit, "paper": p.paper,
         "proposed": "eq. 9" if p is r.eq9 else "augmented", "section": p.section,
-        "units": {k: unit_of(k, p.unit) for k in p.section},
+        "units": {k: unit_of(k, p.unit, p.position_unit) for k in p.section},
         "cancelled": [{"name": t.name, "keys": t.keys} for t in p.cancelled],
         "left_out": [dataclasses.asdict(t) for t in p.left_out],
         "not_cancelled": [{"name": t.name, "advice": t.advice} for t in p.not_cancelled],
@@ -150,25 +155,33 @@ def summary(r: Recommendation, residual: Residual | None = None) -> dict:
 
 def write(r: Recommendation, base: Config, folder: Path, full: bool = False, extra: dict | None = None,
           residual: Residual | None = None) -> list[str]:  # fmt: skip
-    """Write :data:`SECTION_FILE` (:func:`section_text`) and ``summary.json``
-    (:func:`summary`, with ``extra`` such as the provenance) into ``folder`` (a staging
+    """Write :data:`SECTION_FILE` (:func:`section_text`), ``summary.json``
+    (:func:`summary`, with ``extra`` such as the provenance) and its page ``report.html`` into ``folder`` (a staging
     folder: :func:`servo.io.outdir.staged`); returns the names written."""
+    from servo.compensate.page import page
+
     text = section_text(r.proposal, base, full)
+    files = [SECTION_FILE, "report.html", "summary.json"]
     atomic_write(folder / SECTION_FILE, lambda f: Path(f).write_text(text))
-    write_json(folder / "summary.json", {**summary(r, residual), "files": [SECTION_FILE, "summary.json"], **(extra or {})})
-    return [SECTION_FILE, "summary.json"]
+    content = {**summary(r, residual), "files": files, **(extra or {})}
+    write_json(folder / "summary.json", content)
+    page(content).write(folder)
+    return files
 
 
 _UNITS = {f.name: f.metadata.get("unit", "-") for f in documented(CompensatorConfig)}
 
 
-def unit_of(key: str, unit: str) -> str:
-    """The unit of the ``[compensator]`` field ``key`` with its forces in ``unit``."""
-    return _UNITS.get(key, "-").replace("A", unit)
+def unit_of(key: str, unit: str, position_unit: str = "m") -> str:
+    """The unit of the ``[compensator]`` field ``key`` with its forces in ``unit`` and its
+    positions in ``position_unit`` (:func:`servo.io.units.substitute`)."""
+    from servo.io.units import substitute
+
+    return substitute(_UNITS.get(key, "-"), unit, position_unit)
 
 
-def _fmt(k: str, v, unit: str) -> str:
-    u = unit_of(k, unit)
+def _fmt(k: str, v, unit: str, position_unit: str = "m") -> str:
+    u = unit_of(k, unit, position_unit)
     u = "" if u == "-" else " " + u
     if isinstance(v, list):
         return f"{k} [" + ", ".join(f"{x:.4g}" for x in v) + "]" + u
@@ -210,17 +223,18 @@ def format_check(r: Recommendation) -> list[str]:
 def format_summary(p: Proposal | Recommendation) -> str:
     r = p if isinstance(p, Recommendation) else None
     p = r.proposal if r is not None else p
-    a, u = p.authority, p.unit
+    a, u, pu = p.authority, p.unit, p.position_unit
     lines = [f"servo compensate: {p.source}" + (" (eq. 9 only)" if p.paper else "")
-             + (f" (forces in {u}: the loop that runs it commands {u})" if u != "A" else "")]  # fmt: skip
+             + (f" (forces in {u}: the loop that runs it commands {u})" if u != "A" else "")
+             + (f" (positions in {pu}: a rotary axis)" if pu != "m" else "")]  # fmt: skip
     for t in p.cancelled:
-        lines.append(f"  cancel {t.name}: " + ", ".join(_fmt(k, v, u) for k, v in t.keys.items()))
+        lines.append(f"  cancel {t.name}: " + ", ".join(_fmt(k, v, u, pu) for k, v in t.keys.items()))
     for t in p.left_out:
         lines.append(f"  left out {t.describe()}")
     for t in p.not_cancelled:
         lines.append(f"  cannot cancel {t.name}: {t.advice}")
     how = (f"{MARGIN:g} x the largest force of the model, {a['largest_force_a']:.4g} {u} at speeds up to "
-           f"{a['speed_m_s']:.3g} m/s" if a["largest_force_a"] is not None else
+           f"{a['speed_m_s']:.3g} {pu}/s" if a["largest_force_a"] is not None else
            "half the current limit (the source does not say how fast the arm moved)")  # fmt: skip
     lines.append(f"  authority: |u_c| <= {a['authority_a']:.4g} {u} ({how}; current limit {a['current_limit_a']:.4g} {u})")
     if a["worst_um_per_ma"] is not None and a.get("loop_is_source", True):

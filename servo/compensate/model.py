@@ -71,7 +71,8 @@ class SourceModel:
     """A model as the drive's physics: ``drive`` the ``[drive]`` fields it sets (A, m, s);
     ``physics`` the vocabulary terms it holds; ``force_unit`` "A" or "N"; ``speed_max``
     (m/s) and ``position_max`` (m, ``|x|``) the motion it was found on (None: unknown);
-    ``kind`` "diagnosis", "identification" or "config"; ``sizes`` the fitted sizes with
+    ``kind`` "diagnosis", "identification" or "config"; ``position_unit`` the
+    recording's, m or rad (the speeds and positions above are in it); ``sizes`` the fitted sizes with
     their standard deviations (:class:`Size`; none for a config: its values are exact)
     and ``alpha`` the level of the diagnosis they came from (two-sided, per size)."""
 
@@ -84,6 +85,8 @@ class SourceModel:
     position_max: float | None = None
     sizes: list = field(default_factory=list)
     alpha: float = ALPHA
+    #: the recording's position unit: m, or rad for a rotary axis (:mod:`servo.io.units`)
+    position_unit: str = "m"
 
 
 def _read_json(p: Path) -> dict:
@@ -118,6 +121,14 @@ def _motion(p: Path, rec: dict, key: str) -> float | None:
     if not _number(v) or v < 0:
         raise CompensateError(f"{p}: recording.{key} = {v!r} is not a number >= 0")
     return float(v)
+
+
+def _position_unit(p: Path, v) -> str:
+    from servo.io.units import POSITION_UNITS
+
+    if v not in POSITION_UNITS:
+        raise CompensateError(f"{p}: the position unit {v!r} is not one of {', '.join(POSITION_UNITS)}")
+    return v
 
 
 def _force_unit(p: Path, v) -> str:
@@ -170,7 +181,8 @@ def _from_report(p: Path, doc: dict) -> SourceModel:
     if not _number(alpha) or not 0 < alpha < 0.5:
         raise CompensateError(f"{p}: settings.alpha = {alpha!r} is not a level between 0 and 0.5")
     return SourceModel(str(p), "diagnosis", drive, [s.physics for s in sizes], _force_unit(p, rec.get("force_unit", "A")),
-                       _motion(p, rec, "speed_max_m_s"), _motion(p, rec, "position_max_m"), sizes, float(alpha))  # fmt: skip
+                       _motion(p, rec, "speed_max_m_s"), _motion(p, rec, "position_max_m"), sizes, float(alpha),
+                       _position_unit(p, rec.get("position_unit", "m")))  # fmt: skip
 
 
 #: an identification's eq. (3) parameters and the vocabulary term of each
@@ -205,7 +217,8 @@ def _from_summary(p: Path, doc: dict, base: Config) -> SourceModel:
                   {"Ha" if k == "Fc" else k: units[k]} if isinstance(units.get(k), str) else {})
              for k in q if k in EQ3 and k != "J"]  # fmt: skip
     return SourceModel(str(p), "identification", drive, [EQ3[k] for k in q if k in EQ3],
-                       _force_unit(p, doc.get("force_unit", "A")), sizes=sizes)  # fmt: skip
+                       _force_unit(p, doc.get("force_unit", "A")), sizes=sizes,
+                       position_unit=_position_unit(p, doc.get("position_unit", "m")))  # fmt: skip
 
 
 def _from_config(p: Path) -> SourceModel:

@@ -95,6 +95,8 @@ class Proposal:
     authority: dict
     unit: str = "A"
     left_out: list = field(default_factory=list)
+    #: the model's position unit: m, or rad for a rotary axis (the section's m reads rad)
+    position_unit: str = "m"
 
 
 def _f(d: dict, k: str, default: float = 0.0) -> float:
@@ -233,8 +235,8 @@ def propose(model: SourceModel, base: Config, paper: bool = False, force_constan
     auth = U_FRACTION * u_lim if largest is None else min(U_FRACTION * u_lim, MARGIN * largest)
     auth = authority if authority is not None else auth
     section["authority"] = float(auth)
-    # the designed loop is the base config's: the recorded axis's only for a model in A
-    loop_is_source = model.force_unit == "A"
+    # the designed loop is the base config's: the recorded axis's only for a model in A and m
+    loop_is_source = model.force_unit == "A" and model.position_unit == "m"
     info: dict = dict(authority_a=float(auth), largest_force_a=largest, speed_m_s=speed, position_m=position,
                       current_limit_a=u_lim, kf_model=None, kf_authority=None, gain_up_db=None, gain_down_db=None,
                       worst_um_per_ma=None, loop_is_source=loop_is_source)  # fmt: skip
@@ -249,7 +251,7 @@ def propose(model: SourceModel, base: Config, paper: bool = False, force_constan
         section["kf_authority"] = a
         info.update(kf_model=a_model, kf_authority=a)
     from_dict({"compensator": section})  # every value within its declared range, or ConfigError
-    return Proposal(model.source, paper, section, terms, not_cancelled, info, unit, left_out)
+    return Proposal(model.source, paper, section, terms, not_cancelled, info, unit, left_out, model.position_unit)
 
 
 def apply(base: Config, p: Proposal) -> Config:

@@ -75,7 +75,8 @@ class Options:
     the output simulation (default 10 row spacings); the robust path's ``settings``
     (None: the decimation is chosen from the recording, :mod:`servo.diagnose.band`, by
     the rule ``band``, with the Butterworth at ``cutoff_hz`` if given);
-    at most ``max_findings``; ``force_unit`` for the report."""
+    at most ``max_findings``; ``force_unit`` and ``position_unit`` (m, or rad for a
+    rotary axis) for the report."""
 
     baseline: str | None = None
     model: str | None = None
@@ -86,6 +87,7 @@ class Options:
     settings: RobustSettings | None = None
     max_findings: int = 8
     force_unit: str = "A"
+    position_unit: str = "m"
     cutoff_hz: float | None = None
     band: str = "reversals"
 
@@ -168,9 +170,12 @@ class Diagnosis:
         return "<Diagnosis " + "; ".join(self._lines()) + ">"
 
     def _repr_html_(self) -> str:
-        from html import escape
+        """The summary lines as a report page's content (:mod:`servo.io.page`; the whole
+        page of a folder is :func:`servo.diagnose.report.write_outputs`')."""
+        from servo.io.page import Page
 
-        return "<b>Diagnosis</b><ul>" + "".join(f"<li>{escape(x)}</li>" for x in self._lines()) + "</ul>"
+        status = verdict_mod.PAGE_STATUS.get(self.verdict.get("verdict"), "info")
+        return Page("Diagnosis", self._lines(), status).fragment()
 
 
 def heldout_residual(design: Design, model: Model, blocks, test_rows: np.ndarray) -> np.ndarray:
@@ -213,15 +218,16 @@ def check_recording(rec: Recording) -> None:
         raise IdentificationError("nothing excited: the input u is constant, there is no input to relate the motion to")
 
 
-def state_variables(sig: Signals) -> dict:
-    """Rows of the state variables residuals are binned by: name -> (values, sign, unit)."""
+def state_variables(sig: Signals, pu: str = "m") -> dict:
+    """Rows of the state variables residuals are binned by: name -> (values, sign, unit),
+    positions in ``pu``."""
     s = np.sign(sig.v_rows)
     dist = distance_since_reversal(sig.xf, sig.vf, sig.v_threshold)[sig.keep]
     return {
-        "position": (sig.x_rows, None, "m"),
-        "velocity": (sig.v_rows, None, "m/s"),
+        "position": (sig.x_rows, None, pu),
+        "velocity": (sig.v_rows, None, f"{pu}/s"),
         "direction": (s, None, "-"),
-        "distance_since_reversal": (dist, s, "m"),
+        "distance_since_reversal": (dist, s, pu),
     }
 
 
@@ -626,7 +632,7 @@ def _diagnose(rec: Recording, opt: Options | None) -> Diagnosis:
     r_after = heldout_residual(design, final.model, blocks, test_rows)
     sel.set_noise(base)
     tau = sel.tau
-    variables = state_variables(sig)
+    variables = state_variables(sig, opt.position_unit)
     y0 = design.target_raw(Model())
     r0 = np.where(sig.valid, r_before, 0.0)
     fs = 1.0 / sig.row_dt

@@ -185,7 +185,7 @@ def plot_fits(D: Diagnosis, path: Path | None = None) -> Figure:
                        ls=":", label="motion beyond coasting")  # fmt: skip
         ax[2].set_title(f"simulated output, {1e3 * e['horizon_s']:.3g} ms ahead from measured states: NRMSE "
                         f"{e['test_output_nrmse']['before']:.3g} -> {e['test_output_nrmse']['after']:.3g}", fontsize=9)  # fmt: skip
-        ax[2].set_ylabel("RMS position error (m)")
+        ax[2].set_ylabel(f"RMS position error ({D.opt.position_unit})")
     else:
         ax[2].text(0.5, 0.5, D.simulate_note, ha="center", transform=ax[2].transAxes)
     ax[2].set_xlabel("time (s)")

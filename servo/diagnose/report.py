@@ -16,6 +16,7 @@ from servo.diagnose.model import GATE
 from servo.diagnose.terms import VOCABULARY
 from servo.errors import ConfigError
 from servo.io.atomic import atomic_write, write_json
+from servo.io.units import substitute
 
 SCHEMA = 1
 
@@ -34,17 +35,19 @@ def _num(v):
     return v
 
 
-def _units(physics: str, params: dict, fu: str) -> dict:
-    return {k: "s" if k == GATE else VOCABULARY[physics].unit(k, fu) for k in params}
+def _units(physics: str, params: dict, fu: str, pu: str = "m") -> dict:
+    """The units of a term's parameters with forces in ``fu`` and positions in ``pu``
+    (rad for a rotary axis: :func:`servo.io.units.substitute` of the term's template)."""
+    return {k: "s" if k == GATE else substitute(VOCABULARY[physics].unit(k, "F"), fu, pu, "F") for k in params}
 
 
-def fit_terms(fit: Fit, fu: str, frf_terms=()) -> list:
+def fit_terms(fit: Fit, fu: str, frf_terms=(), pu: str = "m") -> list:
     """The terms of ``fit``; those of ``frf_terms`` (modes the frequency-domain path
     fitted, their gain held in the rows) are marked ``fitted_on: frequency response``."""
     out = []
     for i, t in enumerate(fit.model.terms):
         p = fit.term_params(i)
-        d = {"physics": t.physics, "params": p, "std": fit.term_std(i), "units": _units(t.physics, p, fu),
+        d = {"physics": t.physics, "params": p, "std": fit.term_std(i), "units": _units(t.physics, p, fu, pu),
              "fixed": not t.free and t not in frf_terms}  # fmt: skip
         if t in frf_terms:
             d["fitted_on"] = "frequency response"
@@ -72,9 +75,9 @@ def _evidence(f: Finding) -> dict:
     }  # fmt: skip
 
 
-def finding_dict(f: Finding, fu: str) -> dict:
+def finding_dict(f: Finding, fu: str, pu: str = "m") -> dict:
     return {
-        "physics": f.physics, "params": f.params, "std": f.std, "units": _units(f.physics, f.params, fu),
+        "physics": f.physics, "params": f.params, "std": f.std, "units": _units(f.physics, f.params, fu, pu),
         "where": f.where, "evidence": _evidence(f), "error_before": f.before, "error_after": f.after,
         "note": VOCABULARY[f.physics].note(f.params),
     }  # fmt: skip
@@ -105,7 +108,7 @@ def partial_note(fit: Fit) -> str:
 
 
 def build_report(D: Diagnosis, files: list | None = None) -> dict:
-    fu = D.opt.force_unit
+    fu, pu = D.opt.force_unit, D.opt.position_unit
     sig = D.sig
     rec = D.rec
     brk = [f for f in D.findings if f.breakaway is not None]  # a breakaway found at rest (not a column)
@@ -127,7 +130,7 @@ def build_report(D: Diagnosis, files: list | None = None) -> dict:
         "verdict_text": V["text"],
         "checks": {"baseline": V["baseline_checks"], "final_model": V["final_checks"]},
         "recording": {"source": rec.source, "samples": rec.n, "sample_rate_hz": rec.sample_rate_hz,
-                      "duration_s": float(rec.t[-1] - rec.t[0]), "force_unit": fu,
+                      "duration_s": float(rec.t[-1] - rec.t[0]), "force_unit": fu, "position_unit": pu,
                       "speed_max_m_s": float(np.max(np.abs(sig.vf))), "position_max_m": float(np.max(np.abs(sig.x)))},
         "settings": {"baseline": None if D.opt.model else (D.opt.baseline or "J,B,Fc,K,h0"), "model": D.opt.model,
                      "test_fraction": D.opt.test_fraction, "blocks": D.opt.blocks, "alpha": D.opt.alpha,
@@ -137,22 +140,22 @@ def build_report(D: Diagnosis, files: list | None = None) -> dict:
                  "direction_threshold_m_s": sig.v_threshold, "position_noise_m": sig.noise_x, "tau_rows": loc["tau"],
                  "decimate": int(sig.settings.decimate), "band_hz": [0.0, band_hz(sig.settings, 1.0 / sig.dt)],
                  "band_note": D.band_note},
-        "baseline": {"source": "model file" if D.opt.model else "terms", "terms": fit_terms(D.baseline_fit, fu),
+        "baseline": {"source": "model file" if D.opt.model else "terms", "terms": fit_terms(D.baseline_fit, fu, pu=pu),
                      "error": {"train_force_rel_pct": D.errors["train_force_rel_pct"]["before"],
                                "test_force_rel_pct": D.errors["test_force_rel_pct"]["before"],
                                "test_output_nrmse": D.errors["test_output_nrmse"]["before"]}},
-        "findings": [finding_dict(f, fu) for f in D.findings],
-        "final_model": {"terms": fit_terms(D.final_fit, fu, D.frf_terms) + [
-                            {"physics": "quantization", "params": f.params, "std": {}, "units": {"step": "m", "offset": "m"},
+        "findings": [finding_dict(f, fu, pu) for f in D.findings],
+        "final_model": {"terms": fit_terms(D.final_fit, fu, D.frf_terms, pu) + [
+                            {"physics": "quantization", "params": f.params, "std": {}, "units": {"step": pu, "offset": pu},
                              "fixed": False} for f in D.findings if f.physics == "quantization"] + [
                             {"physics": f.physics, "params": f.params, "std": f.std,
-                             "units": _units(f.physics, f.params, fu), "fixed": False, "fitted_on": "intervals at rest"}
+                             "units": _units(f.physics, f.params, fu, pu), "fixed": False, "fitted_on": "intervals at rest"}
                             for f in brk],
                         "drive": drive, "drive_note": why, "partial": partial_note(D.final_fit),
                         "error": {"train_force_rel_pct": D.errors["train_force_rel_pct"]["after"],
                                   "test_force_rel_pct": D.errors["test_force_rel_pct"]["after"],
                                   "test_output_nrmse": D.errors["test_output_nrmse"]["after"]}},
-        "unconfirmed": [{**finding_dict(f, fu), "reason": (f.frf or f.breakaway or {}).get("reason") or
+        "unconfirmed": [{**finding_dict(f, fu, pu), "reason": (f.frf or f.breakaway or {}).get("reason") or
                          "did not lower the held-out error of the test part",
                          "test_error_before": a, "test_error_after": b} for f, a, b in D.unconfirmed],
         "frf": D.frf.summary() if D.frf is not None else None,
@@ -227,7 +230,8 @@ def format_summary(report: dict, out: Path) -> str:
     rc, rows, b, fm = report["recording"], report["rows"], report["baseline"], report["final_model"]
     lines = [
         f"verdict: {report['verdict']}: {report['verdict_text']}",
-        f"servo diagnose: {rc['source']} ({rc['samples']} samples at {rc['sample_rate_hz']:.6g} Hz, {rc['duration_s']:.3g} s)",
+        f"servo diagnose: {rc['source']} ({rc['samples']} samples at {rc['sample_rate_hz']:.6g} Hz, {rc['duration_s']:.3g} s"
+        + (f"; positions in {rc['position_unit']}, forces in {rc['force_unit']})" if rc.get("position_unit", "m") != "m" else ")"),
         f"  rows: {rows['total']} ({rows['train']} training, {rows['test']} held out for the proof), "
         f"{100 * rows['usable_fraction']:.0f} % usable (direction known)",
         f"  band: every force-balance test covers 0-{rows['band_hz'][1]:.4g} Hz ({rows['band_note']})",

@@ -57,6 +57,8 @@ from servo.diagnose.locate import state_test
 from servo.identify.regressors import matlab_decimate
 
 VERDICTS = ("consistent", "explained", "unexplained", "out_of_scope")
+#: verdict -> the status of its report page (:data:`servo.io.page.STATUS`)
+PAGE_STATUS = {"consistent": "ok", "explained": "ok", "unexplained": "warn", "out_of_scope": "bad"}
 #: a residual counts as above its floor (or the test part above training) only beyond
 #: this RMS ratio, whatever the test says: 20 % more RMS is 44 % more power
 MARGIN = 1.2
@@ -374,5 +376,5 @@ def decide(base: dict, final: dict, n_findings: int, scope: str, force_unit: str
     return {"verdict": "unexplained", "text": f"the model still fails: {where_text(final, force_unit)}{besides}"}
 
 
-__all__ = ["MARGIN", "VERDICTS", "acceleration_noise_gain", "add_frf", "assess", "decide", "estimation_error",
+__all__ = ["MARGIN", "PAGE_STATUS", "VERDICTS", "acceleration_noise_gain", "add_frf", "assess", "decide", "estimation_error",
            "force_floor", "out_of_scope", "ranges_beyond_training", "where_text", "window_checks", "window_rows"]

@@ -11,11 +11,13 @@ one writer per output (a second fleet given the same ``OUT`` is refused):
   half-way (Ctrl-C, a fault, a full disk) leaves that folder, and the error line says
   how to continue it (``resume``);
 * ``fleet_report.md`` (:mod:`servo.fleet.report`), ``fleet.json`` (the summary, strict
-  JSON);
+  JSON, with the provenance: :func:`servo.io.provenance.provenance`, which the table's
+  schema metadata holds too, with each column's unit);
 * ``dask.log``: the records and warnings of Dask itself, when there are some (they
   stay off stderr);
 * ``histograms.png``, ``scatter.png`` and, for a diagnosis, ``findings.png``
-  (:mod:`servo.fleet.plots`), unless ``plots`` is off.
+  (:mod:`servo.fleet.plots`), unless ``plots`` is off;
+* ``report.html``: all of it on one self-contained page (:mod:`servo.fleet.page`).
 
 ``resume``: an earlier fleet (its folder, its ``fleet.parquet``, or the folder of an
 interrupted one, whose staging folder is then continued when it is ``out``'s own).  A
@@ -36,9 +38,12 @@ from servo.fleet import plots as fleet_plots
 from servo.fleet import runner, table
 from servo.fleet.outliers import THRESHOLD, outliers, unscored
 from servo.fleet.report import format_report
+from servo.fleet.page import page
 from servo.fleet.task import ADAPTERS, Task, canonical, code_versions
 from servo.io.atomic import atomic_write, write_json
 from servo.io.outdir import staged, staging_dir
+from servo.io.page import NAME as PAGE
+from servo.io.provenance import provenance
 from servo.io.progress import stage
 
 CHECKPOINT_S = 5.0
@@ -49,14 +54,15 @@ DASK_LOG = "dask.log"
 class _Checkpoint:
     """Rows as they complete; the table of those so far, at most every ``every_s``."""
 
-    def __init__(self, path: Path, kept: list[dict], every_s: float, then=None):
+    def __init__(self, path: Path, kept: list[dict], every_s: float, then=None, meta: dict | None = None):
         self.path, self.rows, self.every_s, self.then = path, list(kept), every_s, then
+        self.meta = meta or {}  # table.write's provenance and force unit
         self.last = time.perf_counter()
 
     def __call__(self, rows: list[dict]) -> None:
         self.rows += rows
         if time.perf_counter() - self.last >= self.every_s:
-            table.write(self.path, self.rows)
+            table.write(self.path, self.rows, **self.meta)
             self.last = time.perf_counter()
         if self.then is not None:
             self.then(rows)
@@ -99,6 +105,7 @@ def run_fleet(command: str, tasks: list[Task], settings: dict, out: str | Path, 
     todo = [t for i, t in enumerate(tasks) if i not in kept]
     adopt = earlier is not None and earlier.parent == staging_dir(out)
     hint = f"continue with --resume {out} --out {out}"
+    meta = {"provenance": provenance(), "force_unit": settings.get("force_unit", "A")}  # the table's schema metadata
     with staged(out, keep_partial=True, resume=adopt, kept="the drives done so far", hint=hint) as tmp:
         for f in tmp.iterdir():  # an interrupted run's other files: rewritten below, or not at all
             if f.is_file() and f.name not in (table.NAME, DASK_LOG):
@@ -106,26 +113,27 @@ def run_fleet(command: str, tasks: list[Task], settings: dict, out: str | Path, 
         if kept and hasattr(progress, "start"):
             progress.start(len(todo))
         t0 = time.perf_counter()
-        check = _Checkpoint(tmp / table.NAME, list(kept.values()), CHECKPOINT_S, progress)
+        check = _Checkpoint(tmp / table.NAME, list(kept.values()), CHECKPOINT_S, progress, meta)
         with runner.dask_logs(tmp / DASK_LOG):  # Dask's records and warnings, not on stderr
             new = runner.run(command, todo, settings, where, getattr(adapter, "BATCH", 1), check,
                              on_client=getattr(progress, "connected", None))  # fmt: skip
         wall = time.perf_counter() - t0
         stage("the table, report and plots")
         rows = _merge(tasks, kept, new)
-        table.write(tmp / table.NAME, rows)
-        summary = _outputs(command, adapter, rows, settings, tmp, out, plots, where, len(kept), len(todo), wall)
+        table.write(tmp / table.NAME, rows, **meta)
+        summary = _outputs(command, adapter, rows, settings, tmp, out, plots, where, len(kept), len(todo), wall,
+                           meta["provenance"])  # fmt: skip
     return summary
 
 
 def _outputs(command, adapter, rows, settings, tmp: Path, out: Path, plots: bool, where, n_kept: int, n_todo: int,
-             wall: float) -> dict:  # fmt: skip
+             wall: float, prov: dict | None = None) -> dict:  # fmt: skip
     """Outliers, report, plots and ``fleet.json`` of the finished ``rows``, written into ``tmp``."""
     cols = table.columns_of(rows)
     scored, pairs = adapter.scored(cols), adapter.pairs(cols)
     shown = adapter.figures(cols) if hasattr(adapter, "figures") else scored
     found = outliers(rows, scored)
-    files = [table.NAME, "fleet.json", "fleet_report.md"] + [DASK_LOG] * (tmp / DASK_LOG).exists()
+    files = [table.NAME, "fleet.json", "fleet_report.md", PAGE] + [DASK_LOG] * (tmp / DASK_LOG).exists()
     if plots:
         fleet_plots.save(fleet_plots.histograms(rows, shown), tmp / "histograms.png")
         fleet_plots.save(fleet_plots.scatters(rows, pairs), tmp / "scatter.png")
@@ -149,11 +157,13 @@ def _outputs(command, adapter, rows, settings, tmp: Path, out: Path, plots: bool
         "outlier_threshold": THRESHOLD,
         "not_scored": unscored(rows, scored),
         "files": sorted(files),
+        "provenance": prov,
     }
     if command == "diagnose":
         summary["flagged"] = [r["drive"] for r in ok if r.get("flagged")]
     atomic_write(tmp / "fleet_report.md", lambda p: Path(p).write_text(format_report(summary, rows, shown, found)))
     write_json(tmp / "fleet.json", summary)
+    page(summary, rows, shown, tmp).write(tmp)
     return summary
 
 

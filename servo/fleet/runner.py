@@ -31,6 +31,7 @@ import os
 import time
 import warnings
 from contextlib import contextmanager
+from contextvars import ContextVar
 from dataclasses import dataclass
 from functools import partial
 from pathlib import Path
@@ -44,6 +45,8 @@ from servo.fleet.task import Task, error_line, failed_row, run_batch
 IN_PROCESS_MAX = 4
 BATCHES_PER_WORKER = 4
 CONNECT_TIMEOUT_S = 10
+#: the log file of the :func:`dask_logs` block running, where a local cluster's workers write
+_LOG: ContextVar[str | None] = ContextVar("servo_fleet_log", default=None)
 
 
 @dataclass(frozen=True)
@@ -220,7 +223,12 @@ def _client(where: Where, n_tasks: int):
     n = min(local_workers(where), n_tasks)
     cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=True, dashboard_address=dashboard_address(),
                            silence_logs=logging.ERROR)  # fmt: skip
-    return Client(cluster), cluster
+    client = Client(cluster)
+    if _LOG.get() is not None:  # the workers' output to the log, before any task runs
+        from servo.fleet.workerlog import WorkerOutput
+
+        client.register_plugin(WorkerOutput(_LOG.get()))
+    return client, cluster
 
 
 def dashboard_address() -> str | None:
@@ -246,7 +254,10 @@ def dask_logs(path: str | Path):
     """While the block runs, the records of ``distributed``'s and ``dask``'s loggers
     and the Python warnings raised in this process go to the file ``path`` (made at the
     first record), not to stderr, which carries the command's progress and its error
-    line only.  The loggers' handlers and the warning filters are restored after."""
+    line only; so does everything the workers of a local cluster started in the block
+    write (:mod:`servo.fleet.workerlog`).  The loggers' handlers and the warning filters
+    are restored after; an empty file is removed."""
+    token = _LOG.set(str(path))  # a local cluster's workers write there too (servo.fleet.workerlog)
     handler = logging.FileHandler(path, delay=True, encoding="utf-8")
     handler.setFormatter(logging.Formatter("%(asctime)s %(name)s %(levelname)s %(message)s"))
     saved = []
@@ -264,6 +275,9 @@ def dask_logs(path: str | Path):
         for lg, handlers, propagate in saved:
             lg.handlers, lg.propagate = handlers, propagate
         handler.close()
+        _LOG.reset(token)
+        if Path(path).is_file() and Path(path).stat().st_size == 0:  # workers opened it, nothing was written
+            Path(path).unlink()
 
 
 def map_batches(fn: Callable[[list], list], items: list, where: Where = Where(), default_batch: int = 1,

@@ -6,7 +6,9 @@ then the command's columns sorted by name (a drive lacking a column has a null),
 order of the columns depends only on which columns there are, and the order of the rows
 on the order of the inputs, so two runs of the same fleet give equal tables, however
 their tasks were scheduled.  Written atomically (a temporary renamed into place): a
-reader, and ``--resume``, never see a half-written file.
+reader, and ``--resume``, never see a half-written file.  The schema's metadata holds
+the fleet's provenance and each column's unit (:func:`units_of`;
+:func:`servo.io.provenance.schema_metadata`): ``pq.read_schema(path).metadata``.
 """
 from __future__ import annotations
 
@@ -38,10 +40,47 @@ def to_table(rows: list[dict]) -> pa.Table:
     return pa.table({c: pa.array([r.get(c) for r in rows]) for c in cols})
 
 
-def write(path: str | Path, rows: list[dict]) -> pa.Table:
-    """Write ``rows`` as Parquet at ``path``, atomically; returns the table.  An error
-    of the file system (a full disk) names ``path`` (pyarrow's names no file)."""
+#: a column's unit from the end of its name (the first that matches)
+SUFFIX_UNITS = (("_pct", "%"), ("_pct_before", "%"), ("_pct_after", "%"), ("_m_s", "m/s"), ("_ms", "ms"),
+                ("_us", "us"), ("_hz", "Hz"), ("_m", "m"), ("_s", "s"))  # fmt: skip
+
+
+def units_of(columns: list[str], force_unit: str = "A") -> dict[str, str]:
+    """The unit of each column whose unit is known: a diagnosis's ``physics.param`` (and
+    its ``_std``) from the term's template, an identification's ``J``, ``B``, ``Fc``,
+    ``K``, ``h0`` (and ``_std``), with forces in ``force_unit``; else from the name's
+    end (:data:`SUFFIX_UNITS`: ``error_rms_m`` is in m).  Positions are in m (a fleet's
+    recordings are of the linear model)."""
+    from servo.diagnose.terms import VOCABULARY
+    from servo.identify.regressors import units as eq3_units
+    from servo.io.units import substitute
+
+    eq3 = eq3_units(force_unit)
+    out = {}
+    for c in columns:
+        base = c.removesuffix("_std")
+        physics, _, param = base.partition(".")
+        if param and physics in VOCABULARY:
+            out[c] = substitute(VOCABULARY[physics].unit(param, "F"), force_unit, "m", "F")
+        elif base in eq3:
+            out[c] = eq3[base]
+        else:
+            unit = next((u for end, u in SUFFIX_UNITS if c.lower().endswith(end)), None)
+            if unit is not None:
+                out[c] = unit
+    return out
+
+
+def write(path: str | Path, rows: list[dict], provenance: dict | None = None, force_unit: str = "A") -> pa.Table:
+    """Write ``rows`` as Parquet at ``path``, atomically; returns the table.  With
+    ``provenance``, the schema's metadata holds it and the columns' units
+    (:func:`units_of`).  An error of the file system (a full disk) names ``path``
+    (pyarrow's names no file)."""
     table = to_table(rows)
+    if provenance is not None:
+        from servo.io.provenance import schema_metadata
+
+        table = table.replace_schema_metadata(schema_metadata(provenance, units_of(table.column_names, force_unit)))
     Path(path).parent.mkdir(parents=True, exist_ok=True)
 
     def parquet(tmp):

@@ -8,7 +8,8 @@ Files written into one folder (all computed before the first is written):
 * ``frf.csv`` -- the same as a table (f_hz, re, im, mag_db, phase_deg, coherence, rel_std);
 * ``frf.mat``, ``frf.h5`` -- the same for MATLAB (scipy.io) and HDF5 (h5py);
 * ``frf.png`` -- magnitude with its +-2 std band, phase, coherence;
-* ``summary.json`` -- settings, segments, the coherent band, provenance.
+* ``summary.json`` -- settings, segments, the coherent band, provenance;
+* ``report.html`` -- all of it on one self-contained page (:mod:`servo.frf.page`).
 """
 from __future__ import annotations
 
@@ -29,11 +30,13 @@ COHERENCE_MIN = 0.9
 
 
 def estimate_frf(rec: Recording, closed_loop: bool = False, settings: WelchSettings | None = None,
-                 force_unit: str = "A", f_min: float = 0.0, f_max: float = np.inf) -> FrequencyResponse:  # fmt: skip
-    """The response from ``rec.u`` to ``rec.x`` (m per ``force_unit``) between ``f_min``
-    and ``f_max`` Hz: H1 (open loop) or, with ``closed_loop``, ``P_ry/P_ru`` with the
-    recording's reference ``rec.r`` as instrument (:mod:`servo.frf.estimate`)."""
-    unit = f"m/{force_unit}"
+                 force_unit: str = "A", f_min: float = 0.0, f_max: float = np.inf,
+                 position_unit: str = "m") -> FrequencyResponse:  # fmt: skip
+    """The response from ``rec.u`` to ``rec.x`` (``position_unit`` per ``force_unit``:
+    m/A, m/N, rad/(N*m) for a rotary axis) between ``f_min`` and ``f_max`` Hz: H1 (open
+    loop) or, with ``closed_loop``, ``P_ry/P_ru`` with the recording's reference
+    ``rec.r`` as instrument (:mod:`servo.frf.estimate`)."""
+    unit = f"{position_unit}/({force_unit})" if "*" in force_unit or "/" in force_unit else f"{position_unit}/{force_unit}"
     if closed_loop:
         if rec.r is None:
             raise RecordingError("frf --closed-loop needs the reference (or the injected excitation) as column r; "
@@ -80,6 +83,7 @@ def summarize(resp: FrequencyResponse, rec: Recording) -> dict:
 def write_frf(resp: FrequencyResponse, rec: Recording, out: Path, extra: dict | None = None) -> dict:
     """Write the files of the module docstring into ``out``; returns the summary
     (``extra`` merged in, e.g. the provenance)."""
+    from servo.frf.page import page
     from servo.frf.plots import plot_frf
 
     out = Path(out)
@@ -93,8 +97,9 @@ def write_frf(resp: FrequencyResponse, rec: Recording, out: Path, extra: dict | 
     save_mat(out / "frf.mat", {label: resp})
     save_h5(out / "frf.h5", {label: resp})
     save_figure(fig, out / "frf.png")
-    summary["files"] = ["frf.csv", "frf.h5", "frf.mat", "frf.npz", "frf.png", "summary.json"]
+    summary["files"] = ["frf.csv", "frf.h5", "frf.mat", "frf.npz", "frf.png", "report.html", "summary.json"]
     write_json(out / "summary.json", summary)
+    page(summary, out).write(out)
     return summary
 
 

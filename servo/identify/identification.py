@@ -24,9 +24,9 @@ class Identification:
         terms = ", ".join(f"{t} = {p:.4g}" for t, p in zip(f.terms, f.params))
         return f"<Identification ({self.regression.path} path): {terms}; error {f.rel_error_pct:.3g} %, {f.n_rows} rows>"
 
-    def as_dict(self, force_unit: str = "A") -> dict:
+    def as_dict(self, force_unit: str = "A", position_unit: str = "m") -> dict:
         r = self.regression
-        return {"path": r.path, "settings": r.settings, "row_dt_s": r.dt, **self.fit.as_dict(force_unit)}
+        return {"path": r.path, "settings": r.settings, "row_dt_s": r.dt, **self.fit.as_dict(force_unit, position_unit)}
 
 
 def identify(rec: Recording, path: str = "robust", terms=TERMS, settings: RobustSettings | None = None,

@@ -22,7 +22,8 @@ from servo.io.recording import Recording
 from servo.io.runlog import write_csv
 
 
-def write_identification(ident: Identification, out: Path, force_unit: str = "A", title: str = "") -> list[str]:
+def write_identification(ident: Identification, out: Path, force_unit: str = "A", title: str = "",
+                         position_unit: str = "m") -> list[str]:  # fmt: skip
     """Write the CSVs and PNGs of one fit into ``out``; returns the file names."""
     reg, fit, p = ident.regression, ident.fit, ident.regression.path
     cols = ["t", "y", "y_hat", "residual", "x", "v", "a"]
@@ -31,7 +32,7 @@ def write_identification(ident: Identification, out: Path, force_unit: str = "A"
         cols += ["a_regressor", "a_estimated"]
         data += [reg.column("J"), estimated_acceleration(ident)]
     write_csv(out / f"rows_{p}.csv", cols, np.column_stack(data))
-    u = units(force_unit)
+    u = units(force_unit, position_unit)
     lines = ["term,estimate,std,rel_std_pct,unit"] + [
         f"{t},{v:.10g},{s:.6g},{r:.4g},{u[t]}" for t, v, s, r in zip(fit.terms, fit.params, fit.std, fit.rel_std_pct)
     ]
@@ -41,33 +42,36 @@ def write_identification(ident: Identification, out: Path, force_unit: str = "A"
                    f"relative error {fit.rel_error_pct:.3g} %")  # fmt: skip
     names.append(f"force_fit_{p}.png")
     if "J" in reg.terms:
-        plot_acceleration(ident, out / f"acceleration_{p}.png")
+        plot_acceleration(ident, out / f"acceleration_{p}.png", position_unit=position_unit)
         names.append(f"acceleration_{p}.png")
     return names
 
 
 def run_identify(rec: Recording, out: Path, paths, terms, settings: RobustSettings, force_unit: str = "A",
-                 reference: dict | None = None, force_lag_s: float | dict = 0.0, provenance: dict | None = None) -> dict:  # fmt: skip
+                 reference: dict | None = None, force_lag_s: float | dict = 0.0, provenance: dict | None = None,
+                 position_unit: str = "m") -> dict:  # fmt: skip
     """Identify ``rec`` with each of ``paths`` and write everything into ``out``.
 
     ``reference``: named sets of known parameter values to compare with (for a simulated
     experiment: the drive's nominal values and what model (3) can represent); a set may
     be given per path (``{"robust": {...}, "paper": {...}}``).  ``force_lag_s``: seconds,
     or a dict per path.  ``provenance``: recorded in the summary as given
-    (:func:`servo.io.provenance.provenance`)."""
+    (:func:`servo.io.provenance.provenance`).  ``force_unit``, ``position_unit``: the
+    recording's (a rotary axis: ``N*m`` or ``A``, and ``rad``), for every unit written."""
     out = Path(out)
     lag = force_lag_s if isinstance(force_lag_s, dict) else {p: force_lag_s for p in paths}
     results = {p: identify(rec, p, terms, settings, lag[p]) for p in paths}  # all fits before any file
     out.mkdir(parents=True, exist_ok=True)
     files = []
     for ident in results.values():
-        files += write_identification(ident, out, force_unit)
+        files += write_identification(ident, out, force_unit, position_unit=position_unit)
     summary = {
         "recording": rec.source,
         "samples": rec.n,
         "sample_rate_hz": rec.sample_rate_hz,
         "force_unit": force_unit,
-        "fits": {p: r.as_dict(force_unit) for p, r in results.items()},
+        "position_unit": position_unit,
+        "fits": {p: r.as_dict(force_unit, position_unit) for p, r in results.items()},
     }
     if reference:
         summary["reference"] = reference

@@ -62,14 +62,15 @@ class LSResult:
     def __getitem__(self, term: str) -> float:
         return float(self.params[self.terms.index(term)])
 
-    def as_dict(self, force_unit: str = "A") -> dict:
-        """JSON-able summary (no per-row arrays); units for forces in ``force_unit``."""
+    def as_dict(self, force_unit: str = "A", position_unit: str = "m") -> dict:
+        """JSON-able summary (no per-row arrays); units for forces in ``force_unit`` and
+        positions in ``position_unit``."""
         return {
             "terms": list(self.terms),
             "params": {t: float(p) for t, p in zip(self.terms, self.params)},
             "std": {t: float(s) for t, s in zip(self.terms, self.std)},
             "rel_std_pct": {t: float(s) for t, s in zip(self.terms, self.rel_std_pct)},
-            "units": {t: units(force_unit)[t] for t in self.terms},
+            "units": {t: units(force_unit, position_unit)[t] for t in self.terms},
             "rel_error_pct": self.rel_error_pct,
             "sigma_e": self.sigma_e,
             "cond": self.cond,

@@ -27,10 +27,11 @@ def _zoom(t: np.ndarray, span: float) -> np.ndarray:
 
 
 def plot_acceleration(ident: Identification, path: Path | None = None, title: str = "",
-                      zoom_s: float | None = None) -> Figure:
+                      zoom_s: float | None = None, position_unit: str = "m") -> Figure:
     """Paper Fig. 5: the acceleration estimated from the force by the identified model
     against the measured one (the regressor's ``x''`` column), whole record and a zoom of
-    ``zoom_s`` s (default a tenth of the record).  Written to ``path`` when given."""
+    ``zoom_s`` s (default a tenth of the record), in ``position_unit``/s^2.  Written to
+    ``path`` when given."""
     reg = ident.regression
     a_meas = reg.column("J")
     a_hat = estimated_acceleration(ident)
@@ -45,7 +46,7 @@ def plot_acceleration(ident: Identification, path: Path | None = None, title: st
     ax[0].set_title(title or f"Estimated vs measured acceleration ({reg.path} path): difference {err:.2g} % RMS")
     ax[1].set_title("zoom")
     for x in ax:
-        x.set_ylabel("acceleration (m/s^2)")
+        x.set_ylabel(f"acceleration ({position_unit}/s^2)")
         x.grid(alpha=0.3)
         x.legend(fontsize=8, loc="upper right")
     ax[1].set_xlabel("time (s)")

@@ -58,9 +58,13 @@ class IdentificationError(ServoError):
     deficient, the settings do not fit the recording."""
 
 
-def units(force_unit: str = "A") -> dict[str, str]:
-    """Units of the parameters when forces are in ``force_unit`` (``"N"`` for EMPS)."""
-    return {k: v.replace("A", force_unit) for k, v in UNITS.items()}
+def units(force_unit: str = "A", position_unit: str = "m") -> dict[str, str]:
+    """Units of the parameters when forces are in ``force_unit`` (``"N"`` for EMPS, ``"N*m"``
+    for a rotary axis's torque) and positions in ``position_unit`` (``"rad"`` for a
+    rotary axis): :func:`servo.io.units.substitute`."""
+    from servo.io.units import substitute
+
+    return {k: substitute(v, force_unit, position_unit) for k, v in UNITS.items()}
 
 
 def parse_terms(text: str | None = None, off: str | None = None) -> tuple[str, ...]:

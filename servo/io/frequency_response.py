@@ -87,9 +87,16 @@ class FrequencyResponse:
                 f"|H| {np.nanmin(np.abs(self.H)):.3g}-{np.nanmax(np.abs(self.H)):.3g} {self.unit}{good}>").replace(" :", ":")
 
     def _repr_html_(self) -> str:
-        from html import escape
+        """A short page (:mod:`servo.io.page`): the ``repr`` line and the band's figures."""
+        from servo.io.page import Page, Section, Table
 
-        return f"<code>{escape(repr(self))}</code>"
+        n = self.f_hz.size
+        rows = [["points", n], ["unit", self.unit or "-"]] + ([
+            ["f (Hz)", f"{self.f_hz[0]:.4g}-{self.f_hz[-1]:.4g}"],
+            ["|H| min", float(np.nanmin(np.abs(self.H)))], ["|H| max", float(np.nanmax(np.abs(self.H)))],
+            ["coherence >= 0.9", int((self.coherence >= 0.9).sum())]] if n else [])  # fmt: skip
+        label = str(self.meta.get("label", "")) or "frequency response"
+        return Page(label, [repr(self).strip("<>")], "info", [Section("Response", [Table(rows)])]).fragment()
 
     @property
     def mag_db(self) -> np.ndarray:

@@ -57,11 +57,13 @@ class RunFolder:
         return f"<servo run ({where}), controller {kind}: {runs}>"
 
     def _repr_html_(self) -> str:
-        from html import escape
+        """The run's summary as a report page's content (:mod:`servo.io.page`)."""
+        from servo.io.page import Page, Section, Table
 
-        rows = "".join(f"<tr><td>{escape(k)}</td><td>{escape(v)}</td></tr>" for k, v in self._figures())
-        head = escape(repr(self).split(":")[0].lstrip("<"))
-        return f"<b>{head}</b><table>{rows}</table>"
+        head = repr(self).split(":")[0].lstrip("<")
+        runs = Section("Runs", [Table([list(x) for x in self._figures()], ["run", "figures"])])
+        return Page(head, [text for _, text in self._figures()], "info", [runs],
+                    (self.summary or {}).get("provenance")).fragment()
 
     def rows(self, label: str) -> np.ndarray:
         """The log of run ``label`` as one array (rows, len(LOG_COLUMNS)), in the column

@@ -18,7 +18,8 @@ Files written into one folder (all computed before the first is written):
 * ``summary.json`` -- settings, margins of every run and design, each measured margin's
   uncertainty (:mod:`servo.loop.quality`) and ``warnings`` for those beyond tolerance,
   agreement with the design, crossover shift without the compensator, link report,
-  provenance.
+  provenance;
+* ``report.html`` -- all of it on one self-contained page (:mod:`servo.loop.page`).
 """
 from __future__ import annotations
 
@@ -37,6 +38,7 @@ from servo.loop.design import (LoopDesign, compensator_response, controller_resp
 from servo.design.margins import margins
 from servo.loop.measure import RESPONSES, LoopMeasurement, LoopSettings, measure
 from servo.io.provenance import or_default
+from servo.loop.page import page
 from servo.loop.plots import plot_loop, plot_sensitivity
 from servo.loop.quality import uncertainty, warnings_for
 from servo.runtime.controller import compensation_runs
@@ -230,8 +232,9 @@ def run_loop(cfg: Config, out: Path, s: LoopSettings, compensator: str | None = 
         **summary,
     }
     summary["provenance"] = or_default(provenance, cfg)
-    summary["files"] = sorted(["frd.npz", "loop.csv", "loop.png", "sensitivity.png", "summary.json"])
+    summary["files"] = sorted(["frd.npz", "loop.csv", "loop.png", "report.html", "sensitivity.png", "summary.json"])
     write_json(out / "summary.json", summary)
+    page(summary, out).write(out)
     return summary
 
 

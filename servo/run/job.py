@@ -9,7 +9,8 @@ into one output folder:
   compute time per sample, ticks, overruns, the cold start (process start to first tick);
 * ``tracking.png``, ``steps.png``, ``current.png`` (and ``timing.png`` tick by tick;
   ``lateness.png`` when paced in real time, see :mod:`servo.run.realtime`);
-* ``config.toml``: the effective configuration (rerun it for the same bits).
+* ``config.toml``: the effective configuration (rerun it for the same bits);
+* ``report.html``: all of it on one self-contained page (:mod:`servo.run.page`).
 """
 from __future__ import annotations
 
@@ -26,6 +27,7 @@ from servo.config import Config, to_toml
 from servo.controllers import get_kind
 from servo.io import progress
 from servo.io.atomic import atomic_write, write_json
+from servo.io.page import NAME as PAGE
 from servo.io.provenance import or_default
 from servo.io.resources import check_disk
 from servo.io.runlog import FORMATS, RunLog
@@ -180,6 +182,7 @@ def run_job(cfg: Config, out_dir: Path, compensation: str | None = None, fast: b
         runs[label] = summarise(cfg, figures, results[label])
     progress.stage("plots")
     from servo.run import plots  # matplotlib: after the runs, not before the first tick
+    from servo.run.page import page
 
     plots.plot_run(cfg, plot_logs, results, out_dir)
     if realtime is not None:
@@ -197,9 +200,10 @@ def run_job(cfg: Config, out_dir: Path, compensation: str | None = None, fast: b
         "kernels_compiled": _cache.compiled_here(),
         "runs": runs,
         "provenance": or_default(provenance, cfg),
-        "files": sorted({p.name for p in out_dir.iterdir() if not p.name.startswith(".")} | {"summary.json"}),
+        "files": sorted({p.name for p in out_dir.iterdir() if not p.name.startswith(".")} | {"summary.json", PAGE}),
     }
     write_json(out_dir / "summary.json", summary)
+    page(summary, out_dir).write(out_dir)
     return summary
 
 

@@ -79,6 +79,13 @@ class ScenarioKind:
         """Named time segments ``(name, start s, end s)`` within ``[0, run.duration_s]``."""
         raise NotImplementedError
 
+    @classmethod
+    def drive_defaults(cls, scenario) -> dict:
+        """``[drive]`` values this kind's scenario (a ``ScenarioConfig``) stands for, used
+        where the config leaves the drive at its default (:func:`servo.config.from_dict`);
+        ``{}``: the drive's own defaults."""
+        return {}
+
 
 #: The registered kinds, by name, in the order they were registered.
 KINDS: dict[str, type[ScenarioKind]] = {}

@@ -53,6 +53,14 @@ class HddBenchmark(ScenarioKind):
         return BenchmarkInputs(dist)
 
     @classmethod
+    def drive_defaults(cls, scenario) -> dict:
+        """The benchmark's nominal plant of ``scenario.hdd_version`` (version 1 and 2 differ
+        in the force constant and the flexible modes; their disturbances are the same)."""
+        from servo.hdd.drive import benchmark_drive
+
+        return benchmark_drive(scenario.hdd_version)["drive"]
+
+    @classmethod
     def segments(cls, cfg) -> list[tuple[str, float, float]]:
         """The first 10 ms the benchmark ignores, then track following."""
         end = cfg.run.duration_s

@@ -1,0 +1,31 @@
+"""A diagnosis's output folder: ``report.json``, ``final_model.toml``, the plots and the
+report page, written from one :class:`~servo.diagnose.job.Diagnosis`."""
+from __future__ import annotations
+
+from pathlib import Path
+
+from servo.diagnose.job import Diagnosis
+from servo.diagnose.page import page
+from servo.diagnose.report import build_report, write_drive_toml, write_report
+
+
+def write_outputs(D: Diagnosis, out: Path, provenance: dict | None = None, plots: bool = True) -> dict:
+    """A diagnosis's folder: ``report.json``, ``final_model.toml`` (when the final model
+    is a drive), the plots (``plots``) and the page ``report.html``
+    (:mod:`servo.diagnose.page`) into ``out`` (a staging folder,
+    :func:`servo.io.outdir.staged`); returns the report."""
+    files = ["report.json", "report.html"]
+    if plots:
+        from servo.diagnose.plots import write_plots
+
+        files += write_plots(D, out)
+    report = build_report(D, files + ["final_model.toml"])
+    report["provenance"] = provenance
+    if not write_drive_toml(report, out):
+        report["files"].remove("final_model.toml")
+    write_report(report, out)
+    page(report, out).write(out)
+    return report
+
+
+__all__ = ["write_outputs"]
