@@ -4,7 +4,7 @@ Lifecycle (see :mod:`servo.runtime.driver`):
 
 * ``configure``: open the pyserial URL (low-latency mode where offered), HELLO -> INFO
   (version negotiation, sample rate, capabilities), CONFIG -> READY (latency ``d``,
-  batch ``b``, watchdog, late limit), warm up the codec.  The READY frame carries the
+  batch ``b``, watchdog (:func:`board_watchdog_s`), late limit), warm up the codec.  The READY frame carries the
   board's current sample and applied current, so ``read`` while inactive and the
   controller's bumpless start work as with the simulated drive.
 * ``activate``: START; the board streams samples from tick 0.
@@ -45,6 +45,25 @@ STOP_WAIT_S = 0.1
 HANDSHAKE_S = 2.0
 """Shortest wait for INFO and READY, s (the board builds its drive at CONFIG); longer if
 ``link.timeout_s`` is."""
+LOCKSTEP_STALL_S = 0.5
+"""Host stall a lockstep board's watchdog allows beyond the link's own latency, s: ten
+times the default ``link.watchdog_s``; on a 2-core machine at load 4-5 a host was
+descheduled for more than 50 ms (see :func:`board_watchdog_s`)."""
+
+
+def board_watchdog_s(link, sample_rate_hz: float, lockstep: bool) -> float:
+    """The watchdog (s) the host puts in CONFIG for a board, from ``link`` (``cfg.link``).
+
+    A real-time board gets ``link.watchdog_s`` as configured.  A lockstep board (the
+    emulator, INFO capability bit 1) waits for each COMMANDS frame anyway, so its watchdog
+    guards only against a silent host and covers the link's configured round trip: the
+    ``batch + command_latency_ticks`` ticks of a frame and its commands in flight at
+    ``sample_rate_hz``, plus :data:`LOCKSTEP_STALL_S` for a stalled host; never below
+    ``link.watchdog_s``, never above the protocol's 60 s (``MAX_WATCHDOG_US``)."""
+    if not lockstep:
+        return link.watchdog_s
+    round_trip = (link.batch + link.command_latency_ticks) / sample_rate_hz + LOCKSTEP_STALL_S
+    return min(P.MAX_WATCHDOG_US / 1e6, max(link.watchdog_s, round_trip))
 
 
 class SerialDriver(Driver):
@@ -58,6 +77,7 @@ class SerialDriver(Driver):
         self.d = link.command_latency_ticks
         self.b = link.batch
         self.timeout_s = link.timeout_s
+        self.watchdog_s = link.watchdog_s  # the board's, as sent in CONFIG (board_watchdog_s)
         self._handshake_s = max(link.timeout_s, HANDSHAKE_S)
         self.stats = dict.fromkeys(HOST_COUNTERS, 0)
         self.board_info: P.Info | None = None
@@ -111,7 +131,8 @@ class SerialDriver(Driver):
             raise DriverError(f"link: the board takes batches up to {info.max_batch} and latencies up to "
                               f"{info.max_latency} ticks (link.batch = {self.b}, "
                               f"link.command_latency_ticks = {self.d})")  # fmt: skip
-        cfg_msg = P.ConfigMsg(self.version, self.b, self.d, max(1, int(round(link.watchdog_s * 1e6))),
+        self.watchdog_s = board_watchdog_s(link, rate, bool(info.caps & P.CAP_LOCKSTEP))
+        cfg_msg = P.ConfigMsg(self.version, self.b, self.d, max(1, int(round(self.watchdog_s * 1e6))),
                               link.late_limit_ticks, rate, max(1, int(round(link.ready_timeout_s * 1e3))),
                               self.cfg.run.seed)  # fmt: skip
         self._send(P.config(self._tx_seq, cfg_msg))
@@ -366,6 +387,7 @@ class SerialDriver(Driver):
             "lockstep": None if info is None else bool(info.caps & P.CAP_LOCKSTEP),
             "batch": self.b,
             "command_latency_ticks": self.d,
+            "watchdog_s": self.watchdog_s,
             "low_latency": self.notes,
             "host": dict(self.stats),
             "board_stats": self.board_stats,

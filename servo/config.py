@@ -100,7 +100,7 @@ class LinkConfig:
     timeout_s: float = P(0.2, "s", "serial link: the host stops when no frame has come from the board for this long",
                          0.0, 60.0, lo_open=True)
     watchdog_s: float = P(0.05, "s", "serial link: the board falls to zero current when no command has come for "
-                          "this long", 1e-6, 60.0)
+                          "this long (a lockstep board: at least the link's round trip + 0.5 s)", 1e-6, 60.0)
     ready_timeout_s: float = P(2.0, "s", "serial link: the board falls to zero current when the host has not "
                                "started the run (nor said anything) this long after READY", 1e-3, 60.0)
     late_limit_ticks: int = P(0, "ticks", "serial link, real-time board: consecutive ticks it may hold the previous "

@@ -24,7 +24,7 @@ from hil.board import ACTIVE, FAULTED, HELLO, Board
 from hil import protocol as P
 from hil.emulator import start_in_thread
 from hil.process import end, read_line
-from hil.serialdriver import SerialDriver
+from hil.serialdriver import LOCKSTEP_STALL_S, SerialDriver, board_watchdog_s
 from kernels.compose import LOG_COLUMNS
 from servo.config import Config, to_toml
 from servo.errors import DriverError
@@ -448,3 +448,84 @@ def test_a_slow_first_kernel_compile_happens_before_the_board_is_put_in_ready(tm
     assert code == 0, cap.err
     assert board.last_fault is None and board.sessions_ended == 2  # compensated and uncompensated, no fault
     assert (tmp_path / "o" / "log_compensated.npz").exists()
+
+
+# ------------------------------------------------------------ the lockstep watchdog
+
+#: the host's link as configured: the default 50 ms watchdog, a host timeout no emulator
+#: stall on a loaded machine reaches (the host's stall is what is under test)
+STALL_CFG = CFG.replace(link={"timeout_s": 2.0})
+STALL_S = 0.2
+"""A host stall: four times the configured watchdog, well under the lockstep one."""
+
+
+@pytest.mark.parametrize("rate,d,b,watchdog_s,lockstep,expected", [
+    (50_000, 0, 1, 0.05, True, 1 / 50_000 + LOCKSTEP_STALL_S),  # the defaults: the stall allowance
+    (1_000, 1000, 32, 0.05, True, 1032 / 1_000 + LOCKSTEP_STALL_S),  # the longest configurable round trip
+    (50_000, 8, 8, 5.0, True, 5.0),  # never below the configured watchdog
+    (10, 1000, 32, 0.05, True, 60.0),  # never above the protocol's 60 s
+    (50_000, 1000, 32, 60.0, True, 60.0),
+    (1_000, 1000, 32, 0.05, False, 0.05),  # a real-time board: as configured
+    (50_000, 0, 1, 1e-6, False, 1e-6),
+])  # fmt: skip
+def test_the_lockstep_watchdog_covers_the_links_round_trip_and_a_host_stall(rate, d, b, watchdog_s, lockstep, expected):
+    link = Config().replace(link={"command_latency_ticks": d, "batch": b, "watchdog_s": watchdog_s}).link
+    got = board_watchdog_s(link, rate, lockstep)
+    assert got == pytest.approx(expected, rel=1e-12)
+    assert 1 <= round(got * 1e6) <= P.MAX_WATCHDOG_US  # a board accepts it
+
+
+class StallingDriver(SerialDriver):
+    """A host that stalls for ``STALL_S`` before answering the samples of ``stall_ticks``
+    (descheduled on a loaded machine, a collection, a page fault ...)."""
+
+    def __init__(self, cfg, url, stall_ticks):
+        super().__init__(cfg, url)
+        self.stall_ticks, self.n, self.stalls = set(stall_ticks), 0, []
+
+    def _write(self, u):
+        if self.n in self.stall_ticks:
+            t0 = time.perf_counter()
+            time.sleep(STALL_S)
+            self.stalls.append(time.perf_counter() - t0)
+        self.n += 1
+        super()._write(u)
+
+
+def test_a_host_stall_longer_than_the_watchdog_does_not_stop_a_lockstep_run(lockstep_emulator, tmp_path):
+    """Issue 29: at load 4.5 a lockstep run through ``servo emulate`` stopped on its 50 ms
+    watchdog.  A lockstep board's watchdog now covers the link's round trip plus a host
+    stall; a run with two stalls of 4x ``link.watchdog_s`` completes, bit for bit."""
+    url, _ = lockstep_emulator
+    cfg = STALL_CFG
+    sim = run_log(cfg, SimDriver(cfg, scenario_inputs(cfg)), tmp_path, "sim")
+    drv = StallingDriver(cfg, url, stall_ticks=(3_000, 7_000))
+    hil = run_log(cfg, drv, tmp_path, "hil")
+    assert len(drv.stalls) == 2 and min(drv.stalls) > 2 * cfg.link.watchdog_s
+    assert np.array_equal(hil, sim)  # every column, every bit
+    st = drv.report()
+    assert st["watchdog_s"] == board_watchdog_s(cfg.link, cfg.run.sample_rate_hz, True) > STALL_S
+    assert st["board_stats"]["watchdog_trips"] == 0 and st["board_stats"]["faults"] == 0
+
+
+def test_a_silent_host_still_brings_a_lockstep_board_to_zero_current_within_its_watchdog():
+    """The longer lockstep watchdog still ends a session whose host fell silent: the board
+    faults no sooner than the watchdog the host configured and soon after it (the
+    emulator looks every 5 ms; the margin is for a loaded machine)."""
+    cfg = STALL_CFG
+    bound = board_watchdog_s(cfg.link, cfg.run.sample_rate_hz, True)
+    board = Board(cfg)
+    with start_in_thread(board) as url:
+        with SerialDriver(cfg, url) as drv:
+            drv.configure()
+            drv.activate()
+            for _ in range(10):
+                drv.read()
+                drv.write(0.0)
+            t0 = time.perf_counter()  # the last command: the host says nothing more
+            assert drv.watchdog_s == bound and board.state == ACTIVE
+            assert wait_until(lambda: board.state != ACTIVE, timeout=bound + 5.0)
+            elapsed = time.perf_counter() - t0
+            assert board.state == FAULTED and board.applied_current == 0.0
+            assert board.stats["watchdog_trips"] == 1
+            assert bound <= elapsed <= bound + 1.0
