@@ -30,24 +30,14 @@ from pathlib import Path
 
 from scipy import stats
 
+from servo import physics
 from servo.config import Config, ConfigError, from_dict, load_config, to_dict
 from servo.diagnose.select import ALPHA
 from servo.errors import ServoError, first_line
 
-#: Terms of a model no static compensator term can cancel, and what to do instead.
-NOT_CANCELLABLE = {
-    "time_delay": "an input delay cannot be cancelled by a static term: use a predictor (a Smith predictor on "
-                  "the delay) or keep the crossover well below 1/(2*pi*delay)",
-    "resonance": "a flexible mode cannot be cancelled by a static term: notch it in the controller "
-                 "([controller.track] notch_hz) or keep the crossover below it",
-    "input_saturation": "a saturation is a limit, not a force: set [controller] current_limit at or below it so "
-                        "the loop knows the room it has",
-    "sensor_lag": "a low-pass on the position sensor is a lag in the loop, not a force: raise the sensor's "
-                  "bandwidth (its filter's cutoff well above the crossover), or estimate the position ahead of the "
-                  "filter with an observer that inverts it",
-    "quantization": "the sensor's resolution is not a force: nothing to cancel (a finer encoder, or a velocity "
-                    "cutoff that averages over several steps)",
-}  # fmt: skip
+#: Terms of a model no static compensator term can cancel, and what to do instead (each
+#: effect's module in servo.physics says why)
+NOT_CANCELLABLE = physics.not_cancellable()
 
 
 class CompensateError(ServoError):

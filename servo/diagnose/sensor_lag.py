@@ -53,7 +53,7 @@ section 3).
 same filter on the noiseless measured position, before noise and quantisation), so the
 term maps to and from a drive config and the concealed-effect study can hide it.  It is
 not cancellable by a static compensator term: see
-:data:`servo.compensate.model.NOT_CANCELLABLE`.
+:mod:`servo.physics.sensor_lag`, which owns its drive field.
 """
 from __future__ import annotations
 
@@ -64,7 +64,8 @@ from scipy import signal
 
 from servo.diagnose.band import band_hz
 from servo.diagnose.signals import Signals
-from servo.diagnose.terms import Effect, Physics, register
+from servo.physics import register_term
+from servo.physics.base import Concealment, Term
 
 
 def lag_coefficient(tau: float, dt: float) -> float:
@@ -192,7 +193,7 @@ class LagCorrected:
         self.train_rows, self.train_valid, self.train_samples = d.train_rows, d.train_valid, d.train_samples
 
 
-class SensorLag(Physics):
+class SensorLag(Term):
     name, kind, thetas = "sensor_lag", "input", ("time_constant_s",)
     units = {"time_constant_s": "s", "cutoff_hz": "Hz"}
     doc = ("a first-order low-pass of time constant tau on the position sensor, y[k] = y[k-1] + a*(x[k] - y[k-1]), "
@@ -210,7 +211,7 @@ class SensorLag(Physics):
     absent = {"sensor_cutoff_hz": 0.0}
     #: sizes: the time constant, from 1.2 samples at 50 kHz (the shortest lag tried at
     #: decimation by 10, :attr:`DELAY_LIKE`) to 4.8
-    effect = Effect("sensor_lag", "s", "sensor time constant (first-order low-pass, cutoff 1/(2*pi*tau))",
+    effect = Concealment("sensor_lag", "s", "sensor time constant (first-order low-pass, cutoff 1/(2*pi*tau))",
                     (24e-6, 32e-6, 48e-6, 64e-6, 96e-6), 64e-6)  # fmt: skip
 
     def to_drive(self, P, fit):
@@ -265,6 +266,6 @@ class SensorLag(Physics):
         return {}
 
 
-register(SensorLag)
+register_term(SensorLag)
 
 __all__ = ["LagCorrected", "LaggedForce", "LaggedSignals", "SensorLag", "corrects", "lag_coefficient", "lowpass", "unlag"]

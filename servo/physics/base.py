@@ -1,0 +1,267 @@
+"""What every physical effect module provides, and the small objects it is built from.
+
+A module of :mod:`servo.physics` describes one physical effect of the drive and owns
+everything about it (:class:`Effect`):
+
+* its config fields: ``drive`` (the simulated drive's ``[drive]`` section) and
+  ``compensator`` (the ``[compensator]`` section), each a :func:`servo.fields.P` field
+  with its unit and range;
+* its part of the plant record: ``plant(d, dt)`` the fields of
+  :data:`kernels.plant.PLANT_PARAMS` it sets from a drive section ``d``;
+* its compensator term: ``stage(c)`` the fields of :data:`kernels.stage.STAGE_PARAMS`
+  it sets from a compensator section ``c``, or ``not_cancellable`` the reason no static
+  compensator term can cancel it;
+* its diagnosis term (:class:`Term`): regressor columns linear in their coefficients
+  ``coefs`` for fixed nonlinear parameters ``thetas``, the grid of those, the reported
+  parameters, its ``[drive]`` fields in a fitted model and how a study conceals it
+  (:class:`Concealment`);
+* its documentation entry (``doc``).
+
+The registry (:mod:`servo.physics`) derives the config sections, the record mappings,
+the vocabulary of the diagnosis and the docs tables from the modules.
+
+Forces are in the recording's (or the drive's) force unit ``F`` (A of VCM current, or N),
+positions in m, times in s.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import Callable
+
+import numpy as np
+
+
+@dataclass(frozen=True)
+class Concealment:
+    """How the concealed-effect study (:mod:`servo.diagnose.concealed`) hides a term in the
+    null drive: the ``physics`` a diagnosis should name, the size's ``unit`` and meaning
+    (``what``), the sizes of the detection study, a clearly detectable size for the tests,
+    the baseline to diagnose with and drive fields ``fixed`` at every size."""
+
+    physics: str
+    unit: str
+    what: str
+    sizes: tuple
+    clear: float
+    baseline: str = "J,B,Fc,K,h0"
+    fixed: dict = field(default_factory=dict)
+    #: the term it conceals (bound when the term is made, :class:`Term`)
+    term: "Term | None" = field(default=None, init=False, repr=False, compare=False)
+
+    def drive(self, size: float) -> dict:
+        """The ``[drive]`` fields of the effect at ``size``."""
+        return {**self.fixed, **self.term.conceal(size)}
+
+
+@dataclass(frozen=True)
+class Effect:
+    """One physical effect, as its module declares it (see module doc).
+
+    ``name`` the effect's name (its diagnosis term's vocabulary name when it has one);
+    ``doc`` one line for the docs table; ``drive``/``compensator`` its config fields,
+    name -> :func:`servo.fields.P` field, in the order the sections list them;
+    ``plant(d, dt) -> dict`` its :data:`~kernels.plant.PLANT_PARAMS` fields;
+    ``stage(c) -> dict`` its :data:`~kernels.stage.STAGE_PARAMS` fields (an array field
+    as a sequence filling its first entries); ``engaged(c) -> bool`` whether its
+    compensator term is on (the stage's ``extras`` switch; None: not one of those);
+    ``term`` its diagnosis term (None: the diagnosis does not name it, or names it
+    from a module of its own, :func:`servo.physics.register_term`);
+    ``not_cancellable`` why no static compensator term cancels it ("" if one does)."""
+
+    name: str
+    doc: str
+    drive: dict = field(default_factory=dict)
+    compensator: dict = field(default_factory=dict)
+    plant: Callable | None = None
+    stage: Callable | None = None
+    engaged: Callable | None = None
+    term: "Term | None" = None
+    not_cancellable: str = ""
+
+
+class Term:
+    """A diagnosis term; the base is a linear term with one column and no nonlinear
+    parameter.
+
+    Each term contributes to the force balance ``u_eff = sum coef * column`` (see
+    :mod:`servo.diagnose.model`) in one of three ways (``kind``):
+
+    * ``column`` terms add regressor columns, linear in their coefficients ``coefs`` for
+      fixed nonlinear parameters ``thetas`` (a Stribeck velocity, a Dahl length, a mode's
+      frequency and damping, a cogging period).  The columns are built at full rate from
+      the filtered motion and passed through the rows' parallel filter.
+    * ``input`` terms transform the recorded input before it reaches the arm (a
+      saturation level, a delay); they change the target, not the columns.
+    * ``sensor`` terms (quantisation) change neither: see
+      :mod:`servo.diagnose.quantization`.
+
+    ``rows(design, theta, u_eff)`` the exact rows (m, k); ``grid(design, model)`` the
+    nonlinear parameters a diagnosis tries (``[{}]`` for a linear term);
+    ``screen(design, theta, model)`` a fast approximation of the rows used to scan large
+    grids; ``bounds`` for the final refinement; ``physical``/``from_physical`` between
+    the internal ``(theta, coef)`` and the reported parameters.  ``to_drive`` /
+    ``absent`` / ``from_drive``: its fields in the simulated drive's ``[drive]``
+    section; ``std_extra`` the uncertainty of its derived parameters; ``effect`` /
+    ``conceal`` how the concealed-effect study puts it into a drive."""
+
+    name = ""
+    kind = "column"
+    coefs: tuple = ()
+    thetas: tuple = ()
+    units: dict = {}
+    doc = ""
+    requires: tuple = ()
+    uses_input = False
+    screening = False  # large grids scanned with fast approximate rows
+
+    def __init__(self):
+        if self.effect is not None:  # the study's concealment puts this very term into a drive
+            object.__setattr__(self.effect, "term", self)
+
+    def full(self, d, theta: dict, u_eff: np.ndarray) -> np.ndarray:
+        """Full-rate columns (n, k)."""
+        raise NotImplementedError
+
+    def rows(self, d, theta: dict, u_eff: np.ndarray) -> np.ndarray:
+        F = np.atleast_2d(self.full(d, theta, u_eff).T).T
+        return np.column_stack([d.sig.rows(np.ascontiguousarray(F[:, j])) for j in range(F.shape[1])])
+
+    def screen(self, d, theta: dict, model) -> np.ndarray:
+        return d.variant_rows(self.name, theta, model)
+
+    def screen_batch(self, d, thetas: list, model) -> np.ndarray:
+        """Approximate rows of several variants at once, (J, k, m)."""
+        return np.stack([np.atleast_2d(self.screen(d, th, model).T) for th in thetas], axis=0)
+
+    def screen_sums(self, d, thetas: list, model, r: np.ndarray, blocks):
+        """Screening sums ``(a, H)`` of all ``thetas`` at once, (K, J, k) and (K, J, k, k)
+        as :func:`servo.diagnose.select.screen_stats` of :meth:`screen_batch`, computed
+        without the columns (a compiled kernel); None: not available, the caller builds
+        the columns in chunks."""
+        return None
+
+    def grid(self, d, model) -> list:
+        return [{}]
+
+    def screen_target(self, d, model, theta: dict) -> np.ndarray | None:
+        """An input term's target rows (m,) tried on top of ``model`` (which lacks the
+        term), computed faster than the exact chain; None: use the exact chain."""
+        return None
+
+    def bounds(self, d, model) -> dict:
+        """Refinement bounds per theta: name -> (lo, hi, log_scale)."""
+        return {}
+
+    def eligible(self, model) -> str | None:
+        """None when the term may be tried on top of ``model``, else why not."""
+        if model.has_free(self.name) or (model.has(self.name) and self.thetas):
+            return "already in the model"
+        for r in self.requires:
+            if not model.has(r):
+                return f"needs {r} in the model first"
+        return None
+
+    def physical(self, theta: dict, coef) -> dict:
+        """Reported parameters (name -> value)."""
+        return {**dict(zip(self.coefs, map(float, coef))), **{k: float(v) for k, v in theta.items()}}
+
+    def from_physical(self, p: dict) -> tuple[dict, tuple]:
+        return {k: p[k] for k in self.thetas}, tuple(p[k] for k in self.coefs)
+
+    def note(self, params: dict) -> str:
+        """A remark when a fitted parameter has a sign the physics does not expect."""
+        for k, v in params.items():
+            if k in self.POSITIVE and v < 0:
+                return f"{k} < 0: {self.POSITIVE[k]}"
+        return ""
+
+    POSITIVE: dict = {}
+
+    def implausible(self, params: dict) -> str:
+        """Why fitted parameters (:meth:`physical`) do not describe this physics ("" if
+        they do): then the term is not named, whatever the test said."""
+        return ""
+
+    def unit(self, name: str, force_unit: str) -> str:
+        return self.units.get(name, "-").replace("F", force_unit)
+
+    def std_extra(self, params: dict, std: dict) -> dict:
+        """Std of the derived reported parameters (``std`` holds the fitted ones')."""
+        return {}
+
+    # ---- the simulated drive (servo.config.DriveConfig) ----------------------------
+    #: its ``[drive]`` fields when a model lacks the term
+    absent: dict = {}
+
+    def to_drive(self, P: dict, fit) -> dict:
+        """Its ``[drive]`` fields (force unit, m, s) in a fitted model: ``P`` is
+        ``fit.combined()`` (every term's reported parameters), ``fit`` the
+        :class:`~servo.diagnose.fit.Fit`."""
+        return {}
+
+    def from_drive(self, d) -> list:
+        """The term as a simulated drive ``d`` (``DriveConfig``) has it: ``(theta, coef)``
+        pairs (fixed coefficients), ``[]`` when the drive lacks it."""
+        return []
+
+    # ---- the concealed-effect study ------------------------------------------------
+    effect: Concealment | None = None
+
+    def conceal(self, size: float) -> dict:
+        """The ``[drive]`` fields that put this term into the null drive at ``size``."""
+        raise NotImplementedError
+
+
+def geom(lo: float, hi: float, per_decade: float) -> np.ndarray:
+    """A geometric grid from ``lo`` to ``hi`` with about ``per_decade`` points a decade."""
+    if not (hi > lo > 0):
+        return np.zeros(0)
+    k = max(2, int(math.ceil(math.log10(hi / lo) * per_decade)) + 1)
+    return np.geomspace(lo, hi, k)
+
+
+def contiguous(z) -> np.ndarray:
+    """``z`` as a contiguous float64 array (what the kernels take)."""
+    return np.ascontiguousarray(z, dtype=float)
+
+
+def fold_ranges(blocks) -> tuple[np.ndarray, np.ndarray]:
+    """Each fold's first and past-the-end row (K,), int64."""
+    starts = np.array([sl.start for sl in blocks.slices], dtype=np.int64)
+    stops = np.array([sl.stop for sl in blocks.slices], dtype=np.int64)
+    return starts, stops
+
+
+def valid_speed(d) -> np.ndarray:
+    """The speeds (m/s) of the design's valid training rows."""
+    s = d.sig
+    m = d.train_valid if getattr(d, "train_valid", None) is not None else s.valid
+    return np.abs(s.v_rows[m])
+
+
+class OneField(Term):
+    """A term that is one coefficient and one ``[drive]`` field of the same name
+    (``coefs[0]``): its drive mapping and its concealed effect are that field."""
+
+    def __init_subclass__(cls, **kw):
+        super().__init_subclass__(**kw)
+        cls.absent = {cls.coefs[0]: 0.0}
+
+    def to_drive(self, P, fit):
+        return {self.coefs[0]: P[self.name][self.coefs[0]]}
+
+    def from_drive(self, d):
+        return [({}, (getattr(d, self.coefs[0]),))]
+
+    def conceal(self, size):
+        return {self.coefs[0]: size}
+
+
+def one_field(name: str):
+    """A plant or stage mapping that copies the section field ``name`` into the record
+    field of the same name."""
+    return lambda section, *_: {name: getattr(section, name)}
+
+
+__all__ = ["Concealment", "Effect", "OneField", "Term", "contiguous", "fold_ranges", "geom", "one_field", "valid_speed"]

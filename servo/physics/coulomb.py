@@ -1,0 +1,42 @@
+"""Coulomb friction beyond the Dahl element: ``Fc*sgn(x')``, a sliding level.
+
+The effect's config fields, plant and compensator mappings, diagnosis term and
+documentation entry (:class:`~servo.physics.base.Effect`).
+"""
+from __future__ import annotations
+
+from servo.fields import P
+from servo.physics.base import Concealment, Effect, Term, one_field
+
+
+class Coulomb(Term):
+    name, coefs, units = "coulomb_friction", ("Fc",), {"Fc": "F"}
+    absent = {"Fc": 0.0, "Fs": 0.0}
+    effect = Concealment("coulomb_friction", "A", "Fc = Fs (Coulomb level)", (1e-6, 2e-6, 5e-6, 1e-5, 2e-5), 2e-4,
+                    baseline="J,B,K,h0", fixed={"Fc": 0.0, "Fs": 0.0})  # fmt: skip
+
+    def to_drive(self, P, fit):
+        Fc = P[self.name]["Fc"]
+        return {"Fc": Fc, "Fs": Fc}  # exact sticking; a Stribeck term raises Fs
+
+    def from_drive(self, d):
+        return [({}, (d.Fc if d.Fs > 0 else 0.0,))]
+
+    def conceal(self, size):
+        return {"Fc": size, "Fs": size}
+    doc = "Coulomb friction Fc*sgn(x')"
+    POSITIVE = {"Fc": "a force pushing along the motion: not friction"}
+
+    def full(self, d, theta, u_eff):
+        return d.sig.sign_v  # the sign the rows see: its switch placed between samples
+
+
+EFFECT = Effect(
+    "coulomb_friction", "Coulomb friction Fc*sgn(x') beyond the Dahl element",
+    drive=dict(Fc=P(0.0, "A", "extra Coulomb (sliding) friction beyond the Dahl element", 0.0)),
+    compensator=dict(coulomb=P(0.0, "A", "Coulomb friction beyond the Dahl element, large motion (cancels drive.Fc)", 0.0)),
+    plant=one_field("Fc"),
+    stage=lambda c: {"coul_c": c.coulomb},
+    engaged=lambda c: bool(c.coulomb),
+    term=Coulomb(),
+)  # fmt: skip

@@ -1,0 +1,90 @@
+"""Dahl hysteresis (paper eq. 6-7): the pivot's pre-sliding friction with turnaround memory.
+
+The effect's config fields, plant and compensator mappings, diagnosis term and
+documentation entry (:class:`~servo.physics.base.Effect`).
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from kernels.hysteresis import dahl_trace
+from servo.fields import P
+from servo.physics.base import Concealment, Effect, Term, geom
+
+
+class Hysteresis(Term):
+    name, coefs, thetas = "hysteresis", ("Ha",), ("dahl_length",)
+    units = {"Ha": "F", "dahl_length": "m", "sigma": "F/m"}
+    doc = ("Dahl hysteresis (paper eq. 6-7): a hidden force with turnaround memory, slope sigma at a "
+           "reversal, asymptote +-Ha, Dahl length Ha/sigma")  # fmt: skip
+    requires = ("coulomb_friction",)
+
+    #: no Dahl element: a negligible one (1e-12 A over a Dahl length of 1 m)
+    absent = {"Ha": 1e-12, "sigma": 1e-12}
+    effect = Concealment("hysteresis", "A", "Dahl Ha (Dahl length 3 um)", (1e-5, 2e-5, 5e-5, 1e-4, 2e-4), 1e-3)
+
+    def to_drive(self, P, fit):
+        p = P[self.name]
+        if not p["Ha"] > 0:
+            return dict(self.absent)
+        return {"Ha": p["Ha"], "sigma": p["sigma"], "alpha": fit.model.get(self.name).params.get("alpha", 1.0)}
+
+    def from_drive(self, d):
+        if d.Ha > 1e-6 * max(abs(d.h0), d.Fc, 1e-30):  # a written model without hysteresis has Ha = 1e-12
+            return [({"dahl_length": d.Ha / d.sigma, "alpha": d.alpha}, (d.Ha,))]
+        return []
+
+    def conceal(self, size):
+        return {"Ha": size, "sigma": size / 3e-6}
+
+    def std_extra(self, params, std):
+        if "Ha" in std and "dahl_length" in std:
+            rel = np.hypot(std["Ha"] / params["Ha"] if params["Ha"] else 0, std["dahl_length"] / params["dahl_length"])
+            return {"sigma": float(params["sigma"] * rel)}
+        return {}
+    def implausible(self, params: dict) -> str:
+        if params["Ha"] < 0:
+            return f"the best fit has Ha = {params['Ha']:.3g} < 0: a force released after a reversal, not a Dahl friction"
+        return ""
+
+    def full(self, d, theta, u_eff):
+        s = d.sig
+        out = np.empty(s.n)
+        lam = theta["dahl_length"]
+        dahl_trace(s.xf, s.vf, s.v_threshold, 1.0 / lam, 1.0, float(theta.get("alpha", 1.0)), 0.0, out)
+        return out
+
+    def _range(self, d):
+        s = d.sig
+        span = float(np.ptp(s.xf))
+        return max(10.0 * s.noise_x, 1e-6 * span), 0.1 * span
+
+    def grid(self, d, model):
+        return [{"dahl_length": float(v)} for v in geom(*self._range(d), 3)]
+
+    def bounds(self, d, model):
+        return {"dahl_length": (*self._range(d), True)}
+
+    def physical(self, theta, coef):
+        p = super().physical(theta, coef)
+        p["sigma"] = p["Ha"] / theta["dahl_length"]
+        return p
+
+
+EFFECT = Effect(
+    "hysteresis", "Dahl hysteresis (eq. 6-7): pre-sliding friction with turnaround memory",
+    drive=dict(
+        sigma=P(320.0, "A/m", "Dahl pre-sliding stiffness (slope at a turnaround)", 0.0, None, lo_open=True),
+        Ha=P(1.0e-3, "A", "Dahl asymptote = pivot sliding friction level", 0.0, None, lo_open=True),
+        alpha=P(1.0, "-", "Dahl shape exponent", 0.0, 10.0, lo_open=True),
+    ),
+    compensator=dict(
+        Fc=P(1.0e-3, "A", "Coulomb friction estimate (large motion, eq. 3)", None, None),
+        sigma=P(320.0, "A/m", "Dahl slope estimate (eq. 6)", 0.0, None, lo_open=True),
+        Ha=P(1.0e-3, "A", "Dahl asymptote estimate (eq. 6)", 0.0, None, lo_open=True),
+        alpha=P(1.0, "-", "Dahl exponent estimate (eq. 6)", 0.0, 10.0, lo_open=True),
+    ),
+    plant=lambda d, dt: {"sigma": d.sigma, "Ha": d.Ha, "alpha": d.alpha},
+    stage=lambda c: {"Fc": c.Fc, "sigma": c.sigma, "Ha": c.Ha, "alpha": c.alpha},
+    term=Hysteresis(),
+)  # fmt: skip

@@ -1,0 +1,58 @@
+"""A force constant that varies over the stroke: ``kf(x) = 1 + kf_linear*x + kf_quadratic*x^2``.
+
+The effect's config fields, plant and compensator mappings, diagnosis term and
+documentation entry (:class:`~servo.physics.base.Effect`).
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from servo.fields import P
+from servo.physics.base import Concealment, Effect, Term
+
+
+class PositionGain(Term):
+    name, coefs = "position_dependent_gain", ("kf_linear", "kf_quadratic")
+    units = {"kf_linear": "1/m", "kf_quadratic": "1/m^2"}
+    doc = "force constant varying over the stroke: the arm gets kf(x)*u, kf = 1 + kf_linear*x + kf_quadratic*x^2"
+    uses_input = True
+
+    STROKE = 0.015  # m: the drive's kf fields are the changes at this stroke
+    effect = Concealment("position_dependent_gain", "-", "kf_linear (force-constant change at +15 mm)",
+                    (0.02, 0.05, 0.1, 0.2, 0.5), 0.5)  # fmt: skip
+
+    def to_drive(self, P, fit):
+        g, s = P[self.name], self.STROKE
+        return {"kf_linear": g["kf_linear"] * s, "kf_quadratic": g["kf_quadratic"] * s**2, "stroke": s}
+
+    def from_drive(self, d):
+        if d.kf_linear or d.kf_quadratic:
+            return [({}, (d.kf_linear / d.stroke, d.kf_quadratic / d.stroke**2))]
+        return []
+
+    def conceal(self, size):
+        return {"kf_linear": size}
+    def full(self, d, theta, u_eff):
+        ua = d.sig.force(u_eff)
+        x = d.sig.xf
+        return np.column_stack([-x * ua, -x * x * ua])
+
+
+EFFECT = Effect(
+    "position_dependent_gain", "force constant varying over the stroke",
+    drive=dict(
+        kf_linear=P(0.0, "-", "force-constant change at +stroke, linear in x", -0.9, 0.9),
+        kf_quadratic=P(0.0, "-", "force-constant change at +-stroke, quadratic in x", -0.9, 0.9),
+    ),
+    compensator=dict(
+        kf_linear=P(0.0, "-", "force-constant change at +stroke, linear in x (the command is divided by kf(x))", -0.9, 0.9),
+        kf_quadratic=P(0.0, "-", "force-constant change at +-stroke, quadratic in x", -0.9, 0.9),
+        kf_stroke=P(15e-3, "m", "the stroke the force-constant terms refer to", 0.0, None, lo_open=True),
+        kf_authority=P(0.5, "-", "the force-constant divisor kf(x) is held within 1 +- this", 0.0, 0.95, lo_open=True),
+    ),
+    plant=lambda d, dt: {"kf1": d.kf_linear, "kf2": d.kf_quadratic},
+    stage=lambda c: {"kf1": c.kf_linear, "kf2": c.kf_quadratic, "kf_stroke": c.kf_stroke,
+                     "kf_on": 1.0 if (c.kf_linear or c.kf_quadratic) else 0.0,
+                     "kf_lo": 1.0 - c.kf_authority, "kf_hi": 1.0 + c.kf_authority},
+    term=PositionGain(),
+)  # fmt: skip

@@ -1,0 +1,59 @@
+"""The amplifier's current limit: the input clipped at ``+-level``.
+
+The effect's config fields, plant and compensator mappings, diagnosis term and
+documentation entry (:class:`~servo.physics.base.Effect`).
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from servo.fields import MAGNITUDE_MAX
+from servo.fields import P
+from servo.physics.base import Concealment, Effect, Term
+
+
+class Saturation(Term):
+    name, kind, thetas, units = "input_saturation", "input", ("level",), {"level": "F"}
+    doc = "the input is clipped at +-level before it reaches the arm (amplifier current limit)"
+    QUANTILES = (0.9, 0.95, 0.97, 0.98, 0.99, 0.995, 0.998)
+    MIN_CLIPPED = 10  # samples
+
+    # without a saturation the model has no limit: the config's largest magnitude (its
+    # default, 1 A, would clip a recording in N when the file is held against it)
+    absent = {"current_limit": MAGNITUDE_MAX}
+    effect = Concealment("input_saturation", "-", "fraction of the samples clipped", (0.002, 0.005, 0.01, 0.02, 0.05), 0.05)
+
+    def to_drive(self, P, fit):
+        return {"current_limit": P[self.name]["level"]}
+
+    def from_drive(self, d):
+        return [({"level": d.current_limit}, ())]
+
+    def conceal(self, size):
+        return {}  # the level that clips a fraction `size`: set from a first run (concealed_recording)
+    @staticmethod
+    def transform(u, theta, dt):
+        return np.clip(u, -theta["level"], theta["level"])
+
+    def _levels(self, d):
+        au = np.abs(d.sig.u[d.train_samples])
+        lv = np.unique(np.quantile(au, self.QUANTILES))
+        return [float(L) for L in lv if np.count_nonzero(au > L) >= self.MIN_CLIPPED and L > 0]
+
+    def grid(self, d, model):
+        return [{"level": L} for L in self._levels(d)]
+
+    def bounds(self, d, model):
+        lv = self._levels(d)
+        au = np.abs(d.sig.u[d.train_samples])
+        return {"level": (lv[0] if lv else 0.0, float(np.quantile(au, 0.999)), False)}
+
+
+EFFECT = Effect(
+    "input_saturation", "the amplifier's current limit",
+    drive=dict(current_limit=P(1.0, "A", "amplifier current limit", 0.0, None, lo_open=True)),
+    plant=lambda d, dt: {"u_max": d.current_limit},
+    term=Saturation(),
+    not_cancellable="a saturation is a limit, not a force: set [controller] current_limit at or below it so "
+                    "the loop knows the room it has",
+)  # fmt: skip

@@ -1,0 +1,30 @@
+"""Viscous friction ``B*x'``.
+
+The effect's config fields, plant and compensator mappings, diagnosis term and
+documentation entry (:class:`~servo.physics.base.Effect`).
+"""
+from __future__ import annotations
+
+from servo.fields import P
+from servo.physics.base import Concealment, Effect, OneField, one_field
+
+
+class Viscous(OneField):
+    name, coefs, units = "viscous_friction", ("B",), {"B": "F*s/m"}
+    effect = Concealment("viscous_friction", "A*s/m", "B", (1e-5, 2e-5, 5e-5, 1e-4, 2e-4), 5e-3, baseline="J,Fc,K,h0",
+                    fixed={"B": 0.0})  # fmt: skip
+    doc = "viscous friction B*x'"
+    POSITIVE = {"B": "the force grows against the motion: negative damping, not friction"}
+
+    def full(self, d, theta, u_eff):
+        return d.sig.vf
+
+
+EFFECT = Effect(
+    "viscous_friction", "viscous friction B*x'",
+    drive=dict(B=P(2.0e-3, "A*s/m", "viscous friction", 0.0)),
+    compensator=dict(B=P(2.0e-3, "A*s/m", "viscous friction estimate", None, None)),
+    plant=one_field("B"),
+    stage=one_field("B"),
+    term=Viscous(),
+)  # fmt: skip
