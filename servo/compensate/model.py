@@ -31,6 +31,7 @@ from pathlib import Path
 from scipy import stats
 
 from servo import physics
+from servo.physics import VOCABULARY
 from servo.config import Config, ConfigError, from_dict, load_config, to_dict
 from servo.diagnose.select import ALPHA
 from servo.errors import ServoError, first_line
@@ -205,13 +206,7 @@ def _from_config(p: Path) -> SourceModel:
         raise CompensateError(str(exc)) from None
     d = cfg.drive
     drive = to_dict(cfg)["drive"]
-    physics = ["inertia", "viscous_friction", "stiffness", "offset", "hysteresis"]
-    physics += [name for name, on in (
-        ("coulomb_friction", d.Fc > 0), ("stribeck_friction", d.Fs > d.Fc), ("asymmetric_friction", d.b_asymmetry != 0),
-        ("cogging", d.cogging > 0), ("position_dependent_gain", d.kf_linear != 0 or d.kf_quadratic != 0),
-        ("resonance", len(d.mode_hz) > 0), ("time_delay", d.input_delay_s > 0), ("quantization", d.position_quantum > 0),
-        ("sensor_lag", d.sensor_cutoff_hz > 0),
-    ) if on]  # fmt: skip
+    physics = [name for name, term in VOCABULARY.items() if term.in_drive(d)]
     return SourceModel(str(p), "config", drive, physics, "A", None, d.stroke)
 
 

@@ -38,13 +38,9 @@ NULL_DRIVE = dict(
 DEFAULT_BASELINE = "J,B,Fc,K,h0"
 
 
-#: the effects of the study, in the order its tables list them: each term's own
-#: :attr:`~servo.diagnose.terms.Physics.effect` (its sizes, its baseline, its drive fields)
-EFFECTS = {name: VOCABULARY[name].effect for name in (
-    "coulomb_friction", "viscous_friction", "stiffness", "offset", "asymmetric_friction", "stribeck_friction",
-    "hysteresis", "resonance", "time_delay", "input_saturation", "position_dependent_gain", "cogging", "quantization",
-    "sensor_lag",
-)}  # fmt: skip
+#: the effects of the study, in the vocabulary's order: each term's own
+#: :attr:`~servo.physics.base.Term.effect` (its sizes, its baseline, its drive fields)
+EFFECTS = {name: t.effect for name, t in VOCABULARY.items() if t.effect is not None}
 
 
 @dataclass(frozen=True)

@@ -126,19 +126,15 @@ def unlag(z: np.ndarray, a: float) -> np.ndarray:
     return out
 
 
-#: column terms linear in the motion: their columns of the measured motion already obey
-#: the lagged force balance exactly (``L`` commutes with them), and the true motion would
-#: only add the inverse filter's noise
-LINEAR_IN_MOTION = frozenset({"inertia", "viscous_friction", "stiffness", "offset"})
-
-
 def corrects(phys) -> bool:
     """Whether a model holding a sensor lag builds ``phys``'s columns on the lag-corrected
     motion (:class:`LagCorrected`): a column term that is a nonlinear function of the
     motion alone (Coulomb, asymmetric friction, Stribeck, hysteresis, cogging).  Terms of
     the input (a resonance: linear in it, exact already; a position-dependent gain, the
     product of the motion and the input: not corrected) and the linear terms are not."""
-    return phys.kind == "column" and not phys.uses_input and phys.name not in LINEAR_IN_MOTION
+    # a column linear in the motion (``linear_in_motion``) already obeys the lagged force
+    # balance exactly (``L`` commutes with it); the true motion would only add noise
+    return phys.kind == "column" and not phys.uses_input and not phys.linear_in_motion
 
 
 class LaggedSignals(Signals):
@@ -207,6 +203,7 @@ class SensorLag(Term):
     DELAY_LIKE = 0.3
     #: the longest, in row spacings
     HI_ROWS = 2.0
+    path_order = 2  # the sensor's lag acts last (it commutes with the linear dynamics)
 
     absent = {"sensor_cutoff_hz": 0.0}
     #: sizes: the time constant, from 1.2 samples at 50 kHz (the shortest lag tried at
@@ -232,6 +229,9 @@ class SensorLag(Term):
     def screen_target(self, d, model, theta):
         lagged = d.per_input(self.name, model, lambda: LaggedForce(d.sig, d.u_eff(model)))
         return lagged.rows(theta["time_constant_s"])
+
+    def column_design(self, d, model, phys):
+        return self.corrected(d, model) if corrects(phys) else None
 
     def corrected(self, d, model):
         """The :class:`LagCorrected` design of ``model``'s lag (which ``model`` holds),

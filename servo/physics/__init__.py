@@ -34,6 +34,9 @@ MODULES = (
 #: effect name -> its :class:`~servo.physics.base.Effect`
 EFFECTS: dict[str, Effect] = {}
 
+#: effect name -> the file that declares it
+FILES: dict[str, str] = {}
+
 #: vocabulary name -> the diagnosis term (every effect with one; terms that live with
 #: the diagnosis's signal path register themselves, :func:`register_term`)
 VOCABULARY: dict[str, Term] = {}
@@ -137,18 +140,20 @@ def not_cancellable() -> dict[str, str]:
 def markdown_table() -> str:
     """The effects as a Markdown table: name, what it is, its config fields, whether the
     compensator cancels it (``docs/model.md``)."""
-    out = ["| effect | what | `[drive]` fields | `[compensator]` fields |", "|---|---|---|---|"]
+    out = ["| effect | file | what | `[drive]` fields | `[compensator]` fields |", "|---|---|---|---|---|"]
     for e in EFFECTS.values():
         drive = ", ".join(f"`{k}`" for k in e.drive) or "-"
         comp = ", ".join(f"`{k}`" for k in e.compensator) or ("not cancellable" if e.not_cancellable else "-")
-        out.append(f"| `{e.name}` | {e.doc} | {drive} | {comp} |")
+        out.append(f"| `{e.name}` | `{FILES[e.name]}` | {e.doc} | {drive} | {comp} |")
     return "\n".join(out)
 
 
 for _name in MODULES:
-    register(import_module(f"servo.physics.{_name}").EFFECT)
-del _name
+    _effect = import_module(f"servo.physics.{_name}").EFFECT
+    register(_effect)
+    FILES[_effect.name] = f"servo/physics/{_name}.py"
+del _name, _effect
 
-__all__ = ["BASELINE_TERMS", "EFFECTS", "MODULES", "NAMES", "VOCABULARY", "Concealment", "Effect", "Term",
+__all__ = ["BASELINE_TERMS", "EFFECTS", "FILES", "MODULES", "NAMES", "VOCABULARY", "Concealment", "Effect", "Term",
            "compensator_fields", "drive_fields", "fill", "markdown_table", "not_cancellable", "owner", "plant_values",
            "register", "register_term", "stage_values"]  # fmt: skip

@@ -29,6 +29,9 @@ class Asymmetric(Term):
 
     def conceal(self, size):
         return {"b_asymmetry": size, "fc_asymmetry": size}
+
+    def leave_out(self, d):
+        d["b_asymmetry"] = 0.0
     def full(self, d, theta, u_eff):
         return np.abs(d.sig.vf)
 

@@ -114,6 +114,11 @@ class Term:
     requires: tuple = ()
     uses_input = False
     screening = False  # large grids scanned with fast approximate rows
+    #: a column term linear in the motion (its columns of the measured motion obey a
+    #: lagged force balance exactly: a sensor lag leaves them as they are)
+    linear_in_motion = False
+    #: an input term's place on the input's path to the arm (lower first, as in the drive)
+    path_order = 0
 
     def __init__(self):
         if self.effect is not None:  # the study's concealment puts this very term into a drive
@@ -152,6 +157,11 @@ class Term:
     def bounds(self, d, model) -> dict:
         """Refinement bounds per theta: name -> (lo, hi, log_scale)."""
         return {}
+
+    def column_design(self, d, model, phys: "Term"):
+        """The design whose signals the term ``phys``'s columns read when ``model`` holds
+        this term (a sensor lag: the lag-corrected motion); None: the design ``d`` itself."""
+        return None
 
     def eligible(self, model) -> str | None:
         """None when the term may be tried on top of ``model``, else why not."""
@@ -205,6 +215,15 @@ class Term:
         pairs (fixed coefficients), ``[]`` when the drive lacks it."""
         return []
 
+    def in_drive(self, d) -> bool:
+        """Whether the simulated drive ``d`` (``DriveConfig``) holds this term."""
+        return bool(self.from_drive(d))
+
+    #: ``leave_out(d)``: set the ``[drive]`` fields ``d`` (a dict) in place to what the
+    #: drive holds without this term, so that a compensator leaves it out
+    #: (:mod:`servo.compensate.significance`); None: not a compensator term
+    leave_out = None
+
     # ---- the concealed-effect study ------------------------------------------------
     effect: Concealment | None = None
 
@@ -242,7 +261,10 @@ def valid_speed(d) -> np.ndarray:
 
 class OneField(Term):
     """A term that is one coefficient and one ``[drive]`` field of the same name
-    (``coefs[0]``): its drive mapping and its concealed effect are that field."""
+    (``coefs[0]``), linear in the motion: its drive mapping and its concealed effect are
+    that field."""
+
+    linear_in_motion = True
 
     def __init_subclass__(cls, **kw):
         super().__init_subclass__(**kw)
@@ -256,6 +278,9 @@ class OneField(Term):
 
     def conceal(self, size):
         return {self.coefs[0]: size}
+
+    def leave_out(self, d):
+        d[self.coefs[0]] = 0.0
 
 
 def one_field(name: str):

@@ -37,6 +37,9 @@ class Cogging(Term):
     def conceal(self, size):
         return {"cogging": size, "cogging_period": 50e-6}
 
+    def leave_out(self, d):
+        d["cogging"] = 0.0
+
     def std_extra(self, params, std):
         if "a_sin" in std and "a_cos" in std:
             return {"amplitude": float(np.hypot(std["a_sin"], std["a_cos"]) / np.sqrt(2))}

@@ -24,6 +24,13 @@ class Coulomb(Term):
 
     def conceal(self, size):
         return {"Fc": size, "Fs": size}
+
+    def in_drive(self, d):
+        return d.Fc > 0  # a breakaway alone is the Stribeck term's
+
+    def leave_out(self, d):
+        d["Fs"] = max(d.get("Fs", 0.0) - d.get("Fc", 0.0), 0.0)  # a Stribeck rise found on its own stays
+        d["Fc"] = 0.0
     doc = "Coulomb friction Fc*sgn(x')"
     POSITIVE = {"Fc": "a force pushing along the motion: not friction"}
 

@@ -37,6 +37,9 @@ class Hysteresis(Term):
     def conceal(self, size):
         return {"Ha": size, "sigma": size / 3e-6}
 
+    def leave_out(self, d):
+        d.update(self.absent)
+
     def std_extra(self, params, std):
         if "Ha" in std and "dahl_length" in std:
             rel = np.hypot(std["Ha"] / params["Ha"] if params["Ha"] else 0, std["dahl_length"] / params["dahl_length"])

@@ -12,6 +12,7 @@ from servo.physics.base import Effect, OneField, one_field
 class Inertia(OneField):
     name, coefs, units = "inertia", ("J",), {"J": "F*s^2/m"}
     doc = "inertia J*x''"
+    leave_out = None  # the plant the controller is designed for, not a compensator term
 
     def full(self, d, theta, u_eff):
         return d.sig.af

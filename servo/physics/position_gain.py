@@ -32,6 +32,9 @@ class PositionGain(Term):
 
     def conceal(self, size):
         return {"kf_linear": size}
+
+    def leave_out(self, d):
+        d.update(kf_linear=0.0, kf_quadratic=0.0)
     def full(self, d, theta, u_eff):
         ua = d.sig.force(u_eff)
         x = d.sig.xf

@@ -16,6 +16,9 @@ class Quantization(Term):
     absent = {"position_quantum": 0.0}  # a found lattice is a finding, not a fitted term
     effect = Concealment("quantization", "m", "position quantum", (5e-9, 1e-8, 2e-8, 5e-8, 1e-7), 5e-8)
 
+    def in_drive(self, d):
+        return d.position_quantum > 0
+
     def conceal(self, size):
         return {"position_quantum": size}
     def eligible(self, model):

@@ -17,6 +17,7 @@ class Saturation(Term):
     doc = "the input is clipped at +-level before it reaches the arm (amplifier current limit)"
     QUANTILES = (0.9, 0.95, 0.97, 0.98, 0.99, 0.995, 0.998)
     MIN_CLIPPED = 10  # samples
+    path_order = 0  # the amplifier clips first, then the delay
 
     # without a saturation the model has no limit: the config's largest magnitude (its
     # default, 1 A, would clip a recording in N when the file is held against it)
@@ -28,6 +29,9 @@ class Saturation(Term):
 
     def from_drive(self, d):
         return [({"level": d.current_limit}, ())]
+
+    def in_drive(self, d):
+        return False  # every drive has its amplifier's limit: a term only where a diagnosis finds one clipping
 
     def conceal(self, size):
         return {}  # the level that clips a fraction `size`: set from a first run (concealed_recording)

@@ -31,6 +31,9 @@ class Stribeck(Term):
 
     def conceal(self, size):
         return {"Fs": self.effect.fixed["Fc"] + size}
+
+    def leave_out(self, d):
+        d["Fs"] = d.get("Fc", 0.0)  # exact sticking, as the drive holds without the term
     def implausible(self, params: dict) -> str:
         if params["dFs"] < 0:
             return (f"the best fit has dFs = {params['dFs']:.3g} < 0: friction lower at low speed than sliding, a "

@@ -16,6 +16,7 @@ from servo.physics.base import Concealment, Effect, Term
 class TimeDelay(Term):
     name, kind, thetas, units = "time_delay", "input", ("delay_s",), {"delay_s": "s"}
     doc = "the input reaches the arm delay_s later than recorded (negative: the log lags the motion)"
+    path_order = 1  # after the amplifier's clipping
 
     absent = {"input_delay_s": 0.0}
     effect = Concealment("time_delay", "s", "input delay", (1e-6, 2e-6, 3e-6, 5e-6, 1e-5), 2e-5)
@@ -28,6 +29,14 @@ class TimeDelay(Term):
 
     def conceal(self, size):
         return {"input_delay_s": size}
+    def screen_target(self, d, model, theta):
+        """A delay tried on top of a model without one: interpolated from the force filtered
+        once (the design's :meth:`~servo.diagnose.model.Design.delayed_force`, equal to the
+        exact chain's rows to rounding); None beyond the shifts it holds."""
+        shift = theta["delay_s"] / d.sig.dt
+        df = d.delayed_force(model)
+        return df.rows(shift) if abs(shift) <= df.max_shift else None
+
     @staticmethod
     def transform(u, theta, dt):
         k = np.arange(u.size, dtype=float)
