@@ -269,8 +269,12 @@ def _section(key: str, cls: type, values: dict, extra=()):
     """An instance of section ``cls`` from its TOML table ``values``, validated."""
     by_name = {f.name: f for f in documented(cls)}
     kwargs = {}
+    renamed = physics.renamed_keys()
     for k, value in values.items():
         if k not in by_name:
+            if f"{key}.{k}" in renamed:
+                raise ConfigError(f"config: {key}.{k} was renamed: write {key}.{renamed[f'{key}.{k}']} "
+                                  "(docs/config.md)")  # fmt: skip
             raise _unknown("key", f"{key}.{k}", [*by_name, *extra])
         kwargs[k] = check_value(f"{key}.{k}", value, by_name[k])
     return cls(**kwargs)
@@ -308,8 +312,8 @@ def _check_consistency(cfg: Config) -> None:
             raise ConfigError(f"config: drive.mode_hz[{i}] = {f!r} is at or above Nyquist ({nyquist:g} Hz)")
     if len(c.periodic_amplitudes) != len(c.periodic_phases) or len(c.periodic_amplitudes) > 4:
         raise ConfigError("config: compensator.periodic_amplitudes and periodic_phases must have the same length, at most 4")
-    if 0 < c.coulomb_static < c.coulomb:
-        raise ConfigError("config: compensator.coulomb_static must be 0 (no Stribeck rise) or >= compensator.coulomb")
+    if 0 < c.coulomb_static < c.coulomb_extra:
+        raise ConfigError("config: compensator.coulomb_static must be 0 (no Stribeck rise) or >= compensator.coulomb_extra")
     if c.fast_off_speed > c.fast_on_speed:
         raise ConfigError("config: compensator.fast_off_speed must be <= compensator.fast_on_speed (switch hysteresis)")
     if len(s.step_times) != len(s.step_positions):

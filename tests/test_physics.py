@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import dataclasses
 import re
+import subprocess
+import sys
 from pathlib import Path
 
 import numpy as np
@@ -13,7 +15,7 @@ import servo.diagnose  # noqa: F401  (registers the terms that live beside the d
 from kernels.plant import PLANT_PARAMS
 from kernels.stage import STAGE_PARAMS
 from servo import physics
-from servo.config import CompensatorConfig, Config, DriveConfig
+from servo.config import CompensatorConfig, Config, DriveConfig, from_dict
 from servo.fields import documented
 from servo.physics.base import Effect, Term
 from servo.runtime.controller import stage_params
@@ -64,7 +66,7 @@ def test_each_effect_sets_the_record_fields_of_its_own_config_fields():
 def test_the_stage_record_engages_its_extras_from_the_effects():
     c = Config()
     assert stage_params(c)["extras"][0] == 0.0
-    for key, value in (("b_asymmetry", 0.1), ("coulomb", 1e-4), ("coulomb_static", 1e-4),
+    for key, value in (("b_asymmetry", 0.1), ("coulomb_extra", 1e-4), ("coulomb_static", 1e-4),
                        ("periodic_amplitudes", [1e-5])):  # fmt: skip
         extra = {"periodic_phases": [0.0]} if key == "periodic_amplitudes" else {}
         assert stage_params(c.replace(compensator={key: value, **extra}))["extras"][0] == 1.0, key
@@ -112,8 +114,22 @@ def test_docs_diagnosis_vocabulary_table_matches_the_terms():
         assert not term.coefs or listed & (set(term.coefs) | set(term.units)), name
 
 
-def test_old_config_keys_still_have_their_section_and_records_agree():
+@pytest.mark.parametrize("old, new", sorted(physics.renamed_keys().items()))
+def test_a_renamed_config_key_is_one_error_line_naming_the_new_key(tmp_path, old, new):
+    section, key = old.split(".")
+    assert key not in {f.name for f in documented(type(getattr(Config(), section)))}
+    path = tmp_path / "old.toml"
+    path.write_text(f"[{section}]\n{key} = 1e-3\n")
+    r = subprocess.run([sys.executable, "-m", "servo", "config", "--config", str(path)], capture_output=True, text=True)
+    assert r.returncode != 0 and r.stdout == ""
+    assert r.stderr.strip().splitlines() == [f"servo: error: config: {old} was renamed: write {section}.{new} (docs/config.md)"]
+    # the new key takes the value the old one held
+    assert getattr(from_dict({section: {new: 1e-3}}), section).__getattribute__(new) == 1e-3
+
+
+def test_the_records_take_the_compensator_fields_of_the_effects():
     cfg = Config()
     rec = np.zeros(1, STAGE_PARAMS)
     physics.fill(rec, physics.stage_values(cfg.compensator))
     assert rec["B"][0] == cfg.compensator.B and rec["Ha"][0] == cfg.compensator.Ha
+    assert rec["Fc"][0] == cfg.compensator.sliding_level and rec["coul_c"][0] == cfg.compensator.coulomb_extra

@@ -10,12 +10,12 @@ drive (``[drive]``)        compensator (``[compensator]``)
 =========================  =============================================================
 ``B``, ``K``, ``h0``       ``B``, ``K``, ``h0`` (eq. 9)
 ``sigma, Ha, alpha``       ``sigma, Ha, alpha`` (the Dahl element, eq. 6-7, with its
-                           turnaround memory), ``Fc = Ha`` (its level in eq. 3's
+                           turnaround memory), ``sliding_level = Ha`` (eq. 3's
                            large-motion regime) and ``fast_on_distance``: 4 Dahl
                            lengths (:data:`SATURATED`) before that regime takes over
 ``b_asymmetry``            ``b_asymmetry``
 ``Fc, Fs, stribeck_velocity, fc_asymmetry``
-                           ``coulomb, coulomb_static, stribeck_velocity,
+                           ``coulomb_extra, coulomb_static, stribeck_velocity,
                            coulomb_asymmetry`` (a Coulomb element beyond the Dahl one)
 ``cogging*``               ``periodic_amplitudes/phases/period`` (one harmonic)
 ``kf_linear, kf_quadratic, stroke``
@@ -23,8 +23,9 @@ drive (``[drive]``)        compensator (``[compensator]``)
 =========================  =============================================================
 
 ``paper=True`` writes what eq. (9) alone can hold of the model: one sliding-friction
-level ``Fc = Ha + Fc_extra`` for both the Dahl asymptote and the large-motion regime, and
-none of the terms beyond it (the paper's compensator identified on this drive).
+level ``sliding_level = Ha + Fc`` (the drive's Coulomb level beyond the Dahl element
+added) for both the Dahl asymptote and the large-motion regime, and none of the terms
+beyond it (the paper's compensator identified on this drive).
 
 **The authority** (docs/compensate.md).  A compensator term is a feedback of the measured
 motion; a wrong one (a sign, an over-fit, a term extrapolated beyond the motion it was
@@ -114,20 +115,20 @@ def mirror(d: dict, paper: bool = False, dahl_length: float = 3.125e-6) -> list[
         level = (Ha if dahl else 0.0) + Fc  # one sliding level, as eq. (9) has
         length = Ha / sigma if dahl else dahl_length
         if level > 0:
-            keys = dict(Fc=level, Ha=level, sigma=level / length, alpha=alpha if dahl else 1.0,
+            keys = dict(sliding_level=level, Ha=level, sigma=level / length, alpha=alpha if dahl else 1.0,
                         fast_on_distance=SATURATED * length)  # fmt: skip
         else:
-            keys = dict(Fc=0.0, Ha=1e-12, sigma=1e-12, alpha=1.0)
+            keys = dict(sliding_level=0.0, Ha=1e-12, sigma=1e-12, alpha=1.0)
         terms.append(Term("sliding friction (eq. 9: Coulomb and its Dahl element)", keys))
         return terms
-    keys = dict(sigma=sigma, Ha=Ha, alpha=alpha, Fc=Ha)
+    keys = dict(sigma=sigma, Ha=Ha, alpha=alpha, sliding_level=Ha)
     if dahl:
         keys["fast_on_distance"] = SATURATED * Ha / sigma
     terms.append(Term("Dahl hysteresis (eq. 6-7)" if dahl else "Dahl hysteresis: none in the model (the term off)", keys))
     if _f(d, "b_asymmetry"):
         terms.append(Term("asymmetric viscous friction", dict(b_asymmetry=_f(d, "b_asymmetry"))))
     if Fc > 0 or Fs > 0:
-        keys = dict(coulomb=Fc, coulomb_static=Fs if Fs > Fc else 0.0, coulomb_asymmetry=_f(d, "fc_asymmetry"))
+        keys = dict(coulomb_extra=Fc, coulomb_static=Fs if Fs > Fc else 0.0, coulomb_asymmetry=_f(d, "fc_asymmetry"))
         if Fs > Fc:
             keys["stribeck_velocity"] = _f(d, "stribeck_velocity", 1e-3)
         name = "Coulomb friction beyond the Dahl element" + (" with its Stribeck rise" if Fs > Fc else "")
@@ -146,8 +147,8 @@ def largest_force(c: dict, speed: float, position: float) -> float:
     """The largest ``|u_c|`` (A) the compensator fields ``c`` make at speeds up to
     ``speed`` (m/s) and positions up to ``|position|`` (m), bounding each term by its
     largest magnitude (a sum: the terms may line up)."""
-    coul = max(abs(c.get("coulomb", 0.0)), abs(c.get("coulomb_static", 0.0))) * (1 + abs(c.get("coulomb_asymmetry", 0.0)))
-    sliding = max(abs(c.get("Fc", 0.0)), abs(c.get("Ha", 0.0)))
+    coul = max(abs(c.get("coulomb_extra", 0.0)), abs(c.get("coulomb_static", 0.0))) * (1 + abs(c.get("coulomb_asymmetry", 0.0)))
+    sliding = max(abs(c.get("sliding_level", 0.0)), abs(c.get("Ha", 0.0)))
     viscous = abs(c.get("B", 0.0)) * (1 + abs(c.get("b_asymmetry", 0.0))) * speed
     bias = abs(c.get("h0", 0.0)) + abs(c.get("K", 0.0)) * position
     return viscous + sliding + coul + bias + sum(abs(a) for a in c.get("periodic_amplitudes", []))

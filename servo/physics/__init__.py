@@ -89,6 +89,11 @@ def compensator_fields() -> list[tuple[str, dataclasses.Field]]:
     return [item for e in EFFECTS.values() for item in e.compensator.items()]
 
 
+def renamed_keys() -> dict[str, str]:
+    """Former config keys, ``"section.old" -> "new"``, of every effect."""
+    return {old: new for e in EFFECTS.values() for old, new in e.renamed.items()}
+
+
 def owner(section: str, key: str) -> Effect | None:
     """The effect that declares the config field ``[section] key`` (None: the section's own)."""
     for e in EFFECTS.values():
@@ -156,4 +161,4 @@ del _name, _effect
 
 __all__ = ["BASELINE_TERMS", "EFFECTS", "FILES", "MODULES", "NAMES", "VOCABULARY", "Concealment", "Effect", "Term",
            "compensator_fields", "drive_fields", "fill", "markdown_table", "not_cancellable", "owner", "plant_values",
-           "register", "register_term", "stage_values"]  # fmt: skip
+           "register", "register_term", "renamed_keys", "stage_values"]  # fmt: skip

@@ -67,7 +67,9 @@ class Effect:
     compensator term is on (the stage's ``extras`` switch; None: not one of those);
     ``term`` its diagnosis term (None: the diagnosis does not name it, or names it
     from a module of its own, :func:`servo.physics.register_term`);
-    ``not_cancellable`` why no static compensator term cancels it ("" if one does)."""
+    ``not_cancellable`` why no static compensator term cancels it ("" if one does);
+    ``renamed`` its config keys' former names, ``"section.old" -> "new"`` (a config that
+    uses an old one is refused with the new name)."""
 
     name: str
     doc: str
@@ -78,6 +80,7 @@ class Effect:
     engaged: Callable | None = None
     term: "Term | None" = None
     not_cancellable: str = ""
+    renamed: dict = field(default_factory=dict)
 
 
 class Term:

@@ -41,9 +41,11 @@ class Coulomb(Term):
 EFFECT = Effect(
     "coulomb_friction", "Coulomb friction Fc*sgn(x') beyond the Dahl element",
     drive=dict(Fc=P(0.0, "A", "extra Coulomb (sliding) friction beyond the Dahl element", 0.0)),
-    compensator=dict(coulomb=P(0.0, "A", "Coulomb friction beyond the Dahl element, large motion (cancels drive.Fc)", 0.0)),
+    compensator=dict(coulomb_extra=P(0.0, "A", "Coulomb friction beyond the Dahl element, large motion (cancels drive.Fc)",
+                                     0.0)),
     plant=one_field("Fc"),
-    stage=lambda c: {"coul_c": c.coulomb},
-    engaged=lambda c: bool(c.coulomb),
+    stage=lambda c: {"coul_c": c.coulomb_extra},
+    engaged=lambda c: bool(c.coulomb_extra),
     term=Coulomb(),
+    renamed={"compensator.coulomb": "coulomb_extra"},
 )  # fmt: skip

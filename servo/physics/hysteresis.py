@@ -82,12 +82,14 @@ EFFECT = Effect(
         alpha=P(1.0, "-", "Dahl shape exponent", 0.0, 10.0, lo_open=True),
     ),
     compensator=dict(
-        Fc=P(1.0e-3, "A", "Coulomb friction estimate (large motion, eq. 3)", None, None),
+        sliding_level=P(1.0e-3, "A", "sliding friction level of eq. 3, the large-motion regime's Fc*sgn(v) (the Dahl "
+                        "asymptote Ha when that is the whole sliding friction)", None, None),
         sigma=P(320.0, "A/m", "Dahl slope estimate (eq. 6)", 0.0, None, lo_open=True),
         Ha=P(1.0e-3, "A", "Dahl asymptote estimate (eq. 6)", 0.0, None, lo_open=True),
         alpha=P(1.0, "-", "Dahl exponent estimate (eq. 6)", 0.0, 10.0, lo_open=True),
     ),
     plant=lambda d, dt: {"sigma": d.sigma, "Ha": d.Ha, "alpha": d.alpha},
-    stage=lambda c: {"Fc": c.Fc, "sigma": c.sigma, "Ha": c.Ha, "alpha": c.alpha},
+    stage=lambda c: {"Fc": c.sliding_level, "sigma": c.sigma, "Ha": c.Ha, "alpha": c.alpha},
     term=Hysteresis(),
+    renamed={"compensator.Fc": "sliding_level"},
 )  # fmt: skip

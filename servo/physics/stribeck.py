@@ -66,7 +66,7 @@ EFFECT = Effect(
         stribeck_velocity=P(1.0e-3, "m/s", "Stribeck velocity of that term", 0.0, None, lo_open=True),
     ),
     plant=lambda d, dt: {"Fs": d.Fs, "vs": d.stribeck_velocity},
-    stage=lambda c: {"coul_s": c.coulomb_static or c.coulomb, "coul_vs": c.stribeck_velocity},
+    stage=lambda c: {"coul_s": c.coulomb_static or c.coulomb_extra, "coul_vs": c.stribeck_velocity},
     engaged=lambda c: bool(c.coulomb_static),
     term=Stribeck(),
 )  # fmt: skip
