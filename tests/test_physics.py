@@ -87,7 +87,17 @@ def test_every_vocabulary_term_has_an_effect_module_and_a_compensator_answer():
         e = physics.EFFECTS[name]
         assert isinstance(term, Term)
         # a term is either cancelled (its compensator fields, or left out by one) or says why not
-        assert e.compensator or e.not_cancellable or term.leave_out, name
+        assert e.compensator or e.not_cancellable or e.leave_out, name
+        # its other concerns are the effect's small objects, not the term's hooks
+        assert e.drive_map is not None and e.drive_map.name == name, name
+        assert not any(hasattr(term, h) for h in ("to_drive", "from_drive", "absent", "conceal", "leave_out")), name
+
+
+def test_the_term_interface_is_the_diagnosis_only():
+    """What a term offers is its columns, parameters and grid (and how it is searched and
+    judged): the drive, compensator and study concerns live on the effect."""
+    hooks = {k for k in vars(Term) if not k.startswith("_")}
+    assert not hooks & {"to_drive", "from_drive", "absent", "in_drive", "leave_out", "effect", "conceal"}
 
 
 def test_input_terms_are_ordered_along_the_input_path():

@@ -31,10 +31,10 @@ from pathlib import Path
 from scipy import stats
 
 from servo import physics
-from servo.physics import VOCABULARY
 from servo.config import Config, ConfigError, from_dict, load_config, to_dict
 from servo.diagnose.select import ALPHA
 from servo.errors import ServoError, first_line
+from servo.physics import EFFECTS, VOCABULARY
 
 #: Terms of a model no static compensator term can cancel, and what to do instead (each
 #: effect's module in servo.physics says why)
@@ -206,7 +206,7 @@ def _from_config(p: Path) -> SourceModel:
         raise CompensateError(str(exc)) from None
     d = cfg.drive
     drive = to_dict(cfg)["drive"]
-    physics = [name for name, term in VOCABULARY.items() if term.in_drive(d)]
+    physics = [name for name in VOCABULARY if EFFECTS[name].drive_map.in_drive(d)]
     return SourceModel(str(p), "config", drive, physics, "A", None, d.stroke)
 
 

@@ -27,12 +27,12 @@ import dataclasses
 from scipy import stats
 
 from servo.compensate.model import SourceModel
-from servo.physics import VOCABULARY
+from servo.physics import EFFECTS, VOCABULARY
 
 
 #: physics -> how a drive's fields read without the term (in place): each compensator
-#: term's own :attr:`~servo.physics.base.Term.leave_out`
-LEAVE_OUT = {name: t.leave_out for name, t in VOCABULARY.items() if t.leave_out is not None}
+#: term's own :attr:`~servo.physics.base.Effect.leave_out`
+LEAVE_OUT = {name: EFFECTS[name].leave_out for name in VOCABULARY if EFFECTS[name].leave_out is not None}
 
 
 def z_level(alpha: float) -> float:

@@ -25,6 +25,7 @@ import numpy as np
 from servo.config import DriveConfig, load_config
 from servo.diagnose.model import GATE, Design, Model, Term
 from servo.diagnose.terms import BASELINE_TERMS, VOCABULARY
+from servo.physics import EFFECTS
 from servo.errors import ConfigError, ServoError, first_line
 from servo.identify.least_squares import check_identifiable
 from servo.identify.regressors import TERMS, IdentificationError, Regression, parse_terms
@@ -69,8 +70,8 @@ def _fixed(physics: str, params: dict) -> Term:
 
 def drive_terms(d: DriveConfig) -> Model:
     """The fixed terms of a simulated drive's physics (``servo.config.DriveConfig``):
-    each vocabulary term as the drive has it (:meth:`~servo.diagnose.terms.Physics.from_drive`)."""
-    return Model([Term.make(phys.name, theta, coef) for phys in VOCABULARY.values() for theta, coef in phys.from_drive(d)])
+    each vocabulary term as the drive has it (:meth:`servo.physics.base.DriveMap.from_drive`)."""
+    return Model([Term.make(name, theta, coef) for name in VOCABULARY for theta, coef in EFFECTS[name].drive_map.from_drive(d)])
 
 
 def without_idle_inputs(model: Model, u: np.ndarray) -> Model:

@@ -24,6 +24,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy import signal
 
+from servo import physics
 from servo.config import Config
 from servo.diagnose.terms import VOCABULARY, Effect
 from servo.runtime.closedloop import simulate
@@ -38,9 +39,9 @@ NULL_DRIVE = dict(
 DEFAULT_BASELINE = "J,B,Fc,K,h0"
 
 
-#: the effects of the study, in the vocabulary's order: each term's own
-#: :attr:`~servo.physics.base.Term.effect` (its sizes, its baseline, its drive fields)
-EFFECTS = {name: t.effect for name, t in VOCABULARY.items() if t.effect is not None}
+#: the effects of the study, in the vocabulary's order: each effect module's
+#: :attr:`~servo.physics.base.Effect.study` (its sizes, its baseline, its drive fields)
+EFFECTS = {name: physics.EFFECTS[name].study for name in VOCABULARY if physics.EFFECTS[name].study is not None}
 
 
 @dataclass(frozen=True)

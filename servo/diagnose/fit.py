@@ -15,6 +15,7 @@ import numpy as np
 from servo.diagnose.model import Design, Model
 from servo.diagnose.select import integrated_time, solve
 from servo.diagnose.terms import VOCABULARY
+from servo.physics import EFFECTS
 
 
 @dataclass
@@ -62,15 +63,16 @@ class Fit:
 
     def drive(self) -> dict:
         """The model as the simulated drive's ``[drive]`` fields (force unit, m, s), each
-        term's own (:meth:`~servo.diagnose.terms.Physics.to_drive`), the ``absent``
+        term's own (:meth:`servo.physics.base.DriveMap.to_drive`), the ``absent``
         values of the terms it lacks; not validated (a fitted ``B`` may be negative)."""
         P = self.combined()
         d: dict = {}
-        for phys in VOCABULARY.values():
-            d.update(phys.absent)
-        for phys in VOCABULARY.values():  # vocabulary order: a Stribeck term after the Coulomb one
-            if phys.name in P:
-                d.update(phys.to_drive(P, self))
+        maps = [EFFECTS[name].drive_map for name in VOCABULARY]  # each term's effect's
+        for m in maps:
+            d.update(m.absent)
+        for m in maps:  # vocabulary order: a Stribeck term after the Coulomb one
+            if m.name in P:
+                d.update(m.to_drive(P, self))
         return d
 
     def contribution(self, design: Design, i: int) -> np.ndarray:

@@ -187,7 +187,7 @@ class Design:
     def per_input(self, name: str, model: Model, build):
         """``build()``'s result for ``model``'s effective input, kept under ``name`` for
         the most recent input only (a full-rate array or an object holding one): what a
-        term's :meth:`~servo.diagnose.terms.Physics.screen_target` derives once from
+        term's :meth:`~servo.physics.base.Term.screen_target` derives once from
         the input and reuses over its grid."""
         key = self.input_key(model)
         held = self._per_input.get(name)

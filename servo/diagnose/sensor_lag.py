@@ -51,7 +51,8 @@ section 3).
 
 **The simulated drive** has the field ``sensor_cutoff_hz`` (:mod:`kernels.plant`: the
 same filter on the noiseless measured position, before noise and quantisation), so the
-term maps to and from a drive config and the concealed-effect study can hide it.  It is
+term maps to and from a drive config and the concealed-effect study can hide it
+(:mod:`servo.physics.sensor_lag`: the effect's module, which holds both).  It is
 not cancellable by a static compensator term: see
 :mod:`servo.physics.sensor_lag`, which owns its drive field.
 """
@@ -65,7 +66,7 @@ from scipy import signal
 from servo.diagnose.band import band_hz
 from servo.diagnose.signals import Signals
 from servo.physics import register_term
-from servo.physics.base import Concealment, Term
+from servo.physics.base import Term
 
 
 def lag_coefficient(tau: float, dt: float) -> float:
@@ -204,22 +205,6 @@ class SensorLag(Term):
     #: the longest, in row spacings
     HI_ROWS = 2.0
     path_order = 2  # the sensor's lag acts last (it commutes with the linear dynamics)
-
-    absent = {"sensor_cutoff_hz": 0.0}
-    #: sizes: the time constant, from 1.2 samples at 50 kHz (the shortest lag tried at
-    #: decimation by 10, :attr:`DELAY_LIKE`) to 4.8
-    effect = Concealment("sensor_lag", "s", "sensor time constant (first-order low-pass, cutoff 1/(2*pi*tau))",
-                    (24e-6, 32e-6, 48e-6, 64e-6, 96e-6), 64e-6)  # fmt: skip
-
-    def to_drive(self, P, fit):
-        return {"sensor_cutoff_hz": P[self.name]["cutoff_hz"]}
-
-    def from_drive(self, d):
-        fc = d.sensor_cutoff_hz
-        return [({"time_constant_s": 1.0 / (2 * math.pi * fc)}, ())] if fc > 0 else []
-
-    def conceal(self, size):
-        return {"sensor_cutoff_hz": 1.0 / (2 * math.pi * size)}
 
     @staticmethod
     def transform(u, theta, dt):

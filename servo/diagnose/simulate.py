@@ -13,7 +13,7 @@ estimated at ``k`` and stepped ``horizon`` samples under the recorded input:
 
 The model's drive is the simulated drive's own kernel (:func:`kernels.plant.plant_step`)
 with the fitted parameters: every vocabulary term maps onto a field of the drive
-(:meth:`~servo.diagnose.terms.Physics.to_drive`; the input terms are applied to the
+(:meth:`~servo.physics.base.DriveMap.to_drive`; the input terms are applied to the
 input beforehand: clipped, then delayed).  The error is
 normalised by what the force model has to explain, the motion that is not coasting::
 

@@ -8,7 +8,7 @@ from __future__ import annotations
 import numpy as np
 
 from servo.fields import P
-from servo.physics.base import Concealment, Effect, Term
+from servo.physics.base import Concealment, DriveMap, Effect, Term
 
 
 class Asymmetric(Term):
@@ -18,7 +18,14 @@ class Asymmetric(Term):
            "and is reported in the offset")  # fmt: skip
     requires = ("viscous_friction", "coulomb_friction", "offset")
 
-    effect = Concealment("asymmetric_friction", "-", "fc_asymmetry = b_asymmetry", (0.01, 0.02, 0.05, 0.1, 0.2), 0.5)
+    def full(self, d, theta, u_eff):
+        return np.abs(d.sig.vf)
+
+
+class AsymmetricDrive(DriveMap):
+    """The asymmetric_friction term in the simulated drive's ``[drive]`` section."""
+
+    name = "asymmetric_friction"
 
     def to_drive(self, P, fit):
         B = P.get("viscous_friction", {}).get("B", 0.0)
@@ -27,13 +34,17 @@ class Asymmetric(Term):
     def from_drive(self, d):
         return [({}, (d.B * d.b_asymmetry,))] if d.b_asymmetry else []
 
-    def conceal(self, size):
-        return {"b_asymmetry": size, "fc_asymmetry": size}
 
-    def leave_out(self, d):
-        d["b_asymmetry"] = 0.0
-    def full(self, d, theta, u_eff):
-        return np.abs(d.sig.vf)
+def _conceal(size):
+    return {"b_asymmetry": size, "fc_asymmetry": size}
+
+
+def _leave_out(d):
+    d["b_asymmetry"] = 0.0
+
+
+_STUDY = Concealment("asymmetric_friction", "-", "fc_asymmetry = b_asymmetry", (0.01, 0.02, 0.05, 0.1, 0.2), 0.5,
+                     fields=_conceal)
 
 
 EFFECT = Effect(
@@ -50,4 +61,7 @@ EFFECT = Effect(
     stage=lambda c: {"b_asym": c.b_asymmetry, "coul_asym": c.coulomb_asymmetry},
     engaged=lambda c: bool(c.b_asymmetry),
     term=Asymmetric(),
+    drive_map=AsymmetricDrive(),
+    leave_out=_leave_out,
+    study=_STUDY,
 )  # fmt: skip

@@ -46,12 +46,13 @@ class Concealment:
     clear: float
     baseline: str = "J,B,Fc,K,h0"
     fixed: dict = field(default_factory=dict)
-    #: the term it conceals (bound when the term is made, :class:`Term`)
-    term: "Term | None" = field(default=None, init=False, repr=False, compare=False)
+    #: ``fields(size)``: the ``[drive]`` fields that put the effect into the null drive
+    #: at ``size`` (beside ``fixed``)
+    fields: Callable = lambda size: {}
 
     def drive(self, size: float) -> dict:
         """The ``[drive]`` fields of the effect at ``size``."""
-        return {**self.fixed, **self.term.conceal(size)}
+        return {**self.fixed, **self.fields(size)}
 
 
 @dataclass(frozen=True)
@@ -67,6 +68,11 @@ class Effect:
     compensator term is on (the stage's ``extras`` switch; None: not one of those);
     ``term`` its diagnosis term (None: the diagnosis does not name it, or names it
     from a module of its own, :func:`servo.physics.register_term`);
+    ``drive_map`` the term's ``[drive]`` fields in a fitted model (:class:`DriveMap`);
+    ``leave_out(d)`` sets the ``[drive]`` fields ``d`` (a dict) in place to what the drive
+    holds without the term, so that a compensator leaves it out
+    (:mod:`servo.compensate.significance`; None: not a compensator term);
+    ``study`` how the concealed-effect study hides it (:class:`Concealment`);
     ``not_cancellable`` why no static compensator term cancels it ("" if one does);
     ``renamed`` its config keys' former names, ``"section.old" -> "new"`` (a config that
     uses an old one is refused with the new name)."""
@@ -81,6 +87,9 @@ class Effect:
     term: "Term | None" = None
     not_cancellable: str = ""
     renamed: dict = field(default_factory=dict)
+    drive_map: DriveMap | None = None
+    leave_out: Callable | None = None
+    study: Concealment | None = None
 
 
 class Term:
@@ -103,10 +112,11 @@ class Term:
     nonlinear parameters a diagnosis tries (``[{}]`` for a linear term);
     ``screen(design, theta, model)`` a fast approximation of the rows used to scan large
     grids; ``bounds`` for the final refinement; ``physical``/``from_physical`` between
-    the internal ``(theta, coef)`` and the reported parameters.  ``to_drive`` /
-    ``absent`` / ``from_drive``: its fields in the simulated drive's ``[drive]``
-    section; ``std_extra`` the uncertainty of its derived parameters; ``effect`` /
-    ``conceal`` how the concealed-effect study puts it into a drive."""
+    the internal ``(theta, coef)`` and the reported parameters; ``std_extra`` the
+    uncertainty of its derived parameters.  What the rest of the tool knows of the
+    effect is not the term's: its ``[drive]`` fields in a fitted model
+    (:class:`DriveMap`), how a compensator leaves it out and how a study conceals it
+    (:class:`Concealment`) are the effect module's other objects (:class:`Effect`)."""
 
     name = ""
     kind = "column"
@@ -122,10 +132,6 @@ class Term:
     linear_in_motion = False
     #: an input term's place on the input's path to the arm (lower first, as in the drive)
     path_order = 0
-
-    def __init__(self):
-        if self.effect is not None:  # the study's concealment puts this very term into a drive
-            object.__setattr__(self.effect, "term", self)
 
     def full(self, d, theta: dict, u_eff: np.ndarray) -> np.ndarray:
         """Full-rate columns (n, k)."""
@@ -203,37 +209,6 @@ class Term:
         """Std of the derived reported parameters (``std`` holds the fitted ones')."""
         return {}
 
-    # ---- the simulated drive (servo.config.DriveConfig) ----------------------------
-    #: its ``[drive]`` fields when a model lacks the term
-    absent: dict = {}
-
-    def to_drive(self, P: dict, fit) -> dict:
-        """Its ``[drive]`` fields (force unit, m, s) in a fitted model: ``P`` is
-        ``fit.combined()`` (every term's reported parameters), ``fit`` the
-        :class:`~servo.diagnose.fit.Fit`."""
-        return {}
-
-    def from_drive(self, d) -> list:
-        """The term as a simulated drive ``d`` (``DriveConfig``) has it: ``(theta, coef)``
-        pairs (fixed coefficients), ``[]`` when the drive lacks it."""
-        return []
-
-    def in_drive(self, d) -> bool:
-        """Whether the simulated drive ``d`` (``DriveConfig``) holds this term."""
-        return bool(self.from_drive(d))
-
-    #: ``leave_out(d)``: set the ``[drive]`` fields ``d`` (a dict) in place to what the
-    #: drive holds without this term, so that a compensator leaves it out
-    #: (:mod:`servo.compensate.significance`); None: not a compensator term
-    leave_out = None
-
-    # ---- the concealed-effect study ------------------------------------------------
-    effect: Concealment | None = None
-
-    def conceal(self, size: float) -> dict:
-        """The ``[drive]`` fields that put this term into the null drive at ``size``."""
-        raise NotImplementedError
-
 
 def geom(lo: float, hi: float, per_decade: float) -> np.ndarray:
     """A geometric grid from ``lo`` to ``hi`` with about ``per_decade`` points a decade."""
@@ -263,27 +238,59 @@ def valid_speed(d) -> np.ndarray:
 
 
 class OneField(Term):
-    """A term that is one coefficient and one ``[drive]`` field of the same name
-    (``coefs[0]``), linear in the motion: its drive mapping and its concealed effect are
-    that field."""
+    """A term that is one coefficient, linear in the motion."""
 
     linear_in_motion = True
 
-    def __init_subclass__(cls, **kw):
-        super().__init_subclass__(**kw)
-        cls.absent = {cls.coefs[0]: 0.0}
+
+class DriveMap:
+    """A term's fields in the simulated drive's ``[drive]`` section (``DriveConfig``):
+    ``absent`` its fields when a model lacks the term; ``to_drive(P, fit)`` its fields
+    (force unit, m, s) in a fitted model (``P`` is ``fit.combined()``, every term's
+    reported parameters, ``fit`` the :class:`~servo.diagnose.fit.Fit`): the final model
+    written as a config, its short-horizon simulation; ``from_drive(d)`` the term as a
+    drive ``d`` has it, ``(theta, coef)`` pairs (fixed coefficients), ``[]`` when the
+    drive lacks it: a drive config held as a model file; ``in_drive(d)`` whether it
+    holds the term at all."""
+
+    name = ""
+    absent: dict = {}
+
+    def to_drive(self, P: dict, fit) -> dict:
+        return {}
+
+    def from_drive(self, d) -> list:
+        return []
+
+    def in_drive(self, d) -> bool:
+        return bool(self.from_drive(d))
+
+
+class OneFieldDrive(DriveMap):
+    """The drive map of a term whose one coefficient is the ``[drive]`` field ``key``."""
+
+    def __init__(self, name: str, key: str):
+        self.name, self.key, self.absent = name, key, {key: 0.0}
 
     def to_drive(self, P, fit):
-        return {self.coefs[0]: P[self.name][self.coefs[0]]}
+        return {self.key: P[self.name][self.key]}
 
     def from_drive(self, d):
-        return [({}, (getattr(d, self.coefs[0]),))]
+        return [({}, (getattr(d, self.key),))]
 
-    def conceal(self, size):
-        return {self.coefs[0]: size}
 
-    def leave_out(self, d):
-        d[self.coefs[0]] = 0.0
+def field_at(key: str):
+    """A concealment's ``fields``: the ``[drive]`` field ``key`` at the size."""
+    return lambda size: {key: size}
+
+
+def zero(key: str):
+    """A ``leave_out``: the ``[drive]`` field ``key`` set to 0."""
+
+    def leave_out(d: dict) -> None:
+        d[key] = 0.0
+
+    return leave_out
 
 
 def one_field(name: str):
@@ -292,4 +299,5 @@ def one_field(name: str):
     return lambda section, *_: {name: getattr(section, name)}
 
 
-__all__ = ["Concealment", "Effect", "OneField", "Term", "contiguous", "fold_ranges", "geom", "one_field", "valid_speed"]
+__all__ = ["Concealment", "DriveMap", "Effect", "OneField", "OneFieldDrive", "Term", "contiguous", "field_at",
+           "fold_ranges", "geom", "one_field", "valid_speed", "zero"]

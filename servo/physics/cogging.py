@@ -12,7 +12,7 @@ import numpy as np
 from kernels.cancel import harmonic_coefficients
 from kernels.screen import cogging_stats
 from servo.fields import P
-from servo.physics.base import Concealment, Effect, Term, contiguous, fold_ranges, valid_speed
+from servo.physics.base import Concealment, DriveMap, Effect, Term, contiguous, fold_ranges, valid_speed
 
 
 class Cogging(Term):
@@ -21,24 +21,6 @@ class Cogging(Term):
     doc = "a force periodic in position: amplitude*sin(2*pi*x/period + phase)"
     screening = True
     MAX_GRID = 3000
-
-    effect = Concealment("cogging", "A", "cogging amplitude (period 50 um)", (1e-6, 2e-6, 5e-6, 1e-5, 2e-5), 1e-4)
-
-    def to_drive(self, P, fit):
-        c = P[self.name]
-        return {"cogging": c["amplitude"], "cogging_period": c["period"], "cogging_phase": c["phase"]}
-
-    def from_drive(self, d):
-        if not d.cogging:
-            return []
-        theta, coef = self.from_physical({"amplitude": d.cogging, "period": d.cogging_period, "phase": d.cogging_phase})
-        return [(theta, coef)]
-
-    def conceal(self, size):
-        return {"cogging": size, "cogging_period": 50e-6}
-
-    def leave_out(self, d):
-        d["cogging"] = 0.0
 
     def std_extra(self, params, std):
         if "a_sin" in std and "a_cos" in std:
@@ -112,6 +94,34 @@ class Cogging(Term):
         return {"period": p["period"]}, (A * math.cos(ph), A * math.sin(ph))
 
 
+class CoggingDrive(DriveMap):
+    """The cogging term in the simulated drive's ``[drive]`` section."""
+
+    name = "cogging"
+
+    def to_drive(self, P, fit):
+        c = P[self.name]
+        return {"cogging": c["amplitude"], "cogging_period": c["period"], "cogging_phase": c["phase"]}
+
+    def from_drive(self, d):
+        if not d.cogging:
+            return []
+        A, ph = d.cogging, d.cogging_phase  # as Cogging.from_physical
+        return [({"period": d.cogging_period}, (A * math.cos(ph), A * math.sin(ph)))]
+
+
+def _conceal(size):
+    return {"cogging": size, "cogging_period": 50e-6}
+
+
+def _leave_out(d):
+    d["cogging"] = 0.0
+
+
+_STUDY = Concealment("cogging", "A", "cogging amplitude (period 50 um)", (1e-6, 2e-6, 5e-6, 1e-5, 2e-5), 1e-4,
+                     fields=_conceal)
+
+
 def _stage(c):
     n = len(c.periodic_amplitudes)
     sin, cos = harmonic_coefficients(c.periodic_amplitudes, c.periodic_phases)
@@ -135,4 +145,7 @@ EFFECT = Effect(
     stage=_stage,
     engaged=lambda c: bool(c.periodic_amplitudes),
     term=Cogging(),
+    drive_map=CoggingDrive(),
+    leave_out=_leave_out,
+    study=_STUDY,
 )  # fmt: skip

@@ -6,14 +6,24 @@ documentation entry (:class:`~servo.physics.base.Effect`).
 from __future__ import annotations
 
 from servo.fields import P
-from servo.physics.base import Concealment, Effect, Term, one_field
+from servo.physics.base import Concealment, DriveMap, Effect, Term, one_field
 
 
 class Coulomb(Term):
     name, coefs, units = "coulomb_friction", ("Fc",), {"Fc": "F"}
+
+    doc = "Coulomb friction Fc*sgn(x')"
+    POSITIVE = {"Fc": "a force pushing along the motion: not friction"}
+
+    def full(self, d, theta, u_eff):
+        return d.sig.sign_v  # the sign the rows see: its switch placed between samples
+
+
+class CoulombDrive(DriveMap):
+    """The coulomb_friction term in the simulated drive's ``[drive]`` section."""
+
+    name = "coulomb_friction"
     absent = {"Fc": 0.0, "Fs": 0.0}
-    effect = Concealment("coulomb_friction", "A", "Fc = Fs (Coulomb level)", (1e-6, 2e-6, 5e-6, 1e-5, 2e-5), 2e-4,
-                    baseline="J,B,K,h0", fixed={"Fc": 0.0, "Fs": 0.0})  # fmt: skip
 
     def to_drive(self, P, fit):
         Fc = P[self.name]["Fc"]
@@ -22,20 +32,21 @@ class Coulomb(Term):
     def from_drive(self, d):
         return [({}, (d.Fc if d.Fs > 0 else 0.0,))]
 
-    def conceal(self, size):
-        return {"Fc": size, "Fs": size}
-
     def in_drive(self, d):
         return d.Fc > 0  # a breakaway alone is the Stribeck term's
 
-    def leave_out(self, d):
-        d["Fs"] = max(d.get("Fs", 0.0) - d.get("Fc", 0.0), 0.0)  # a Stribeck rise found on its own stays
-        d["Fc"] = 0.0
-    doc = "Coulomb friction Fc*sgn(x')"
-    POSITIVE = {"Fc": "a force pushing along the motion: not friction"}
 
-    def full(self, d, theta, u_eff):
-        return d.sig.sign_v  # the sign the rows see: its switch placed between samples
+def _conceal(size):
+    return {"Fc": size, "Fs": size}
+
+
+def _leave_out(d):
+    d["Fs"] = max(d.get("Fs", 0.0) - d.get("Fc", 0.0), 0.0)  # a Stribeck rise found on its own stays
+    d["Fc"] = 0.0
+
+
+_STUDY = Concealment("coulomb_friction", "A", "Fc = Fs (Coulomb level)", (1e-6, 2e-6, 5e-6, 1e-5, 2e-5), 2e-4,
+                     baseline="J,B,K,h0", fixed={"Fc": 0.0, "Fs": 0.0}, fields=_conceal)  # fmt: skip
 
 
 EFFECT = Effect(
@@ -48,4 +59,7 @@ EFFECT = Effect(
     engaged=lambda c: bool(c.coulomb_extra),
     term=Coulomb(),
     renamed={"compensator.coulomb": "coulomb_extra"},
+    drive_map=CoulombDrive(),
+    leave_out=_leave_out,
+    study=_STUDY,
 )  # fmt: skip

@@ -9,7 +9,7 @@ import numpy as np
 
 from kernels.hysteresis import dahl_trace
 from servo.fields import P
-from servo.physics.base import Concealment, Effect, Term, geom
+from servo.physics.base import Concealment, DriveMap, Effect, Term, geom
 
 
 class Hysteresis(Term):
@@ -18,27 +18,6 @@ class Hysteresis(Term):
     doc = ("Dahl hysteresis (paper eq. 6-7): a hidden force with turnaround memory, slope sigma at a "
            "reversal, asymptote +-Ha, Dahl length Ha/sigma")  # fmt: skip
     requires = ("coulomb_friction",)
-
-    #: no Dahl element: a negligible one (1e-12 A over a Dahl length of 1 m)
-    absent = {"Ha": 1e-12, "sigma": 1e-12}
-    effect = Concealment("hysteresis", "A", "Dahl Ha (Dahl length 3 um)", (1e-5, 2e-5, 5e-5, 1e-4, 2e-4), 1e-3)
-
-    def to_drive(self, P, fit):
-        p = P[self.name]
-        if not p["Ha"] > 0:
-            return dict(self.absent)
-        return {"Ha": p["Ha"], "sigma": p["sigma"], "alpha": fit.model.get(self.name).params.get("alpha", 1.0)}
-
-    def from_drive(self, d):
-        if d.Ha > 1e-6 * max(abs(d.h0), d.Fc, 1e-30):  # a written model without hysteresis has Ha = 1e-12
-            return [({"dahl_length": d.Ha / d.sigma, "alpha": d.alpha}, (d.Ha,))]
-        return []
-
-    def conceal(self, size):
-        return {"Ha": size, "sigma": size / 3e-6}
-
-    def leave_out(self, d):
-        d.update(self.absent)
 
     def std_extra(self, params, std):
         if "Ha" in std and "dahl_length" in std:
@@ -74,6 +53,37 @@ class Hysteresis(Term):
         return p
 
 
+class HysteresisDrive(DriveMap):
+    """The hysteresis term in the simulated drive's ``[drive]`` section."""
+
+    name = "hysteresis"
+    #: no Dahl element: a negligible one (1e-12 A over a Dahl length of 1 m)
+    absent = {"Ha": 1e-12, "sigma": 1e-12}
+
+    def to_drive(self, P, fit):
+        p = P[self.name]
+        if not p["Ha"] > 0:
+            return dict(self.absent)
+        return {"Ha": p["Ha"], "sigma": p["sigma"], "alpha": fit.model.get(self.name).params.get("alpha", 1.0)}
+
+    def from_drive(self, d):
+        if d.Ha > 1e-6 * max(abs(d.h0), d.Fc, 1e-30):  # a written model without hysteresis has Ha = 1e-12
+            return [({"dahl_length": d.Ha / d.sigma, "alpha": d.alpha}, (d.Ha,))]
+        return []
+
+
+def _conceal(size):
+    return {"Ha": size, "sigma": size / 3e-6}
+
+
+def _leave_out(d):
+    d.update(HysteresisDrive.absent)
+
+
+_STUDY = Concealment("hysteresis", "A", "Dahl Ha (Dahl length 3 um)", (1e-5, 2e-5, 5e-5, 1e-4, 2e-4), 1e-3,
+                     fields=_conceal)
+
+
 EFFECT = Effect(
     "hysteresis", "Dahl hysteresis (eq. 6-7): pre-sliding friction with turnaround memory",
     drive=dict(
@@ -92,4 +102,7 @@ EFFECT = Effect(
     stage=lambda c: {"Fc": c.sliding_level, "sigma": c.sigma, "Ha": c.Ha, "alpha": c.alpha},
     term=Hysteresis(),
     renamed={"compensator.Fc": "sliding_level"},
+    drive_map=HysteresisDrive(),
+    leave_out=_leave_out,
+    study=_STUDY,
 )  # fmt: skip

@@ -6,13 +6,12 @@ documentation entry (:class:`~servo.physics.base.Effect`).
 from __future__ import annotations
 
 from servo.fields import P
-from servo.physics.base import Effect, OneField, one_field
+from servo.physics.base import Effect, OneField, OneFieldDrive, one_field
 
 
 class Inertia(OneField):
     name, coefs, units = "inertia", ("J",), {"J": "F*s^2/m"}
     doc = "inertia J*x''"
-    leave_out = None  # the plant the controller is designed for, not a compensator term
 
     def full(self, d, theta, u_eff):
         return d.sig.af
@@ -25,4 +24,5 @@ EFFECT = Effect(
     term=Inertia(),
     not_cancellable="the inertia is the plant the controller is designed for (eq. 10: J*x'' = u_n): it is "
                     "controlled, not cancelled",
+    drive_map=OneFieldDrive("inertia", "J"),
 )  # fmt: skip

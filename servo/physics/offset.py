@@ -8,16 +8,19 @@ from __future__ import annotations
 import numpy as np
 
 from servo.fields import P
-from servo.physics.base import Concealment, Effect, OneField, one_field
+from servo.physics.base import Concealment, Effect, OneField, OneFieldDrive, field_at, one_field, zero
 
 
 class Offset(OneField):
     name, coefs, units = "offset", ("h0",), {"h0": "F"}
-    effect = Concealment("offset", "A", "h0", (5e-6, 1e-5, 2e-5, 5e-5, 1e-4), 3e-4, baseline="J,B,Fc,K", fixed={"h0": 0.0})
     doc = "constant force h0"
 
     def full(self, d, theta, u_eff):
         return np.ones(d.sig.n)  # through the rows' filter too: its DC gain is 0.989, not 1
+
+
+_STUDY = Concealment("offset", "A", "h0", (5e-6, 1e-5, 2e-5, 5e-5, 1e-4), 3e-4, baseline="J,B,Fc,K", fixed={"h0": 0.0},
+                     fields=field_at("h0"))
 
 
 EFFECT = Effect(
@@ -27,4 +30,7 @@ EFFECT = Effect(
     plant=one_field("h0"),
     stage=one_field("h0"),
     term=Offset(),
+    drive_map=OneFieldDrive("offset", "h0"),
+    study=_STUDY,
+    leave_out=zero("h0"),
 )  # fmt: skip

@@ -8,7 +8,7 @@ from __future__ import annotations
 import numpy as np
 
 from servo.fields import P
-from servo.physics.base import Concealment, Effect, Term
+from servo.physics.base import Concealment, DriveMap, Effect, Term
 
 
 class PositionGain(Term):
@@ -17,9 +17,17 @@ class PositionGain(Term):
     doc = "force constant varying over the stroke: the arm gets kf(x)*u, kf = 1 + kf_linear*x + kf_quadratic*x^2"
     uses_input = True
 
+    def full(self, d, theta, u_eff):
+        ua = d.sig.force(u_eff)
+        x = d.sig.xf
+        return np.column_stack([-x * ua, -x * x * ua])
+
+
+class PositionGainDrive(DriveMap):
+    """The position_dependent_gain term in the simulated drive's ``[drive]`` section."""
+
+    name = "position_dependent_gain"
     STROKE = 0.015  # m: the drive's kf fields are the changes at this stroke
-    effect = Concealment("position_dependent_gain", "-", "kf_linear (force-constant change at +15 mm)",
-                    (0.02, 0.05, 0.1, 0.2, 0.5), 0.5)  # fmt: skip
 
     def to_drive(self, P, fit):
         g, s = P[self.name], self.STROKE
@@ -30,15 +38,17 @@ class PositionGain(Term):
             return [({}, (d.kf_linear / d.stroke, d.kf_quadratic / d.stroke**2))]
         return []
 
-    def conceal(self, size):
-        return {"kf_linear": size}
 
-    def leave_out(self, d):
-        d.update(kf_linear=0.0, kf_quadratic=0.0)
-    def full(self, d, theta, u_eff):
-        ua = d.sig.force(u_eff)
-        x = d.sig.xf
-        return np.column_stack([-x * ua, -x * x * ua])
+def _conceal(size):
+    return {"kf_linear": size}
+
+
+def _leave_out(d):
+    d.update(kf_linear=0.0, kf_quadratic=0.0)
+
+
+_STUDY = Concealment("position_dependent_gain", "-", "kf_linear (force-constant change at +15 mm)",
+                     (0.02, 0.05, 0.1, 0.2, 0.5), 0.5, fields=_conceal)  # fmt: skip
 
 
 EFFECT = Effect(
@@ -58,4 +68,7 @@ EFFECT = Effect(
                      "kf_on": 1.0 if (c.kf_linear or c.kf_quadratic) else 0.0,
                      "kf_lo": 1.0 - c.kf_authority, "kf_hi": 1.0 + c.kf_authority},
     term=PositionGain(),
+    drive_map=PositionGainDrive(),
+    leave_out=_leave_out,
+    study=_STUDY,
 )  # fmt: skip

@@ -6,23 +6,32 @@ documentation entry (:class:`~servo.physics.base.Effect`).
 from __future__ import annotations
 
 from servo.fields import P
-from servo.physics.base import Concealment, Effect, Term
+from servo.physics.base import Concealment, DriveMap, Effect, Term
 
 
 class Quantization(Term):
     name, kind, thetas, units = "quantization", "sensor", ("step",), {"step": "m", "offset": "m"}
     doc = "position sensor quantised to a lattice of step `step` (an encoder's count)"
 
+    def eligible(self, model):
+        return "a sensor effect: tested on its own (servo.diagnose.quantization)"
+
+
+class QuantizationDrive(DriveMap):
+    """The quantization term in the simulated drive's ``[drive]`` section."""
+
+    name = "quantization"
     absent = {"position_quantum": 0.0}  # a found lattice is a finding, not a fitted term
-    effect = Concealment("quantization", "m", "position quantum", (5e-9, 1e-8, 2e-8, 5e-8, 1e-7), 5e-8)
 
     def in_drive(self, d):
         return d.position_quantum > 0
 
-    def conceal(self, size):
-        return {"position_quantum": size}
-    def eligible(self, model):
-        return "a sensor effect: tested on its own (servo.diagnose.quantization)"
+
+def _conceal(size):
+    return {"position_quantum": size}
+
+
+_STUDY = Concealment("quantization", "m", "position quantum", (5e-9, 1e-8, 2e-8, 5e-8, 1e-7), 5e-8, fields=_conceal)
 
 
 EFFECT = Effect(
@@ -32,4 +41,6 @@ EFFECT = Effect(
     term=Quantization(),
     not_cancellable="the sensor's resolution is not a force: nothing to cancel (a finer encoder, or a velocity "
                     "cutoff that averages over several steps)",
+    drive_map=QuantizationDrive(),
+    study=_STUDY,
 )  # fmt: skip

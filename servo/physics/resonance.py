@@ -12,7 +12,7 @@ from scipy import signal
 
 from kernels.screen import biquad_stats
 from servo.fields import P
-from servo.physics.base import Concealment, Effect, Term, contiguous, fold_ranges
+from servo.physics.base import Concealment, DriveMap, Effect, Term, contiguous, fold_ranges
 
 
 class Resonance(Term):
@@ -26,24 +26,6 @@ class Resonance(Term):
     ZETA_MAX = 0.1  # a lightly damped mode
     MAX_MODES = 4
 
-    absent = {"mode_hz": [], "mode_zeta": [], "mode_gain": []}
-    effect = Concealment("resonance", "-", "modal gain of a 700 Hz, zeta 0.02 mode", (2e-4, 5e-4, 1e-3, 2e-3, 5e-3), 0.05)
-
-    def to_drive(self, P, fit):
-        d = {"mode_hz": [], "mode_zeta": [], "mode_gain": []}
-        for i, t in enumerate(fit.model.terms):  # every mode, not their sum
-            if t.physics == self.name:
-                q = fit.term_params(i)
-                d["mode_hz"].append(q["frequency_hz"])
-                d["mode_zeta"].append(q["zeta"])
-                d["mode_gain"].append(q["gain"])
-        return d
-
-    def from_drive(self, d):
-        return [({"frequency_hz": f, "zeta": z}, (g,)) for f, z, g in zip(d.mode_hz, d.mode_zeta, d.mode_gain)]
-
-    def conceal(self, size):
-        return {"mode_hz": [700.0], "mode_zeta": [0.02], "mode_gain": [size]}
     def eligible(self, model):
         n = sum(t.physics == self.name for t in model.terms)
         return None if n < self.MAX_MODES else f"{n} modes already in the model"
@@ -105,6 +87,34 @@ class Resonance(Term):
         return ""
 
 
+class ResonanceDrive(DriveMap):
+    """The resonance term in the simulated drive's ``[drive]`` section."""
+
+    name = "resonance"
+    absent = {"mode_hz": [], "mode_zeta": [], "mode_gain": []}
+
+    def to_drive(self, P, fit):
+        d = {"mode_hz": [], "mode_zeta": [], "mode_gain": []}
+        for i, t in enumerate(fit.model.terms):  # every mode, not their sum
+            if t.physics == self.name:
+                q = fit.term_params(i)
+                d["mode_hz"].append(q["frequency_hz"])
+                d["mode_zeta"].append(q["zeta"])
+                d["mode_gain"].append(q["gain"])
+        return d
+
+    def from_drive(self, d):
+        return [({"frequency_hz": f, "zeta": z}, (g,)) for f, z, g in zip(d.mode_hz, d.mode_zeta, d.mode_gain)]
+
+
+def _conceal(size):
+    return {"mode_hz": [700.0], "mode_zeta": [0.02], "mode_gain": [size]}
+
+
+_STUDY = Concealment("resonance", "-", "modal gain of a 700 Hz, zeta 0.02 mode", (2e-4, 5e-4, 1e-3, 2e-3, 5e-3), 0.05,
+                     fields=_conceal)
+
+
 EFFECT = Effect(
     "resonance", "flexible modes: x_meas = x + gain*q, q'' + 2*zeta*w*q' + w^2*q = u/J",
     drive=dict(
@@ -116,4 +126,6 @@ EFFECT = Effect(
     term=Resonance(),
     not_cancellable="a flexible mode cannot be cancelled by a static term: notch it in the controller "
                     "([controller.track] notch_hz) or keep the crossover below it",
+    drive_map=ResonanceDrive(),
+    study=_STUDY,
 )  # fmt: skip

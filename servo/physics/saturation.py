@@ -9,7 +9,7 @@ import numpy as np
 
 from servo.fields import MAGNITUDE_MAX
 from servo.fields import P
-from servo.physics.base import Concealment, Effect, Term
+from servo.physics.base import Concealment, DriveMap, Effect, Term
 
 
 class Saturation(Term):
@@ -19,22 +19,6 @@ class Saturation(Term):
     MIN_CLIPPED = 10  # samples
     path_order = 0  # the amplifier clips first, then the delay
 
-    # without a saturation the model has no limit: the config's largest magnitude (its
-    # default, 1 A, would clip a recording in N when the file is held against it)
-    absent = {"current_limit": MAGNITUDE_MAX}
-    effect = Concealment("input_saturation", "-", "fraction of the samples clipped", (0.002, 0.005, 0.01, 0.02, 0.05), 0.05)
-
-    def to_drive(self, P, fit):
-        return {"current_limit": P[self.name]["level"]}
-
-    def from_drive(self, d):
-        return [({"level": d.current_limit}, ())]
-
-    def in_drive(self, d):
-        return False  # every drive has its amplifier's limit: a term only where a diagnosis finds one clipping
-
-    def conceal(self, size):
-        return {}  # the level that clips a fraction `size`: set from a first run (concealed_recording)
     @staticmethod
     def transform(u, theta, dt):
         return np.clip(u, -theta["level"], theta["level"])
@@ -53,6 +37,32 @@ class Saturation(Term):
         return {"level": (lv[0] if lv else 0.0, float(np.quantile(au, 0.999)), False)}
 
 
+class SaturationDrive(DriveMap):
+    """The input_saturation term in the simulated drive's ``[drive]`` section."""
+
+    name = "input_saturation"
+    # without a saturation the model has no limit: the config's largest magnitude (its
+    # default, 1 A, would clip a recording in N when the file is held against it)
+    absent = {"current_limit": MAGNITUDE_MAX}
+
+    def to_drive(self, P, fit):
+        return {"current_limit": P[self.name]["level"]}
+
+    def from_drive(self, d):
+        return [({"level": d.current_limit}, ())]
+
+    def in_drive(self, d):
+        return False  # every drive has its amplifier's limit: a term only where a diagnosis finds one clipping
+
+
+def _conceal(size):
+    return {}  # the level that clips a fraction `size`: set from a first run (concealed_recording)
+
+
+_STUDY = Concealment("input_saturation", "-", "fraction of the samples clipped", (0.002, 0.005, 0.01, 0.02, 0.05), 0.05,
+                     fields=_conceal)
+
+
 EFFECT = Effect(
     "input_saturation", "the amplifier's current limit",
     drive=dict(current_limit=P(1.0, "A", "amplifier current limit", 0.0, None, lo_open=True)),
@@ -60,4 +70,6 @@ EFFECT = Effect(
     term=Saturation(),
     not_cancellable="a saturation is a limit, not a force: set [controller] current_limit at or below it so "
                     "the loop knows the room it has",
+    drive_map=SaturationDrive(),
+    study=_STUDY,
 )  # fmt: skip

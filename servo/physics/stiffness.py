@@ -6,16 +6,19 @@ documentation entry (:class:`~servo.physics.base.Effect`).
 from __future__ import annotations
 
 from servo.fields import P
-from servo.physics.base import Concealment, Effect, OneField, one_field
+from servo.physics.base import Concealment, Effect, OneField, OneFieldDrive, field_at, one_field, zero
 
 
 class Stiffness(OneField):
     name, coefs, units = "stiffness", ("K",), {"K": "F/m"}
-    effect = Concealment("stiffness", "A/m", "K", (2e-3, 5e-3, 1e-2, 2e-2, 5e-2), 0.2, baseline="J,B,Fc,h0", fixed={"K": 0.0})
     doc = "stiffness K*x (flex-cable bias, pivot's average slope)"
 
     def full(self, d, theta, u_eff):
         return d.sig.xf
+
+
+_STUDY = Concealment("stiffness", "A/m", "K", (2e-3, 5e-3, 1e-2, 2e-2, 5e-2), 0.2, baseline="J,B,Fc,h0", fixed={"K": 0.0},
+                     fields=field_at("K"))
 
 
 EFFECT = Effect(
@@ -25,4 +28,7 @@ EFFECT = Effect(
     plant=one_field("K"),
     stage=one_field("K"),
     term=Stiffness(),
+    drive_map=OneFieldDrive("stiffness", "K"),
+    study=_STUDY,
+    leave_out=zero("K"),
 )  # fmt: skip

@@ -8,7 +8,7 @@ from __future__ import annotations
 import numpy as np
 
 from servo.fields import P
-from servo.physics.base import Concealment, Effect, Term, geom, valid_speed
+from servo.physics.base import Concealment, DriveMap, Effect, Term, geom, valid_speed
 
 
 class Stribeck(Term):
@@ -17,23 +17,6 @@ class Stribeck(Term):
     doc = "Stribeck friction (Fs - Fc)*exp(-(x'/vs)^2)*sgn(x'): higher friction at low speed"
     requires = ("coulomb_friction",)
 
-    effect = Concealment("stribeck_friction", "A", "Fs - Fc (Stribeck velocity 2 mm/s)",
-                    (2e-5, 5e-5, 1e-4, 2e-4, 5e-4), 5e-4, fixed={"Fc": 1e-3, "stribeck_velocity": 2e-3})  # fmt: skip
-
-    def to_drive(self, P, fit):
-        p = P[self.name]
-        return {"Fs": P.get("coulomb_friction", {}).get("Fc", 0.0) + p["dFs"], "stribeck_velocity": p["stribeck_velocity"]}
-
-    def from_drive(self, d):
-        if d.Fs > d.Fc and d.Fs > 0:
-            return [({"stribeck_velocity": d.stribeck_velocity}, (d.Fs - d.Fc,))]
-        return []
-
-    def conceal(self, size):
-        return {"Fs": self.effect.fixed["Fc"] + size}
-
-    def leave_out(self, d):
-        d["Fs"] = d.get("Fc", 0.0)  # exact sticking, as the drive holds without the term
     def implausible(self, params: dict) -> str:
         if params["dFs"] < 0:
             return (f"the best fit has dFs = {params['dFs']:.3g} < 0: friction lower at low speed than sliding, a "
@@ -55,6 +38,38 @@ class Stribeck(Term):
         return {"stribeck_velocity": (*self._range(d), True)}
 
 
+class StribeckDrive(DriveMap):
+    """The stribeck_friction term in the simulated drive's ``[drive]`` section."""
+
+    name = "stribeck_friction"
+
+    def to_drive(self, P, fit):
+        p = P[self.name]
+        return {"Fs": P.get("coulomb_friction", {}).get("Fc", 0.0) + p["dFs"], "stribeck_velocity": p["stribeck_velocity"]}
+
+    def from_drive(self, d):
+        if d.Fs > d.Fc and d.Fs > 0:
+            return [({"stribeck_velocity": d.stribeck_velocity}, (d.Fs - d.Fc,))]
+        return []
+
+
+#: the study's Coulomb level under the Stribeck rise it conceals, A
+_SLIDING = 1e-3
+
+
+def _conceal(size):
+    return {"Fs": _SLIDING + size}
+
+
+def _leave_out(d):
+    d["Fs"] = d.get("Fc", 0.0)  # exact sticking, as the drive holds without the term
+
+
+_STUDY = Concealment("stribeck_friction", "A", "Fs - Fc (Stribeck velocity 2 mm/s)",
+                     (2e-5, 5e-5, 1e-4, 2e-4, 5e-4), 5e-4, fixed={"Fc": _SLIDING, "stribeck_velocity": 2e-3},
+                     fields=_conceal)  # fmt: skip
+
+
 EFFECT = Effect(
     "stribeck_friction", "Stribeck friction: higher friction at low speed",
     drive=dict(
@@ -69,4 +84,7 @@ EFFECT = Effect(
     stage=lambda c: {"coul_s": c.coulomb_static or c.coulomb_extra, "coul_vs": c.stribeck_velocity},
     engaged=lambda c: bool(c.coulomb_static),
     term=Stribeck(),
+    drive_map=StribeckDrive(),
+    leave_out=_leave_out,
+    study=_STUDY,
 )  # fmt: skip

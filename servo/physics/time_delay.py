@@ -10,7 +10,7 @@ import math
 import numpy as np
 
 from servo.fields import P
-from servo.physics.base import Concealment, Effect, Term
+from servo.physics.base import Concealment, DriveMap, Effect, Term
 
 
 class TimeDelay(Term):
@@ -18,17 +18,6 @@ class TimeDelay(Term):
     doc = "the input reaches the arm delay_s later than recorded (negative: the log lags the motion)"
     path_order = 1  # after the amplifier's clipping
 
-    absent = {"input_delay_s": 0.0}
-    effect = Concealment("time_delay", "s", "input delay", (1e-6, 2e-6, 3e-6, 5e-6, 1e-5), 2e-5)
-
-    def to_drive(self, P, fit):
-        return {"input_delay_s": P[self.name]["delay_s"]}
-
-    def from_drive(self, d):
-        return [({"delay_s": d.input_delay_s}, ())] if d.input_delay_s > 0 else []
-
-    def conceal(self, size):
-        return {"input_delay_s": size}
     def screen_target(self, d, model, theta):
         """A delay tried on top of a model without one: interpolated from the force filtered
         once (the design's :meth:`~servo.diagnose.model.Design.delayed_force`, equal to the
@@ -58,6 +47,26 @@ class TimeDelay(Term):
         return {"delay_s": (*self._range(d), False)}
 
 
+class TimeDelayDrive(DriveMap):
+    """The time_delay term in the simulated drive's ``[drive]`` section."""
+
+    name = "time_delay"
+    absent = {"input_delay_s": 0.0}
+
+    def to_drive(self, P, fit):
+        return {"input_delay_s": P[self.name]["delay_s"]}
+
+    def from_drive(self, d):
+        return [({"delay_s": d.input_delay_s}, ())] if d.input_delay_s > 0 else []
+
+
+def _conceal(size):
+    return {"input_delay_s": size}
+
+
+_STUDY = Concealment("time_delay", "s", "input delay", (1e-6, 2e-6, 3e-6, 5e-6, 1e-5), 2e-5, fields=_conceal)
+
+
 def split_delay(delay_s: float, dt: float) -> tuple[int, float]:
     """Input delay as ``(whole samples, remainder in s)`` with the remainder in ``[0, dt)``."""
     n = delay_s / dt
@@ -80,4 +89,6 @@ EFFECT = Effect(
     term=TimeDelay(),
     not_cancellable="an input delay cannot be cancelled by a static term: use a predictor (a Smith predictor on "
                     "the delay) or keep the crossover well below 1/(2*pi*delay)",
+    drive_map=TimeDelayDrive(),
+    study=_STUDY,
 )  # fmt: skip
