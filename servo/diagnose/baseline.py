@@ -75,13 +75,12 @@ def drive_terms(d: DriveConfig) -> Model:
 
 
 def without_idle_inputs(model: Model, u: np.ndarray) -> Model:
-    """``model`` without the input saturations that clip nothing of the recorded input
-    ``u`` (a drive config always has a current limit): such a term changes no row, and
-    held in the model it would keep ``input_saturation`` from being tested, so a drive
-    config and the same fit without a limit (a fitted baseline, a report) would differ
-    in what they can find."""
-    peak = float(np.max(np.abs(u))) if u.size else 0.0
-    return Model([t for t in model.terms if not (t.physics == "input_saturation" and t.params["level"] >= peak)])
+    """``model`` without the input terms that leave the recorded input ``u`` as it is
+    (:meth:`~servo.physics.base.Term.idle`: a saturation that clips nothing, as a drive
+    config's current limit does): such a term changes no row, and held in the model it
+    would keep the term from being tested, so a drive config and the same fit without a
+    limit (a fitted baseline, a report) would differ in what they can find."""
+    return Model([t for t in model.terms if not VOCABULARY[t.physics].idle(t.params, u)])
 
 
 def _basic_complete(model: Model) -> Model:

@@ -87,10 +87,9 @@ def concealed_recording(effect: str | None, size: float = 0.0, seed: int = 0, sc
     position) and the truth (what a diagnosis should find, with the drive's fields)."""
     cfg = drive_config(effect, size, seed)
     r, e = scenario_inputs(scenario, seed, cfg.dt)
-    if effect == "input_saturation":  # the limit that clips a fraction `size` of the samples
-        log = simulate(cfg, e, r=r)
-        limit = float(np.quantile(np.abs(log["u"]), 1.0 - size))
-        cfg = cfg.replace(drive={"current_limit": limit})
+    calibrate = EFFECTS[effect].calibrate if effect else None
+    if calibrate is not None:  # a size measured on the run itself (a saturation's clipped share)
+        cfg = cfg.replace(drive=calibrate(simulate(cfg, e, r=r), size))
     log = simulate(cfg, e, r=r)
     truth = {"physics": effect, "size": size, "seed": seed,
              "drive": {k: getattr(cfg.drive, k) for k in sorted(NULL_DRIVE) + ["stroke"]

@@ -61,8 +61,6 @@ from servo.diagnose.select import Grams, Score, Selector, fit_rows, integrated_t
 from servo.diagnose.terms import VOCABULARY
 from servo.io import progress
 
-#: terms never gated (a mass does not appear half-way)
-NOT_GATED = ("inertia",)
 #: rows scanned either side of the chosen gain-block boundary when refining ``t0``
 FINE_STEPS = 40
 
@@ -78,7 +76,7 @@ def gateable(sel: Selector, model: Model) -> list:
     ok = []
     for name in sel.eligible(model)[0]:
         phys = VOCABULARY[name]
-        if phys.kind != "column" or phys.screening or name in NOT_GATED or model.corrects(name):
+        if phys.kind != "column" or phys.screening or not phys.gated or model.corrects(name):
             continue
         ok.append(name)
     return ok

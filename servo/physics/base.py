@@ -49,6 +49,9 @@ class Concealment:
     #: ``fields(size)``: the ``[drive]`` fields that put the effect into the null drive
     #: at ``size`` (beside ``fixed``)
     fields: Callable = lambda size: {}
+    #: ``calibrate(log, size)``: for a size measured on the run itself, the ``[drive]``
+    #: fields set from a first run's log (None: ``fields`` alone)
+    calibrate: Callable | None = None
 
     def drive(self, size: float) -> dict:
         """The ``[drive]`` fields of the effect at ``size``."""
@@ -132,6 +135,9 @@ class Term:
     linear_in_motion = False
     #: an input term's place on the input's path to the arm (lower first, as in the drive)
     path_order = 0
+    #: whether the term may be present from some time on only (a mass does not appear
+    #: half-way: :mod:`servo.diagnose.partial`)
+    gated = True
 
     def full(self, d, theta: dict, u_eff: np.ndarray) -> np.ndarray:
         """Full-rate columns (n, k)."""
@@ -166,6 +172,16 @@ class Term:
     def bounds(self, d, model) -> dict:
         """Refinement bounds per theta: name -> (lo, hi, log_scale)."""
         return {}
+
+    def refine_width(self, d, name: str, value: float) -> float:
+        """Half-width of the final refinement's interval around a grid point ``value`` of
+        the linear-scale parameter ``name``: 15 % of the value."""
+        return 0.15 * abs(value)
+
+    def idle(self, params: dict, u: np.ndarray) -> bool:
+        """Whether the term, with ``params``, leaves the recorded input ``u`` (n,) as it
+        is (an input term that changes no row)."""
+        return False
 
     def column_design(self, d, model, phys: "Term"):
         """The design whose signals the term ``phys``'s columns read when ``model`` holds

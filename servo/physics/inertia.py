@@ -12,6 +12,7 @@ from servo.physics.base import Effect, OneField, OneFieldDrive, one_field
 class Inertia(OneField):
     name, coefs, units = "inertia", ("J",), {"J": "F*s^2/m"}
     doc = "inertia J*x''"
+    gated = False  # a mass does not appear half-way
 
     def full(self, d, theta, u_eff):
         return d.sig.af

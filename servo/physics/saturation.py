@@ -23,6 +23,9 @@ class Saturation(Term):
     def transform(u, theta, dt):
         return np.clip(u, -theta["level"], theta["level"])
 
+    def idle(self, params, u):
+        return params["level"] >= (float(np.max(np.abs(u))) if u.size else 0.0)  # clips nothing
+
     def _levels(self, d):
         au = np.abs(d.sig.u[d.train_samples])
         lv = np.unique(np.quantile(au, self.QUANTILES))
@@ -55,12 +58,13 @@ class SaturationDrive(DriveMap):
         return False  # every drive has its amplifier's limit: a term only where a diagnosis finds one clipping
 
 
-def _conceal(size):
-    return {}  # the level that clips a fraction `size`: set from a first run (concealed_recording)
+def _calibrate(log, size):
+    """The limit that clips a fraction ``size`` of the samples of a first run's command."""
+    return {"current_limit": float(np.quantile(np.abs(log["u"]), 1.0 - size))}
 
 
 _STUDY = Concealment("input_saturation", "-", "fraction of the samples clipped", (0.002, 0.005, 0.01, 0.02, 0.05), 0.05,
-                     fields=_conceal)
+                     calibrate=_calibrate)
 
 
 EFFECT = Effect(

@@ -18,6 +18,9 @@ class TimeDelay(Term):
     doc = "the input reaches the arm delay_s later than recorded (negative: the log lags the motion)"
     path_order = 1  # after the amplifier's clipping
 
+    def refine_width(self, d, name, value):
+        return d.sig.dt  # one sample
+
     def screen_target(self, d, model, theta):
         """A delay tried on top of a model without one: interpolated from the force filtered
         once (the design's :meth:`~servo.diagnose.model.Design.delayed_force`, equal to the
