@@ -481,4 +481,9 @@ def to_markdown() -> str:
                 f"| `{f.name}` | `{_toml_value(getattr(default, f.name))}` | {m['unit']} | {rng} | {m['doc']} |"
             )
         out.append("")
+    out += ["## Renamed keys", "", "A config that uses a former name is refused with one line naming the new one.", "",
+            "| former key | now |", "|---|---|"]  # fmt: skip
+    for old, new in physics.renamed_keys().items():
+        out.append(f"| `{old}` | `{old.split('.')[0]}.{new}` |")
+    out.append("")
     return "\n".join(out)
