@@ -15,7 +15,7 @@ import numpy as np
 from servo.diagnose.model import Design, Model
 from servo.diagnose.select import integrated_time, solve
 from servo.diagnose.terms import VOCABULARY
-from servo.physics import EFFECTS
+from servo.physics import EFFECTS, MASS
 
 
 @dataclass
@@ -48,6 +48,15 @@ class Fit:
         out.update(self.theta_std[i])
         out.update(phys.std_extra(self.term_params(i), out))
         return out
+
+    def mass(self, default: float | None = 0.0) -> float | None:
+        """The moving mass ``J`` (:data:`servo.physics.MASS`; ``default`` without one)."""
+        return self.combined().get(MASS, {}).get("J", default)
+
+    def mass_std(self) -> float | None:
+        """The std of a fitted mass (0 when the model holds it fixed or lacks it)."""
+        i = next((i for i, t in enumerate(self.model.terms) if t.physics == MASS), None)
+        return self.term_std(i).get("J") if i is not None and self.model.terms[i].free else 0.0
 
     def combined(self) -> dict:
         """Physics name -> reported parameters, a fixed term and its correction added

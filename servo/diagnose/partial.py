@@ -97,7 +97,7 @@ def located(sel: Selector, model: Model, alpha: float) -> list:
     first, last = np.flatnonzero(w)[[0, -1]]
     tau = integrated_time(np.where(w, r, 0.0)[first : last + 1])
     fit = fit_model(d, model)
-    J = fit.combined().get("inertia", {}).get("J", 0.0)
+    J = fit.mass()
     floor = verdict_mod.force_floor(d.sig, J)
     return [[x["t0"], x["t1"]] for x in verdict_mod.window_checks(d, r, floor, tau, alpha) if x["flagged"]
             and not x["test_part"]]  # fmt: skip

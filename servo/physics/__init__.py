@@ -51,6 +51,11 @@ NAMES = (
 #: the baseline terms of eq. (3) and the vocabulary term each is
 BASELINE_TERMS = {"J": "inertia", "B": "viscous_friction", "Fc": "coulomb_friction", "K": "stiffness", "h0": "offset"}
 
+#: the term whose coefficient ``J`` is the moving mass (the force balance's scale: a
+#: model without a positive one cannot be simulated, its size says whether the
+#: recording is in scope)
+MASS = BASELINE_TERMS["J"]
+
 
 def register(effect: Effect) -> None:
     """Add ``effect`` to :data:`EFFECTS` (and its term to :data:`VOCABULARY`), refusing a
@@ -124,6 +129,19 @@ def stage_values(c) -> dict:
     return out
 
 
+def simulated_drive(d: dict, sim) -> dict:
+    """The ``[drive]`` fields of the short-horizon simulation of a fitted model whose
+    fields are ``d``: each effect's (:meth:`~servo.physics.base.Effect.simulation`,
+    :class:`~servo.physics.base.Simulation`)."""
+    out = {}
+    for e in EFFECTS.values():
+        mine = e.simulation(d, sim)
+        if not set(mine) <= set(e.drive):
+            raise ValueError(f"physics: {e.name} simulates fields it does not declare: {sorted(set(mine) - set(e.drive))}")
+        out.update(mine)
+    return out
+
+
 def fill(record: np.ndarray, values: dict) -> None:
     """Write ``values`` into the one-element ``record``: a scalar field whole, an array
     field's first ``len(value)`` entries."""
@@ -133,6 +151,15 @@ def fill(record: np.ndarray, values: dict) -> None:
             record[k][0, : v.size] = v
         else:
             record[k] = v
+
+
+def diagnosed_by(stage: str) -> str:
+    """The name of the effect whose term the diagnosis stage ``stage`` names
+    (:attr:`~servo.physics.base.Effect.diagnosed_by`)."""
+    names = [e.name for e in EFFECTS.values() if e.diagnosed_by == stage]
+    if len(names) != 1:
+        raise ValueError(f"physics: the diagnosis stage {stage!r} names {len(names)} effects, not one")
+    return names[0]
 
 
 def not_cancellable() -> dict[str, str]:
@@ -159,6 +186,6 @@ for _name in MODULES:
     FILES[_effect.name] = f"servo/physics/{_name}.py"
 del _name, _effect
 
-__all__ = ["BASELINE_TERMS", "EFFECTS", "FILES", "MODULES", "NAMES", "VOCABULARY", "Concealment", "Effect", "Term",
-           "compensator_fields", "drive_fields", "fill", "markdown_table", "not_cancellable", "owner", "plant_values",
-           "register", "register_term", "renamed_keys", "stage_values"]  # fmt: skip
+__all__ = ["BASELINE_TERMS", "EFFECTS", "FILES", "MASS", "MODULES", "NAMES", "VOCABULARY", "Concealment", "Effect", "Term",
+           "compensator_fields", "diagnosed_by", "drive_fields", "fill", "markdown_table", "not_cancellable", "owner", "plant_values",
+           "register", "register_term", "renamed_keys", "simulated_drive", "stage_values"]  # fmt: skip

@@ -64,4 +64,5 @@ EFFECT = Effect(
     drive_map=AsymmetricDrive(),
     leave_out=_leave_out,
     study=_STUDY,
+    simulated=lambda d, sim: {"fc_asymmetry": 0.0, "b_asymmetry": d.get("b_asymmetry", 0.0)},
 )  # fmt: skip

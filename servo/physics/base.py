@@ -77,6 +77,13 @@ class Effect:
     (:mod:`servo.compensate.significance`; None: not a compensator term);
     ``study`` how the concealed-effect study hides it (:class:`Concealment`);
     ``not_cancellable`` why no static compensator term cancels it ("" if one does);
+    ``simulated(d, sim) -> dict`` its ``[drive]`` fields in the short-horizon simulation of a
+    fitted model (:class:`Simulation`; None: as fitted, :meth:`simulation`);
+    ``diagnosed_by`` the diagnosis stage beside the selection rounds that names its term
+    (``"lattice"`` the sensor's lattice test, :mod:`servo.diagnose.quantization`;
+    ``"breakaway"`` the test at rest, :mod:`servo.diagnose.breakaway`; ``"frf"`` the
+    frequency response above the rows' band, :mod:`servo.diagnose.frf_modes`; "": the
+    rounds alone);
     ``renamed`` its config keys' former names, ``"section.old" -> "new"`` (a config that
     uses an old one is refused with the new name)."""
 
@@ -93,6 +100,30 @@ class Effect:
     drive_map: DriveMap | None = None
     leave_out: Callable | None = None
     study: Concealment | None = None
+    simulated: Callable | None = None
+    diagnosed_by: str = ""
+
+    def simulation(self, d: dict, sim: "Simulation") -> dict:
+        """The effect's ``[drive]`` fields in the short-horizon simulation of a fitted
+        model whose fields are ``d`` (:meth:`servo.diagnose.fit.Fit.drive`): the
+        ``simulated`` hook's, or else its fields as fitted."""
+        if self.simulated is not None:
+            return self.simulated(d, sim)
+        return {k: d[k] for k in self.drive}
+
+
+@dataclass(frozen=True)
+class Simulation:
+    """What the short-horizon simulation of a fitted model
+    (:mod:`servo.diagnose.simulate`) tells each effect's ``simulated`` hook: ``P`` every
+    term's reported parameters (:meth:`~servo.diagnose.fit.Fit.combined`), ``stroke``
+    (m) stops the motion never reaches, ``u_scale`` the largest ``|u|`` of the recording
+    (force unit, at least 1e-300).  The simulation applies the input terms to the input
+    beforehand and steps the flexible modes apart: their fields are off in it."""
+
+    P: dict
+    stroke: float
+    u_scale: float
 
 
 class Term:
@@ -281,6 +312,14 @@ class DriveMap:
     def in_drive(self, d) -> bool:
         return bool(self.from_drive(d))
 
+    def state(self, design, theta: dict, P: dict, u: np.ndarray, record: np.ndarray) -> np.ndarray | None:
+        """The plant's hidden state the term holds at every sample (n,) (the Dahl
+        element's force), for a simulation started from the measured motion: the term
+        with nonlinear parameters ``theta`` in a model whose reported parameters are
+        ``P``, on the input ``u`` (n,) and the plant record ``record``; None: no state
+        (it starts at 0)."""
+        return None
+
 
 class OneFieldDrive(DriveMap):
     """The drive map of a term whose one coefficient is the ``[drive]`` field ``key``."""
@@ -315,5 +354,5 @@ def one_field(name: str):
     return lambda section, *_: {name: getattr(section, name)}
 
 
-__all__ = ["Concealment", "DriveMap", "Effect", "OneField", "OneFieldDrive", "Term", "contiguous", "field_at",
+__all__ = ["Concealment", "DriveMap", "Effect", "OneField", "OneFieldDrive", "Simulation", "Term", "contiguous", "field_at",
            "fold_ranges", "geom", "one_field", "valid_speed", "zero"]

@@ -148,4 +148,6 @@ EFFECT = Effect(
     drive_map=CoggingDrive(),
     leave_out=_leave_out,
     study=_STUDY,
+    simulated=lambda d, sim: {"cogging": d.get("cogging", 0.0), "cogging_period": d.get("cogging_period", 1.0),
+                              "cogging_phase": d.get("cogging_phase", 0.0)},
 )  # fmt: skip

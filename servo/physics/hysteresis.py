@@ -71,6 +71,21 @@ class HysteresisDrive(DriveMap):
             return [({"dahl_length": d.Ha / d.sigma, "alpha": d.alpha}, (d.Ha,))]
         return []
 
+    def state(self, design, theta, P, u, record):
+        """The Dahl element's force H at every sample, from its turnaround memory."""
+        if not P.get(self.name, {}).get("Ha", 0.0) > 0:
+            return None
+        return EFFECT.term.full(design, theta, u) * record["Ha"][0]
+
+
+def _simulated(d, sim):
+    if sim.P.get("hysteresis", {}).get("Ha", 0.0) > 0:
+        return {"sigma": d["sigma"], "Ha": d["Ha"], "alpha": d.get("alpha", 1.0)}
+    # no Dahl element: a negligible one that never saturates (Dahl length 1 m), since
+    # the plant's closed form overflows for a saturated element of vanishing length
+    off = 1e-12 * sim.u_scale
+    return {"sigma": off, "Ha": off, "alpha": 1.0}
+
 
 def _conceal(size):
     return {"Ha": size, "sigma": size / 3e-6}
@@ -105,4 +120,5 @@ EFFECT = Effect(
     drive_map=HysteresisDrive(),
     leave_out=_leave_out,
     study=_STUDY,
+    simulated=_simulated,
 )  # fmt: skip

@@ -18,4 +18,5 @@ EFFECT = Effect(
     plant=lambda d, dt: {"noise_x": d.position_noise, "noise_v": d.velocity_noise,
                          "has_velocity": 1.0 if d.measures_velocity else 0.0},
     not_cancellable="noise is not a force: nothing to cancel (a quieter sensor, or a lower velocity cutoff)",
+    simulated=lambda d, sim: {"position_noise": 0.0, "velocity_noise": 0.0, "measures_velocity": False},
 )  # fmt: skip

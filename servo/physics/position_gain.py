@@ -39,6 +39,11 @@ class PositionGainDrive(DriveMap):
         return []
 
 
+def _simulated(d, sim):
+    scale = sim.stroke / d.get("stroke", sim.stroke)  # the plant's kf fields are the changes at its stroke
+    return {"kf_linear": d.get("kf_linear", 0.0) * scale, "kf_quadratic": d.get("kf_quadratic", 0.0) * scale**2}
+
+
 def _conceal(size):
     return {"kf_linear": size}
 
@@ -71,4 +76,5 @@ EFFECT = Effect(
     drive_map=PositionGainDrive(),
     leave_out=_leave_out,
     study=_STUDY,
+    simulated=_simulated,
 )  # fmt: skip

@@ -23,6 +23,9 @@ class QuantizationDrive(DriveMap):
     name = "quantization"
     absent = {"position_quantum": 0.0}  # a found lattice is a finding, not a fitted term
 
+    def to_drive(self, P, fit):
+        return {"position_quantum": P[self.name]["step"]}
+
     def in_drive(self, d):
         return d.position_quantum > 0
 
@@ -43,4 +46,6 @@ EFFECT = Effect(
                     "cutoff that averages over several steps)",
     drive_map=QuantizationDrive(),
     study=_STUDY,
+    simulated=lambda d, sim: {"position_quantum": 0.0},
+    diagnosed_by="lattice",
 )  # fmt: skip

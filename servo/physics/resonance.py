@@ -128,4 +128,6 @@ EFFECT = Effect(
                     "([controller.track] notch_hz) or keep the crossover below it",
     drive_map=ResonanceDrive(),
     study=_STUDY,
+    simulated=lambda d, sim: {"mode_hz": [], "mode_zeta": [], "mode_gain": []},  # stepped apart (mode_trace)
+    diagnosed_by="frf",
 )  # fmt: skip

@@ -52,4 +52,5 @@ EFFECT = Effect(
     not_cancellable="a low-pass on the position sensor is a lag in the loop, not a force: raise the sensor's "
                     "bandwidth (its filter's cutoff well above the crossover), or estimate the position ahead of the "
                     "filter with an observer that inverts it",
+    simulated=lambda d, sim: {"sensor_cutoff_hz": 0.0},
 )  # fmt: skip

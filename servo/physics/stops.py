@@ -13,4 +13,5 @@ EFFECT = Effect(
     drive=dict(stroke=P(15e-3, "m", "hard stops at +-stroke", 0.0, None, lo_open=True)),
     plant=one_field("stroke"),
     not_cancellable="a hard stop is the end of the travel: keep the motion inside it",
+    simulated=lambda d, sim: {"stroke": sim.stroke},  # stops the motion never reaches
 )  # fmt: skip

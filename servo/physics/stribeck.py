@@ -87,4 +87,7 @@ EFFECT = Effect(
     drive_map=StribeckDrive(),
     leave_out=_leave_out,
     study=_STUDY,
+    simulated=lambda d, sim: {"Fs": max(d["Fs"], 0.0) if d["Fc"] > 0 else 0.0,
+                              "stribeck_velocity": d.get("stribeck_velocity", 1.0)},
+    diagnosed_by="breakaway",
 )  # fmt: skip

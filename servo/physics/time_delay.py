@@ -94,4 +94,5 @@ EFFECT = Effect(
                     "the delay) or keep the crossover well below 1/(2*pi*delay)",
     drive_map=TimeDelayDrive(),
     study=_STUDY,
+    simulated=lambda d, sim: {"input_delay_s": 0.0},  # applied to the input beforehand
 )  # fmt: skip
