@@ -22,7 +22,7 @@ from importlib import import_module
 
 import numpy as np
 
-from servo.physics.base import Concealment, Effect, Term
+from servo.physics.base import Cancelling, Concealment, Effect, Term
 
 #: the effect modules, in the order the config sections list their fields and the
 #: diagnosis's vocabulary lists its terms
@@ -142,6 +142,26 @@ def simulated_drive(d: dict, sim) -> dict:
     return out
 
 
+def cancel_terms(d: dict, how, c) -> list[tuple[str, dict]]:
+    """The compensator terms of a model whose ``[drive]`` fields are ``d`` (a dict), each
+    ``(what it cancels, its [compensator] fields)``: every effect's ``cancel`` hook
+    (:class:`~servo.physics.base.Cancelling` ``how``), the entries of one name one term,
+    in the order the compensator stage applies them (the first of their effects'
+    :data:`~kernels.stage.STAGE_PARAMS` fields, as ``stage(c)`` sets them from the
+    compensator section ``c``)."""
+    from kernels.stage import STAGE_PARAMS
+
+    names = STAGE_PARAMS.names
+    terms: dict[str, dict] = {}
+    rank: dict[str, int] = {}
+    for e in EFFECTS.values():
+        for name, keys in (e.cancel(d, how) if e.cancel is not None else []):
+            terms.setdefault(name, {}).update(keys)
+            r = min(names.index(k) for k in e.stage(c)) if e.stage is not None else len(names)
+            rank[name] = min(rank.get(name, r), r)
+    return sorted(terms.items(), key=lambda item: rank[item[0]])
+
+
 def fill(record: np.ndarray, values: dict) -> None:
     """Write ``values`` into the one-element ``record``: a scalar field whole, an array
     field's first ``len(value)`` entries."""
@@ -186,6 +206,6 @@ for _name in MODULES:
     FILES[_effect.name] = f"servo/physics/{_name}.py"
 del _name, _effect
 
-__all__ = ["BASELINE_TERMS", "EFFECTS", "FILES", "MASS", "MODULES", "NAMES", "VOCABULARY", "Concealment", "Effect", "Term",
-           "compensator_fields", "diagnosed_by", "drive_fields", "fill", "markdown_table", "not_cancellable", "owner", "plant_values",
+__all__ = ["BASELINE_TERMS", "EFFECTS", "FILES", "MASS", "MODULES", "NAMES", "VOCABULARY", "Cancelling", "Concealment", "Effect", "Term",
+           "cancel_terms", "compensator_fields", "diagnosed_by", "drive_fields", "fill", "markdown_table", "not_cancellable", "owner", "plant_values",
            "register", "register_term", "renamed_keys", "simulated_drive", "stage_values"]  # fmt: skip

@@ -8,7 +8,7 @@ from __future__ import annotations
 import numpy as np
 
 from servo.fields import P
-from servo.physics.base import Concealment, DriveMap, Effect, Term
+from servo.physics.base import Concealment, DriveMap, Effect, Term, number
 
 
 class Asymmetric(Term):
@@ -65,4 +65,6 @@ EFFECT = Effect(
     leave_out=_leave_out,
     study=_STUDY,
     simulated=lambda d, sim: {"fc_asymmetry": 0.0, "b_asymmetry": d.get("b_asymmetry", 0.0)},
+    cancel=lambda d, how: [] if how.paper or not number(d, "b_asymmetry") else [
+        ("asymmetric viscous friction", dict(b_asymmetry=number(d, "b_asymmetry")))],
 )  # fmt: skip

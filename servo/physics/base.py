@@ -84,6 +84,10 @@ class Effect:
     ``"breakaway"`` the test at rest, :mod:`servo.diagnose.breakaway`; ``"frf"`` the
     frequency response above the rows' band, :mod:`servo.diagnose.frf_modes`; "": the
     rounds alone);
+    ``cancel(d, how) -> list[(name, keys)]`` its compensator term(s) for the drive fields
+    ``d`` of a model (a dict): what each cancels and the ``[compensator]`` fields it
+    sets (:class:`Cancelling`; entries of the same name from several effects are one
+    term, their fields in registry order; None or ``[]``: none);
     ``renamed`` its config keys' former names, ``"section.old" -> "new"`` (a config that
     uses an old one is refused with the new name)."""
 
@@ -102,6 +106,7 @@ class Effect:
     study: Concealment | None = None
     simulated: Callable | None = None
     diagnosed_by: str = ""
+    cancel: Callable | None = None
 
     def simulation(self, d: dict, sim: "Simulation") -> dict:
         """The effect's ``[drive]`` fields in the short-horizon simulation of a fitted
@@ -110,6 +115,17 @@ class Effect:
         if self.simulated is not None:
             return self.simulated(d, sim)
         return {k: d[k] for k in self.drive}
+
+
+@dataclass(frozen=True)
+class Cancelling:
+    """How :mod:`servo.compensate.propose` asks each effect's ``cancel`` hook for its
+    compensator term: ``paper`` what eq. (9) alone can hold (one sliding level, none of
+    the terms beyond it: an effect beyond eq. 9 gives none); ``dahl_length`` (m) the
+    Dahl element's to fold a Coulomb level into when the model has none."""
+
+    paper: bool = False
+    dahl_length: float = 3.125e-6
 
 
 @dataclass(frozen=True)
@@ -257,6 +273,15 @@ class Term:
         return {}
 
 
+#: the compensator term of eq. (9)'s viscous friction and bias (``B``, ``K``, ``h0``)
+EQ9 = "viscous friction, bias (eq. 9)"
+
+
+def number(d: dict, key: str, default: float = 0.0) -> float:
+    """The field ``key`` of the fields ``d`` as a float (``default`` when it lacks it)."""
+    return float(d.get(key, default))
+
+
 def geom(lo: float, hi: float, per_decade: float) -> np.ndarray:
     """A geometric grid from ``lo`` to ``hi`` with about ``per_decade`` points a decade."""
     if not (hi > lo > 0):
@@ -354,5 +379,5 @@ def one_field(name: str):
     return lambda section, *_: {name: getattr(section, name)}
 
 
-__all__ = ["Concealment", "DriveMap", "Effect", "OneField", "OneFieldDrive", "Simulation", "Term", "contiguous", "field_at",
-           "fold_ranges", "geom", "one_field", "valid_speed", "zero"]
+__all__ = ["EQ9", "Cancelling", "Concealment", "DriveMap", "Effect", "OneField", "OneFieldDrive", "Simulation", "Term", "contiguous", "field_at",
+           "fold_ranges", "geom", "number", "one_field", "valid_speed", "zero"]

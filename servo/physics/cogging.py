@@ -12,7 +12,7 @@ import numpy as np
 from kernels.cancel import harmonic_coefficients
 from kernels.screen import cogging_stats
 from servo.fields import P
-from servo.physics.base import Concealment, DriveMap, Effect, Term, contiguous, fold_ranges, valid_speed
+from servo.physics.base import Concealment, DriveMap, Effect, Term, contiguous, fold_ranges, number, valid_speed
 
 
 class Cogging(Term):
@@ -150,4 +150,7 @@ EFFECT = Effect(
     study=_STUDY,
     simulated=lambda d, sim: {"cogging": d.get("cogging", 0.0), "cogging_period": d.get("cogging_period", 1.0),
                               "cogging_phase": d.get("cogging_phase", 0.0)},
+    cancel=lambda d, how: [] if how.paper or not number(d, "cogging") else [("force periodic in position", dict(
+        periodic_amplitudes=[number(d, "cogging")], periodic_phases=[number(d, "cogging_phase")],
+        periodic_period=number(d, "cogging_period", 1e-4)))],
 )  # fmt: skip

@@ -6,7 +6,7 @@ documentation entry (:class:`~servo.physics.base.Effect`).
 from __future__ import annotations
 
 from servo.fields import P
-from servo.physics.base import Concealment, DriveMap, Effect, Term, one_field
+from servo.physics.base import Concealment, DriveMap, Effect, Term, number, one_field
 
 
 class Coulomb(Term):
@@ -49,6 +49,20 @@ _STUDY = Concealment("coulomb_friction", "A", "Fc = Fs (Coulomb level)", (1e-6, 
                      baseline="J,B,K,h0", fixed={"Fc": 0.0, "Fs": 0.0}, fields=_conceal)  # fmt: skip
 
 
+def _cancel(d, how):
+    """The Coulomb element beyond the Dahl one (``kernels.cancel.coulomb_stribeck``): its
+    sliding level, the Stribeck rise to a breakaway (the stribeck_friction effect's
+    ``Fs``, ``stribeck_velocity``) and its asymmetry (asymmetric_friction's
+    ``fc_asymmetry``), one term of the stage."""
+    Fc, Fs = number(d, "Fc"), number(d, "Fs")
+    if how.paper or not (Fc > 0 or Fs > 0):
+        return []
+    keys = dict(coulomb_extra=Fc, coulomb_static=Fs if Fs > Fc else 0.0, coulomb_asymmetry=number(d, "fc_asymmetry"))
+    if Fs > Fc:
+        keys["stribeck_velocity"] = number(d, "stribeck_velocity", 1e-3)
+    return [("Coulomb friction beyond the Dahl element" + (" with its Stribeck rise" if Fs > Fc else ""), keys)]
+
+
 EFFECT = Effect(
     "coulomb_friction", "Coulomb friction Fc*sgn(x') beyond the Dahl element",
     drive=dict(Fc=P(0.0, "A", "extra Coulomb (sliding) friction beyond the Dahl element", 0.0)),
@@ -62,4 +76,5 @@ EFFECT = Effect(
     drive_map=CoulombDrive(),
     leave_out=_leave_out,
     study=_STUDY,
+    cancel=_cancel,
 )  # fmt: skip

@@ -9,7 +9,7 @@ import numpy as np
 
 from kernels.hysteresis import dahl_trace
 from servo.fields import P
-from servo.physics.base import Concealment, DriveMap, Effect, Term, geom
+from servo.physics.base import Concealment, DriveMap, Effect, Term, geom, number
 
 
 class Hysteresis(Term):
@@ -99,6 +99,36 @@ _STUDY = Concealment("hysteresis", "A", "Dahl Ha (Dahl length 3 um)", (1e-5, 2e-
                      fields=_conceal)
 
 
+#: a Dahl element below this fraction of the model's largest force is no Dahl element
+NEGLIGIBLE = 1e-6
+#: Dahl lengths after a turnaround before eq. (3)'s regime may take over: the Dahl
+#: estimate is then within exp(-4) = 2 % of its asymptote (the default config's 12.5 um
+#: over its 3.125 um Dahl length)
+SATURATED = 4.0
+
+
+def _cancel(d, how):
+    """The Dahl element (eq. 6-7) with eq. (3)'s sliding level; with ``how.paper`` one
+    sliding level for both, the drive's Coulomb level beyond the Dahl element added."""
+    Ha, sigma, alpha = number(d, "Ha", 1e-12), number(d, "sigma", 1e-12), number(d, "alpha", 1.0)
+    Fc, Fs = number(d, "Fc"), number(d, "Fs")
+    scale = max(abs(Ha), abs(Fc), abs(Fs), abs(number(d, "h0")), 1e-300)
+    dahl = Ha > NEGLIGIBLE * scale
+    if how.paper:
+        level = (Ha if dahl else 0.0) + Fc  # one sliding level, as eq. (9) has
+        length = Ha / sigma if dahl else how.dahl_length
+        if level > 0:
+            keys = dict(sliding_level=level, Ha=level, sigma=level / length, alpha=alpha if dahl else 1.0,
+                        fast_on_distance=SATURATED * length)  # fmt: skip
+        else:
+            keys = dict(sliding_level=0.0, Ha=1e-12, sigma=1e-12, alpha=1.0)
+        return [("sliding friction (eq. 9: Coulomb and its Dahl element)", keys)]
+    keys = dict(sigma=sigma, Ha=Ha, alpha=alpha, sliding_level=Ha)
+    if dahl:
+        keys["fast_on_distance"] = SATURATED * Ha / sigma
+    return [("Dahl hysteresis (eq. 6-7)" if dahl else "Dahl hysteresis: none in the model (the term off)", keys)]
+
+
 EFFECT = Effect(
     "hysteresis", "Dahl hysteresis (eq. 6-7): pre-sliding friction with turnaround memory",
     drive=dict(
@@ -121,4 +151,5 @@ EFFECT = Effect(
     leave_out=_leave_out,
     study=_STUDY,
     simulated=_simulated,
+    cancel=_cancel,
 )  # fmt: skip

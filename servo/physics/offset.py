@@ -8,7 +8,7 @@ from __future__ import annotations
 import numpy as np
 
 from servo.fields import P
-from servo.physics.base import Concealment, Effect, OneField, OneFieldDrive, field_at, one_field, zero
+from servo.physics.base import EQ9, Concealment, Effect, OneField, OneFieldDrive, field_at, number, one_field, zero
 
 
 class Offset(OneField):
@@ -33,4 +33,5 @@ EFFECT = Effect(
     drive_map=OneFieldDrive("offset", "h0"),
     study=_STUDY,
     leave_out=zero("h0"),
+    cancel=lambda d, how: [(EQ9, {"h0": number(d, "h0")})],
 )  # fmt: skip

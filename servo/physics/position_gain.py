@@ -8,7 +8,7 @@ from __future__ import annotations
 import numpy as np
 
 from servo.fields import P
-from servo.physics.base import Concealment, DriveMap, Effect, Term
+from servo.physics.base import Concealment, DriveMap, Effect, Term, number
 
 
 class PositionGain(Term):
@@ -56,6 +56,13 @@ _STUDY = Concealment("position_dependent_gain", "-", "kf_linear (force-constant 
                      (0.02, 0.05, 0.1, 0.2, 0.5), 0.5, fields=_conceal)  # fmt: skip
 
 
+def _cancel(d, how):
+    if how.paper or not (number(d, "kf_linear") or number(d, "kf_quadratic")):
+        return []
+    return [("position-dependent force constant", dict(kf_linear=number(d, "kf_linear"),
+             kf_quadratic=number(d, "kf_quadratic"), kf_stroke=number(d, "stroke", 15e-3)))]
+
+
 EFFECT = Effect(
     "position_dependent_gain", "force constant varying over the stroke",
     drive=dict(
@@ -77,4 +84,5 @@ EFFECT = Effect(
     leave_out=_leave_out,
     study=_STUDY,
     simulated=_simulated,
+    cancel=_cancel,
 )  # fmt: skip

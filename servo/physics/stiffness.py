@@ -6,7 +6,7 @@ documentation entry (:class:`~servo.physics.base.Effect`).
 from __future__ import annotations
 
 from servo.fields import P
-from servo.physics.base import Concealment, Effect, OneField, OneFieldDrive, field_at, one_field, zero
+from servo.physics.base import EQ9, Concealment, Effect, OneField, OneFieldDrive, field_at, number, one_field, zero
 
 
 class Stiffness(OneField):
@@ -31,4 +31,5 @@ EFFECT = Effect(
     drive_map=OneFieldDrive("stiffness", "K"),
     study=_STUDY,
     leave_out=zero("K"),
+    cancel=lambda d, how: [(EQ9, {"K": number(d, "K")})],
 )  # fmt: skip

@@ -6,7 +6,7 @@ documentation entry (:class:`~servo.physics.base.Effect`).
 from __future__ import annotations
 
 from servo.fields import P
-from servo.physics.base import Concealment, Effect, OneField, OneFieldDrive, field_at, one_field, zero
+from servo.physics.base import EQ9, Concealment, Effect, OneField, OneFieldDrive, field_at, number, one_field, zero
 
 
 class Viscous(OneField):
@@ -32,4 +32,5 @@ EFFECT = Effect(
     drive_map=OneFieldDrive("viscous_friction", "B"),
     study=_STUDY,
     leave_out=zero("B"),
+    cancel=lambda d, how: [(EQ9, {"B": number(d, "B")})],
 )  # fmt: skip
