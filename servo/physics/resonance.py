@@ -8,7 +8,6 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from scipy import signal
 
 from kernels.screen import biquad_stats
 from servo.fields import P
@@ -41,11 +40,15 @@ class Resonance(Term):
         return b, a
 
     def full(self, d, theta, u_eff):
+        from scipy import signal  # here: a run imports this module, scipy.signal only a diagnosis
+
         s = d.sig
         b, a = self.biquad(theta["frequency_hz"], theta["zeta"], 1.0 / s.dt)
         return -signal.lfilter(b, a, s.force(u_eff))
 
     def screen(self, d, theta, model):
+        from scipy import signal
+
         y = d.target_raw(model)
         b, a = self.biquad(theta["frequency_hz"], theta["zeta"], 1.0 / d.sig.row_dt)
         return -signal.lfilter(b, a, y)[:, None]
