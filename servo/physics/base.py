@@ -1,24 +1,72 @@
 """What every physical effect module provides, and the small objects it is built from.
 
 A module of :mod:`servo.physics` describes one physical effect of the drive and owns
-everything about it (:class:`Effect`):
+everything about it in one :class:`Effect`, ``EFFECT``; adding an effect is that module
+and its name in :data:`servo.physics.MODULES`.  The registry derives the config
+sections, the record mappings, the diagnosis's vocabulary, the compensator's terms and
+the docs tables from the modules.
 
-* its config fields: ``drive`` (the simulated drive's ``[drive]`` section) and
-  ``compensator`` (the ``[compensator]`` section), each a :func:`servo.fields.P` field
-  with its unit and range;
-* its part of the plant record: ``plant(d, dt)`` the fields of
-  :data:`kernels.plant.PLANT_PARAMS` it sets from a drive section ``d``;
-* its compensator term: ``stage(c)`` the fields of :data:`kernels.stage.STAGE_PARAMS`
-  it sets from a compensator section ``c``, or ``not_cancellable`` the reason no static
-  compensator term can cancel it;
-* its diagnosis term (:class:`Term`): regressor columns linear in their coefficients
-  ``coefs`` for fixed nonlinear parameters ``thetas``, the grid of those, the reported
-  parameters, its ``[drive]`` fields in a fitted model and how a study conceals it
-  (:class:`Concealment`);
-* its documentation entry (``doc``).
+**What an author writes** (the minimum, by what the effect is to do):
 
-The registry (:mod:`servo.physics`) derives the config sections, the record mappings,
-the vocabulary of the diagnosis and the docs tables from the modules.
+=====================================  ==============================================
+the effect ...                         writes
+=====================================  ==============================================
+exists (the docs table)                ``Effect(name, doc)``
+is carried by the simulated drive      ``drive`` its ``[drive]`` fields
+                                       (:func:`servo.fields.P`: default, unit, doc,
+                                       range) and ``plant(d, dt)`` the fields of
+                                       :data:`kernels.plant.PLANT_PARAMS` it sets (the
+                                       kernel's arithmetic reads them)
+is named by ``servo diagnose``         ``term``: a :class:`Term` with ``name``,
+                                       ``coefs``, ``units`` and ``full(design, theta,
+                                       u_eff)`` its columns (n, k); a nonlinear one
+                                       also ``thetas`` and ``grid(design, model)``.
+                                       ``drive_map`` (:class:`DriveMap`: ``absent``,
+                                       ``to_drive``, ``from_drive``) for the fitted
+                                       model's ``[drive]`` fields
+is hidden by the concealed study       ``study`` (:class:`Concealment`)
+is cancelled by ``servo compensate``   ``compensator`` its fields, ``stage(c)`` the
+                                       fields of :data:`kernels.stage.STAGE_PARAMS`
+                                       it sets, ``cancel(d, how)`` its compensator
+                                       term from a model's fields
+                                       (:class:`Cancelling`), ``leave_out(d)`` the
+                                       drive without it
+cannot be cancelled                    ``not_cancellable``: why, and what to do
+=====================================  ==============================================
+
+**What has defaults** (override only what the effect needs):
+
+* :class:`Effect`: ``engaged`` (the stage's ``extras`` switch), ``simulated`` (its
+  fields in the short-horizon simulation of a fitted model, default as fitted),
+  ``diagnosed_by`` (a stage beside the selection rounds), ``renamed`` (former keys).
+* :class:`Term` is four concerns, each a base class with defaults that are exact and
+  always correct: :class:`Columns` (``rows`` through the rows' filter, ``physical`` /
+  ``from_physical`` the same names), :class:`SignalPath` (a column term of the measured
+  motion: ``kind``, ``requires``, ``path_order``, ``gated``, ``idle``,
+  ``column_design``, ``eligible``, ...), :class:`Search` (what only the screening and
+  refinement machinery asks, for speed: ``screen*``, ``bounds``, ``refine_width``) and
+  :class:`Judging` (how the report judges a fit: ``POSITIVE``, ``implausible``,
+  ``std_extra``).  :class:`OneField` is a term that is one coefficient linear in the
+  motion, :class:`OneFieldDrive` its drive map.
+* :class:`DriveMap`: ``in_drive`` (whether a drive holds the term, from
+  ``from_drive``), ``state`` (a hidden plant state the term holds, none).
+
+The smallest named effect, the viscous friction (``servo/physics/viscous.py``)::
+
+    class Viscous(OneField):
+        name, coefs, units = "viscous_friction", ("B",), {"B": "F*s/m"}
+
+        def full(self, d, theta, u_eff):
+            return d.sig.vf
+
+    EFFECT = Effect(
+        "viscous_friction", "viscous friction B*x'",
+        drive=dict(B=P(2.0e-3, "A*s/m", "viscous friction", 0.0)),
+        compensator=dict(B=P(2.0e-3, "A*s/m", "viscous friction estimate", None, None)),
+        plant=one_field("B"), stage=one_field("B"), term=Viscous(),
+        drive_map=OneFieldDrive("viscous_friction", "B"), study=..., leave_out=zero("B"),
+        cancel=lambda d, how: [(EQ9, {"B": number(d, "B")})],
+    )
 
 Forces are in the recording's (or the drive's) force unit ``F`` (A of VCM current, or N),
 positions in m, times in s.
@@ -142,41 +190,59 @@ class Simulation:
     u_scale: float
 
 
-class Term:
-    """A diagnosis term; the base is a linear term with one column and no nonlinear
-    parameter.
+class Columns:
+    """What a term's author writes: the columns of the force balance and their parameters.
 
-    Each term contributes to the force balance ``u_eff = sum coef * column`` (see
-    :mod:`servo.diagnose.model`) in one of three ways (``kind``):
-
-    * ``column`` terms add regressor columns, linear in their coefficients ``coefs`` for
-      fixed nonlinear parameters ``thetas`` (a Stribeck velocity, a Dahl length, a mode's
-      frequency and damping, a cogging period).  The columns are built at full rate from
-      the filtered motion and passed through the rows' parallel filter.
-    * ``input`` terms transform the recorded input before it reaches the arm (a
-      saturation level, a delay); they change the target, not the columns.
-    * ``sensor`` terms (quantisation) change neither: see
-      :mod:`servo.diagnose.quantization`.
-
-    ``rows(design, theta, u_eff)`` the exact rows (m, k); ``grid(design, model)`` the
-    nonlinear parameters a diagnosis tries (``[{}]`` for a linear term);
-    ``screen(design, theta, model)`` a fast approximation of the rows used to scan large
-    grids; ``bounds`` for the final refinement; ``physical``/``from_physical`` between
-    the internal ``(theta, coef)`` and the reported parameters; ``std_extra`` the
-    uncertainty of its derived parameters.  What the rest of the tool knows of the
-    effect is not the term's: its ``[drive]`` fields in a fitted model
-    (:class:`DriveMap`), how a compensator leaves it out and how a study conceals it
-    (:class:`Concealment`) are the effect module's other objects (:class:`Effect`)."""
+    ``name`` the vocabulary name (the effect's); ``coefs`` the coefficients the columns
+    are linear in, ``thetas`` the nonlinear parameters fixed while they are fitted;
+    ``units`` name -> unit (``F`` the force unit); ``doc`` one line;
+    ``full(design, theta, u_eff)`` the full-rate columns (n, k) of the filtered motion
+    (``design.sig``); ``grid(design, model)`` the ``theta`` a diagnosis tries (``[{}]``
+    for a linear term); ``physical``/``from_physical`` between the internal ``(theta,
+    coef)`` and the reported parameters (default: the same names)."""
 
     name = ""
-    kind = "column"
     coefs: tuple = ()
     thetas: tuple = ()
     units: dict = {}
     doc = ""
+
+    def full(self, d, theta: dict, u_eff: np.ndarray) -> np.ndarray:
+        """Full-rate columns (n, k)."""
+        raise NotImplementedError
+
+    def rows(self, d, theta: dict, u_eff: np.ndarray) -> np.ndarray:
+        """The exact rows (m, k): :meth:`full` through the rows' parallel filter."""
+        F = np.atleast_2d(self.full(d, theta, u_eff).T).T
+        return np.column_stack([d.sig.rows(np.ascontiguousarray(F[:, j])) for j in range(F.shape[1])])
+
+    def grid(self, d, model) -> list:
+        return [{}]
+
+    def physical(self, theta: dict, coef) -> dict:
+        """Reported parameters (name -> value)."""
+        return {**dict(zip(self.coefs, map(float, coef))), **{k: float(v) for k, v in theta.items()}}
+
+    def from_physical(self, p: dict) -> tuple[dict, tuple]:
+        return {k: p[k] for k in self.thetas}, tuple(p[k] for k in self.coefs)
+
+
+class SignalPath:
+    """Where a term sits on the signal path of the force balance (defaults: a column
+    term of the measured motion, tried once, with no prerequisite).
+
+    ``kind`` ``"column"``, ``"input"`` or ``"sensor"`` (:class:`Term`); ``requires`` the
+    terms a model must hold before this one is tried; ``uses_input`` its columns read
+    the effective input; ``linear_in_motion`` its columns of the measured motion obey a
+    lagged force balance exactly; ``path_order`` an input term's place on the input's
+    path to the arm; ``gated`` whether it may be present from some time on only;
+    ``idle`` an input term that changes no row; ``column_design`` the signals other
+    terms' columns read when the model holds this one; ``eligible`` whether it may be
+    tried on top of a model."""
+
+    kind = "column"
     requires: tuple = ()
     uses_input = False
-    screening = False  # large grids scanned with fast approximate rows
     #: a column term linear in the motion (its columns of the measured motion obey a
     #: lagged force balance exactly: a sensor lag leaves them as they are)
     linear_in_motion = False
@@ -185,45 +251,6 @@ class Term:
     #: whether the term may be present from some time on only (a mass does not appear
     #: half-way: :mod:`servo.diagnose.partial`)
     gated = True
-
-    def full(self, d, theta: dict, u_eff: np.ndarray) -> np.ndarray:
-        """Full-rate columns (n, k)."""
-        raise NotImplementedError
-
-    def rows(self, d, theta: dict, u_eff: np.ndarray) -> np.ndarray:
-        F = np.atleast_2d(self.full(d, theta, u_eff).T).T
-        return np.column_stack([d.sig.rows(np.ascontiguousarray(F[:, j])) for j in range(F.shape[1])])
-
-    def screen(self, d, theta: dict, model) -> np.ndarray:
-        return d.variant_rows(self.name, theta, model)
-
-    def screen_batch(self, d, thetas: list, model) -> np.ndarray:
-        """Approximate rows of several variants at once, (J, k, m)."""
-        return np.stack([np.atleast_2d(self.screen(d, th, model).T) for th in thetas], axis=0)
-
-    def screen_sums(self, d, thetas: list, model, r: np.ndarray, blocks):
-        """Screening sums ``(a, H)`` of all ``thetas`` at once, (K, J, k) and (K, J, k, k)
-        as :func:`servo.diagnose.select.screen_stats` of :meth:`screen_batch`, computed
-        without the columns (a compiled kernel); None: not available, the caller builds
-        the columns in chunks."""
-        return None
-
-    def grid(self, d, model) -> list:
-        return [{}]
-
-    def screen_target(self, d, model, theta: dict) -> np.ndarray | None:
-        """An input term's target rows (m,) tried on top of ``model`` (which lacks the
-        term), computed faster than the exact chain; None: use the exact chain."""
-        return None
-
-    def bounds(self, d, model) -> dict:
-        """Refinement bounds per theta: name -> (lo, hi, log_scale)."""
-        return {}
-
-    def refine_width(self, d, name: str, value: float) -> float:
-        """Half-width of the final refinement's interval around a grid point ``value`` of
-        the linear-scale parameter ``name``: 15 % of the value."""
-        return 0.15 * abs(value)
 
     def idle(self, params: dict, u: np.ndarray) -> bool:
         """Whether the term, with ``params``, leaves the recorded input ``u`` (n,) as it
@@ -244,12 +271,54 @@ class Term:
                 return f"needs {r} in the model first"
         return None
 
-    def physical(self, theta: dict, coef) -> dict:
-        """Reported parameters (name -> value)."""
-        return {**dict(zip(self.coefs, map(float, coef))), **{k: float(v) for k, v in theta.items()}}
 
-    def from_physical(self, p: dict) -> tuple[dict, tuple]:
-        return {k: p[k] for k in self.thetas}, tuple(p[k] for k in self.coefs)
+class Search:
+    """What only the screening and refinement machinery of the selection
+    (:mod:`servo.diagnose.select`) asks of a term: fast approximations for large grids
+    and the final refinement's intervals.  The defaults are exact and always correct;
+    a term overrides them for speed (``screening``, ``screen``, ``screen_batch``,
+    ``screen_sums``, ``screen_target``) or to refine its ``thetas`` between grid points
+    (``bounds``, ``refine_width``)."""
+
+    screening = False  # large grids scanned with fast approximate rows
+
+    def screen(self, d, theta: dict, model) -> np.ndarray:
+        return d.variant_rows(self.name, theta, model)
+
+    def screen_batch(self, d, thetas: list, model) -> np.ndarray:
+        """Approximate rows of several variants at once, (J, k, m)."""
+        return np.stack([np.atleast_2d(self.screen(d, th, model).T) for th in thetas], axis=0)
+
+    def screen_sums(self, d, thetas: list, model, r: np.ndarray, blocks):
+        """Screening sums ``(a, H)`` of all ``thetas`` at once, (K, J, k) and (K, J, k, k)
+        as :func:`servo.diagnose.select.screen_stats` of :meth:`screen_batch`, computed
+        without the columns (a compiled kernel); None: not available, the caller builds
+        the columns in chunks."""
+        return None
+
+    def screen_target(self, d, model, theta: dict) -> np.ndarray | None:
+        """An input term's target rows (m,) tried on top of ``model`` (which lacks the
+        term), computed faster than the exact chain; None: use the exact chain."""
+        return None
+
+    def bounds(self, d, model) -> dict:
+        """Refinement bounds per theta: name -> (lo, hi, log_scale)."""
+        return {}
+
+    def refine_width(self, d, name: str, value: float) -> float:
+        """Half-width of the final refinement's interval around a grid point ``value`` of
+        the linear-scale parameter ``name``: 15 % of the value."""
+        return 0.15 * abs(value)
+
+
+class Judging:
+    """How the report judges and shows a fitted term (defaults: any sign, no derived
+    parameter): ``POSITIVE`` parameter -> what a negative value means (:meth:`note`);
+    ``implausible`` why fitted parameters do not describe the physics (then it is not
+    named); ``unit`` a parameter's unit in a force unit; ``std_extra`` the std of
+    derived reported parameters."""
+
+    POSITIVE: dict = {}
 
     def note(self, params: dict) -> str:
         """A remark when a fitted parameter has a sign the physics does not expect."""
@@ -257,8 +326,6 @@ class Term:
             if k in self.POSITIVE and v < 0:
                 return f"{k} < 0: {self.POSITIVE[k]}"
         return ""
-
-    POSITIVE: dict = {}
 
     def implausible(self, params: dict) -> str:
         """Why fitted parameters (:meth:`physical`) do not describe this physics ("" if
@@ -271,6 +338,30 @@ class Term:
     def std_extra(self, params: dict, std: dict) -> dict:
         """Std of the derived reported parameters (``std`` holds the fitted ones')."""
         return {}
+
+
+class Term(Columns, SignalPath, Search, Judging):
+    """A diagnosis term: its columns (:class:`Columns`, what its author writes), its place
+    on the signal path (:class:`SignalPath`), what the screening and refinement machinery
+    asks of it (:class:`Search`) and how the report judges it (:class:`Judging`); the
+    base is a linear column term with no nonlinear parameter.
+
+    Each term contributes to the force balance ``u_eff = sum coef * column`` (see
+    :mod:`servo.diagnose.model`) in one of three ways (``kind``):
+
+    * ``column`` terms add regressor columns, linear in their coefficients ``coefs`` for
+      fixed nonlinear parameters ``thetas`` (a Stribeck velocity, a Dahl length, a mode's
+      frequency and damping, a cogging period).  The columns are built at full rate from
+      the filtered motion and passed through the rows' parallel filter.
+    * ``input`` terms transform the recorded input before it reaches the arm (a
+      saturation level, a delay); they change the target, not the columns.
+    * ``sensor`` terms (quantisation) change neither: see
+      :mod:`servo.diagnose.quantization`.
+
+    What the rest of the tool knows of the effect is not the term's: its ``[drive]``
+    fields in a fitted model (:class:`DriveMap`), how a compensator leaves it out and
+    how a study conceals it (:class:`Concealment`) are the effect module's other
+    objects (:class:`Effect`)."""
 
 
 #: the compensator term of eq. (9)'s viscous friction and bias (``B``, ``K``, ``h0``)
@@ -379,5 +470,5 @@ def one_field(name: str):
     return lambda section, *_: {name: getattr(section, name)}
 
 
-__all__ = ["EQ9", "Cancelling", "Concealment", "DriveMap", "Effect", "OneField", "OneFieldDrive", "Simulation", "Term", "contiguous", "field_at",
+__all__ = ["EQ9", "Cancelling", "Columns", "Concealment", "DriveMap", "Effect", "Judging", "Search", "SignalPath", "OneField", "OneFieldDrive", "Simulation", "Term", "contiguous", "field_at",
            "fold_ranges", "geom", "number", "one_field", "valid_speed", "zero"]
