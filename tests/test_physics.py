@@ -17,7 +17,8 @@ from kernels.stage import STAGE_PARAMS
 from servo import physics
 from servo.config import CompensatorConfig, Config, DriveConfig, from_dict
 from servo.fields import documented
-from servo.physics.base import Effect, Term
+from servo.physics.base import (EQ9, Cancelling, Columns, Effect, Judging, Search, SignalPath, Simulation,
+                                Term)  # fmt: skip
 from servo.runtime.controller import stage_params
 from servo.runtime.simplant import plant_params
 
@@ -96,8 +97,65 @@ def test_every_vocabulary_term_has_an_effect_module_and_a_compensator_answer():
 def test_the_term_interface_is_the_diagnosis_only():
     """What a term offers is its columns, parameters and grid (and how it is searched and
     judged): the drive, compensator and study concerns live on the effect."""
-    hooks = {k for k in vars(Term) if not k.startswith("_")}
+    hooks = {k for k in dir(Term) if not k.startswith("_")}
     assert not hooks & {"to_drive", "from_drive", "absent", "in_drive", "leave_out", "effect", "conceal"}
+
+
+def test_the_term_is_four_concerns_apart():
+    """Each public attribute of a term is one concern's (base.py's docs list them)."""
+    concerns = [{k for k in vars(c) if not k.startswith("_")} for c in (Columns, SignalPath, Search, Judging)]
+    assert sum(map(len, concerns)) == len(set().union(*concerns))  # no attribute in two
+    assert set().union(*concerns) == {k for k in dir(Term) if not k.startswith("_")}
+    assert not {k for k in vars(Term) if not k.startswith("_")}  # the term adds none of its own
+
+
+def test_a_term_with_only_what_its_author_writes_is_complete():
+    """The minimum of base.py's docs (name, coefs, units, full) makes a usable term."""
+
+    class Minimal(Term):
+        name, coefs, units = "minimal", ("c",), {"c": "F"}
+
+        def full(self, d, theta, u_eff):
+            return np.ones(4)
+
+    t = Minimal()
+    assert t.grid(None, None) == [{}] and t.kind == "column" and t.requires == ()
+    assert t.physical({}, (2.5,)) == {"c": 2.5} and t.from_physical({"c": 2.5}) == ({}, (2.5,))
+    assert t.unit("c", "N") == "N" and t.note({"c": -1.0}) == "" and t.implausible({"c": 1.0}) == ""
+
+
+def test_the_simulated_drive_sets_every_drive_field_once():
+    d = {k: v for k, v in dataclasses.asdict(DriveConfig()).items()}
+    fields = {k for k, _ in physics.drive_fields()}
+    out = physics.simulated_drive(d, Simulation({}, 2.0, 1.0))
+    assert set(out) == fields
+    assert out["stroke"] == 2.0 and out["input_delay_s"] == 0.0 and out["mode_hz"] == []
+    assert out["Ha"] == out["sigma"] == 1e-12  # no fitted hysteresis: a negligible Dahl element
+    DriveConfig(**out, substeps=2)  # a valid drive
+
+
+def test_each_diagnosis_stage_names_one_term():
+    for stage in ("lattice", "breakaway", "frf"):
+        assert physics.diagnosed_by(stage) in physics.VOCABULARY
+    with pytest.raises(ValueError):
+        physics.diagnosed_by("no such stage")
+
+
+def test_the_compensator_terms_come_from_the_effects_in_stage_order():
+    c = Config().compensator
+    d = dataclasses.asdict(DriveConfig(Fc=1e-4, Fs=2e-4, b_asymmetry=0.1, cogging=1e-4, kf_linear=0.1))
+    terms = physics.cancel_terms(d, Cancelling(), c)
+    names = [n for n, _ in terms]
+    assert names[0] == EQ9 and list(terms[0][1]) == ["B", "K", "h0"]
+    assert names[1].startswith("Dahl hysteresis")
+    assert names.index("asymmetric viscous friction") < names.index(
+        "Coulomb friction beyond the Dahl element with its Stribeck rise") < names.index("force periodic in position")
+    section = {k: v for _, keys in terms for k, v in keys.items()}
+    from_dict({"compensator": section})  # every field a valid compensator field
+    owners = {physics.owner("compensator", k).name for k in section if physics.owner("compensator", k) is not None}
+    assert all(physics.EFFECTS[n].cancel is not None or n == "stribeck_friction" for n in owners)
+    paper = [n for n, _ in physics.cancel_terms(d, Cancelling(paper=True), c)]
+    assert paper == [EQ9, "sliding friction (eq. 9: Coulomb and its Dahl element)"]
 
 
 def test_input_terms_are_ordered_along_the_input_path():
