@@ -165,7 +165,10 @@ def _from_report(p: Path, doc: dict) -> SourceModel:
 
 
 #: an identification's eq. (3) parameters and the vocabulary term of each
-EQ3 = {"J": "inertia", "B": "viscous_friction", "Fc": "coulomb_friction", "K": "stiffness", "h0": "offset"}
+EQ3 = physics.BASELINE_TERMS
+#: the term an identification's Coulomb level is (the Dahl asymptote's effect: eq. 9
+#: compensates it as the Dahl element's sliding level)
+DAHL = physics.owner("drive", "Ha").name
 
 
 def _from_summary(p: Path, doc: dict, base: Config) -> SourceModel:
@@ -191,7 +194,7 @@ def _from_summary(p: Path, doc: dict, base: Config) -> SourceModel:
     drive = _drive(p, drive)
     # the Coulomb level is the Dahl asymptote here: its size test is the hysteresis term's
     units = fit.get("units") if isinstance(fit.get("units"), dict) else {}
-    sizes = [Size("hysteresis" if k == "Fc" else EQ3[k], {"Ha" if k == "Fc" else k: float(q[k])},
+    sizes = [Size(DAHL if k == "Fc" else EQ3[k], {"Ha" if k == "Fc" else k: float(q[k])},
                   {"Ha" if k == "Fc" else k: float(std[k])} if _number(std.get(k)) else {},
                   {"Ha" if k == "Fc" else k: units[k]} if isinstance(units.get(k), str) else {})
              for k in q if k in EQ3 and k != "J"]  # fmt: skip
