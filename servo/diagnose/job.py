@@ -671,7 +671,8 @@ def _diagnose(rec: Recording, opt: Options | None) -> Diagnosis:
     base_checks, final_checks = checks(fits[0], r_before, nr[0]), checks(final, r_after, nr[-1])
     verdict_mod.add_frf(base_checks, frf.before, frf)
     verdict_mod.add_frf(final_checks, frf.after, frf)
-    scope = verdict_mod.out_of_scope(final.mass(None), final.mass_std(), force_error_pct(design, final, design.train_valid))
+    scope = verdict_mod.out_of_scope(final.mass(None), final.mass_std(),
+                                     force_error_pct(design, final, design.train_valid))
     sensor = ""
     if qfind is not None and qfind.quant_heldout is not None and len(findings) == 1:  # the quantum alone, on these rows
         sensor = (f"of which the position sensor's quantum ({qfind.params['step']:.3g} m) makes "

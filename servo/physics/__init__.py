@@ -137,7 +137,8 @@ def simulated_drive(d: dict, sim) -> dict:
     for e in EFFECTS.values():
         mine = e.simulation(d, sim)
         if not set(mine) <= set(e.drive):
-            raise ValueError(f"physics: {e.name} simulates fields it does not declare: {sorted(set(mine) - set(e.drive))}")
+            raise ValueError(f"physics: {e.name} simulates fields it does not declare: "
+                             f"{sorted(set(mine) - set(e.drive))}")
         out.update(mine)
     return out
 
@@ -206,6 +207,7 @@ for _name in MODULES:
     FILES[_effect.name] = f"servo/physics/{_name}.py"
 del _name, _effect
 
-__all__ = ["BASELINE_TERMS", "EFFECTS", "FILES", "MASS", "MODULES", "NAMES", "VOCABULARY", "Cancelling", "Concealment", "Effect", "Term",
-           "cancel_terms", "compensator_fields", "diagnosed_by", "drive_fields", "fill", "markdown_table", "not_cancellable", "owner", "plant_values",
-           "register", "register_term", "renamed_keys", "simulated_drive", "stage_values"]  # fmt: skip
+__all__ = ["BASELINE_TERMS", "EFFECTS", "FILES", "MASS", "MODULES", "NAMES", "VOCABULARY", "Cancelling",
+           "Concealment", "Effect", "Term", "cancel_terms", "compensator_fields", "diagnosed_by", "drive_fields",
+           "fill", "markdown_table", "not_cancellable", "owner", "plant_values", "register", "register_term",
+           "renamed_keys", "simulated_drive", "stage_values"]  # fmt: skip

@@ -470,5 +470,6 @@ def one_field(name: str):
     return lambda section, *_: {name: getattr(section, name)}
 
 
-__all__ = ["EQ9", "Cancelling", "Columns", "Concealment", "DriveMap", "Effect", "Judging", "Search", "SignalPath", "OneField", "OneFieldDrive", "Simulation", "Term", "contiguous", "field_at",
-           "fold_ranges", "geom", "number", "one_field", "valid_speed", "zero"]
+__all__ = ["EQ9", "Cancelling", "Columns", "Concealment", "DriveMap", "Effect", "Judging", "Search", "SignalPath",
+           "OneField", "OneFieldDrive", "Simulation", "Term", "contiguous", "field_at", "fold_ranges", "geom",
+           "number", "one_field", "valid_speed", "zero"]  # fmt: skip
