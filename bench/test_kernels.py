@@ -93,7 +93,7 @@ def test_compensate(benchmark, cfg, record):
     regime = (np.abs(m.v) > k.fast_on_speed).astype(float)
     H = k.Ha * np.tanh(m.x * k.sigma / k.Ha)
     xin = np.ascontiguousarray(np.column_stack([regime, m.x, m.v, m.s, H]))
-    kp = np.array([k.B, k.Fc, k.K, k.h0])
+    kp = np.array([k.B, k.sliding_level, k.K, k.h0])
     ns = per_sample_ns(benchmark, loops.loop_compensate, n, ROUNDS, setup=lambda: ((n, xin, kp), {}))
     record.figure("compensate", ns, "compensate")
     _assert_budget(cfg, "compensate", ns, "compensate")

@@ -26,6 +26,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+from servo import physics
 from servo.errors import ConfigError, first_line
 from servo.fields import P, check_value, choices_of, documented, range_text
 
@@ -49,41 +50,33 @@ class RunConfig:
     fault_window_s: float = P(0.05, "s", "the window of fault_limit_share", 0.0, 60.0, lo_open=True)
 
 
-@dataclass
-class DriveConfig:
-    """The simulated VCM drive (docs/model.md section 5).  Forces are in amperes of VCM current
-    (force constant 1 N/A at the stroke centre), positions in metres at the head."""
+def _type_name(f: dataclasses.Field) -> str:
+    """The annotation of a :func:`P` field, from its default: ``bool``, ``int``, ``float``, ``list``."""
+    v = f.default_factory() if f.default is dataclasses.MISSING else f.default
+    return "bool" if isinstance(v, bool) else type(v).__name__
 
-    J: float = P(1.0e-3, "A*s^2/m", "normalised inertia (equivalent mass)", 1e-9, 1e3)
-    B: float = P(2.0e-3, "A*s/m", "viscous friction", 0.0)
-    sigma: float = P(320.0, "A/m", "Dahl pre-sliding stiffness (slope at a turnaround)", 0.0, None, lo_open=True)
-    Ha: float = P(1.0e-3, "A", "Dahl asymptote = pivot sliding friction level", 0.0, None, lo_open=True)
-    alpha: float = P(1.0, "-", "Dahl shape exponent", 0.0, 10.0, lo_open=True)
-    K: float = P(0.1, "A/m", "flex-cable bias stiffness", None, None)
-    h0: float = P(2.0e-3, "A", "flex-cable bias offset", None, None)
-    Fc: float = P(0.0, "A", "extra Coulomb (sliding) friction beyond the Dahl element", 0.0)
-    Fs: float = P(0.0, "A", "static (breakaway) friction of the Coulomb term, >= Fc", 0.0)
-    stribeck_velocity: float = P(1.0e-3, "m/s", "Stribeck velocity of the Coulomb term", 0.0, None, lo_open=True)
-    fc_asymmetry: float = P(0.0, "-", "Coulomb asymmetry: Fc(+) = Fc*(1+a), Fc(-) = Fc*(1-a)", -1.0, 1.0)
-    b_asymmetry: float = P(0.0, "-", "viscous asymmetry: B(+) = B*(1+a), B(-) = B*(1-a)", -1.0, 1.0)
-    cogging: float = P(0.0, "A", "amplitude of a force periodic in position", 0.0)
-    cogging_period: float = P(1.0e-4, "m", "period of that force", 0.0, None, lo_open=True)
-    cogging_phase: float = P(0.0, "rad", "phase of that force", -2 * math.pi, 2 * math.pi)
-    kf_linear: float = P(0.0, "-", "force-constant change at +stroke, linear in x", -0.9, 0.9)
-    kf_quadratic: float = P(0.0, "-", "force-constant change at +-stroke, quadratic in x", -0.9, 0.9)
-    mode_hz: list = P([3000.0, 4100.0, 5000.0, 7000.0, 12300.0, 16400.0], "Hz", "flexible mode frequencies", 0.0, None, lo_open=True)
-    mode_zeta: list = P([0.01, 0.03, 0.01, 0.01, 0.005, 0.005], "-", "flexible mode damping ratios", 0.0, 10.0, lo_open=True)
-    mode_gain: list = P([-0.01, -1.0, 0.3, -1.0, 1.0, -1.0], "-", "flexible mode gains (x_meas += g*q)", -100.0, 100.0)
-    input_delay_s: float = P(10e-6, "s", "input delay (amplifier + computation)", 0.0, 0.1)
-    current_limit: float = P(1.0, "A", "amplifier current limit", 0.0, None, lo_open=True)
-    stroke: float = P(15e-3, "m", "hard stops at +-stroke", 0.0, None, lo_open=True)
-    position_noise: float = P(1.0e-9, "m", "position sensor noise (std)", 0.0)
-    velocity_noise: float = P(1.0e-6, "m/s", "velocity sensor noise (std)", 0.0)
-    position_quantum: float = P(1.0e-9, "m", "position quantisation step (0: none)", 0.0)
-    sensor_cutoff_hz: float = P(0.0, "Hz", "first-order low-pass on the measured position, before noise (0: none)", 0.0)
-    measures_velocity: bool = P(True, "-", "the drive measures velocity (the paper's LDV)")
-    substeps: int = P(2, "-", "RK4 sub-steps per constant-input interval", 1, 1000)
-    initial_position: float = P(0.0, "m", "where the arm is held when the run starts")
+
+def _gathered(name: str, doc: str, own_head: list, effects: list, own_tail: list) -> type:
+    """A section dataclass of the section's own fields around the fields every physical
+    effect declares for it (:mod:`servo.physics`)."""
+    items = [*own_head, *effects, *own_tail]
+    cls = dataclasses.make_dataclass(name, [(k, _type_name(f), f) for k, f in items], namespace={"__doc__": doc})
+    cls.__module__ = __name__
+    return cls
+
+
+DriveConfig = _gathered(
+    "DriveConfig",
+    """The simulated VCM drive (docs/model.md section 5).  Forces are in amperes of VCM current
+    (force constant 1 N/A at the stroke centre), positions in metres at the head.  Each
+    physical effect's fields are declared by its module in ``servo/physics/``.""",
+    [],
+    physics.drive_fields(),
+    [
+        ("substeps", P(2, "-", "RK4 sub-steps per constant-input interval", 1, 1000)),
+        ("initial_position", P(0.0, "m", "where the arm is held when the run starts")),
+    ],
+)
 
 
 @dataclass
@@ -162,38 +155,24 @@ class ControllerConfig:
         return self.kinds[self.kind]
 
 
-@dataclass
-class CompensatorConfig:
-    """The paper's compensator, eq. (8-9); defaults are the default drive's exact values."""
-
-    enabled: bool = P(True, "-", "add the compensation current u_c (false: servo run and servo loop run without it, "
-                      "and refuse --compensation on)")
-    B: float = P(2.0e-3, "A*s/m", "viscous friction estimate", None, None)
-    Fc: float = P(1.0e-3, "A", "Coulomb friction estimate (large motion, eq. 3)", None, None)
-    K: float = P(0.1, "A/m", "bias stiffness estimate (eq. 2)", None, None)
-    h0: float = P(2.0e-3, "A", "bias offset estimate (eq. 2)", None, None)
-    sigma: float = P(320.0, "A/m", "Dahl slope estimate (eq. 6)", 0.0, None, lo_open=True)
-    Ha: float = P(1.0e-3, "A", "Dahl asymptote estimate (eq. 6)", 0.0, None, lo_open=True)
-    alpha: float = P(1.0, "-", "Dahl exponent estimate (eq. 6)", 0.0, 10.0, lo_open=True)
-    fast_on_speed: float = P(2e-3, "m/s", "SLOW->FAST needs at least this speed", 0.0)
-    fast_off_speed: float = P(1e-3, "m/s", "FAST->SLOW below this speed", 0.0)
-    fast_on_distance: float = P(1.25e-5, "m", "SLOW->FAST needs this distance since the turnaround", 0.0)
-    b_asymmetry: float = P(0.0, "-", "viscous asymmetry: B(+) = B*(1+a), B(-) = B*(1-a) (cancels drive.b_asymmetry)", -1.0, 1.0)
-    coulomb: float = P(0.0, "A", "Coulomb friction beyond the Dahl element, large motion (cancels drive.Fc)", 0.0)
-    coulomb_static: float = P(0.0, "A", "its Stribeck peak at low speed (cancels drive.Fs; 0: no Stribeck rise)", 0.0)
-    stribeck_velocity: float = P(1.0e-3, "m/s", "Stribeck velocity of that term", 0.0, None, lo_open=True)
-    coulomb_asymmetry: float = P(0.0, "-", "its asymmetry: F(+) = F*(1+a), F(-) = F*(1-a)", -1.0, 1.0)
-    periodic_amplitudes: list = P([], "A", "force periodic in position, amplitude of harmonics 1, 2, ... (at most 4; "
-                                  "cancels drive.cogging)", 0.0)  # fmt: skip
-    periodic_phases: list = P([], "rad", "their phases", -2 * math.pi, 2 * math.pi)
-    periodic_period: float = P(1.0e-4, "m", "the fundamental period in position", 0.0, None, lo_open=True)
-    kf_linear: float = P(0.0, "-", "force-constant change at +stroke, linear in x (the command is divided by kf(x))", -0.9, 0.9)
-    kf_quadratic: float = P(0.0, "-", "force-constant change at +-stroke, quadratic in x", -0.9, 0.9)
-    kf_stroke: float = P(15e-3, "m", "the stroke the force-constant terms refer to", 0.0, None, lo_open=True)
-    authority: float = P(0.0, "A", "the largest |u_c| the compensator may command, whatever its model (0: unbounded, "
-                         "eq. 9 as the paper writes it; docs/compensate.md)", 0.0)
-    kf_authority: float = P(0.5, "-", "the force-constant divisor kf(x) is held within 1 +- this", 0.0, 0.95,
-                            lo_open=True)
+CompensatorConfig = _gathered(
+    "CompensatorConfig",
+    """The paper's compensator, eq. (8-9), and the terms beyond it; defaults are the default
+    drive's exact values.  Each term's fields are declared by its effect's module in
+    ``servo/physics/``.""",
+    [
+        ("enabled", P(True, "-", "add the compensation current u_c (false: servo run and servo loop run without it, "
+                      "and refuse --compensation on)")),
+    ],
+    physics.compensator_fields(),
+    [
+        ("fast_on_speed", P(2e-3, "m/s", "SLOW->FAST needs at least this speed", 0.0)),
+        ("fast_off_speed", P(1e-3, "m/s", "FAST->SLOW below this speed", 0.0)),
+        ("fast_on_distance", P(1.25e-5, "m", "SLOW->FAST needs this distance since the turnaround", 0.0)),
+        ("authority", P(0.0, "A", "the largest |u_c| the compensator may command, whatever its model (0: unbounded, "
+                        "eq. 9 as the paper writes it; docs/compensate.md)", 0.0)),
+    ],
+)  # fmt: skip
 
 
 @dataclass
@@ -321,8 +300,12 @@ def _section(key: str, cls: type, values: dict, extra=()):
     """An instance of section ``cls`` from its TOML table ``values``, validated."""
     by_name = {f.name: f for f in documented(cls)}
     kwargs = {}
+    renamed = physics.renamed_keys()
     for k, value in values.items():
         if k not in by_name:
+            if f"{key}.{k}" in renamed:
+                raise ConfigError(f"config: {key}.{k} was renamed: write {key}.{renamed[f'{key}.{k}']} "
+                                  "(docs/config.md)")  # fmt: skip
             raise _unknown("key", f"{key}.{k}", [*by_name, *extra])
         kwargs[k] = check_value(f"{key}.{k}", value, by_name[k])
     return cls(**kwargs)
@@ -360,8 +343,8 @@ def _check_consistency(cfg: Config) -> None:
             raise ConfigError(f"config: drive.mode_hz[{i}] = {f!r} is at or above Nyquist ({nyquist:g} Hz)")
     if len(c.periodic_amplitudes) != len(c.periodic_phases) or len(c.periodic_amplitudes) > 4:
         raise ConfigError("config: compensator.periodic_amplitudes and periodic_phases must have the same length, at most 4")
-    if 0 < c.coulomb_static < c.coulomb:
-        raise ConfigError("config: compensator.coulomb_static must be 0 (no Stribeck rise) or >= compensator.coulomb")
+    if 0 < c.coulomb_static < c.coulomb_extra:
+        raise ConfigError("config: compensator.coulomb_static must be 0 (no Stribeck rise) or >= compensator.coulomb_extra")
     if c.fast_off_speed > c.fast_on_speed:
         raise ConfigError("config: compensator.fast_off_speed must be <= compensator.fast_on_speed (switch hysteresis)")
     if len(s.step_times) != len(s.step_positions):
@@ -516,9 +499,10 @@ def to_markdown() -> str:
     out = [
         "# Configuration reference",
         "",
-        "Generated by `servo config --markdown` from `servo/config.py`; every field, its",
-        "default, unit and valid range.  A TOML file given with `--config` needs only the",
-        "fields it changes; unknown keys and out-of-range values are errors naming the key.",
+        "Generated by `servo config --markdown` from `servo/config.py` and the effect modules of",
+        "`servo/physics/` (each declares its own `[drive]` and `[compensator]` fields); every",
+        "field, its default, unit and valid range.  A TOML file given with `--config` needs only",
+        "the fields it changes; unknown keys and out-of-range values are errors naming the key.",
         "Values each in range are also refused together when they make a result meaningless",
         "(a quantum not below the stroke, a frequency at or above Nyquist, a natural frequency",
         "the sample rate cannot resolve, a PRBS bit longer than its period): docs/robustness.md.",
@@ -536,4 +520,9 @@ def to_markdown() -> str:
                 f"| `{f.name}` | `{_toml_value(getattr(default, f.name))}` | {m['unit']} | {rng} | {m['doc']} |"
             )
         out.append("")
+    out += ["## Renamed keys", "", "A config that uses a former name is refused with one line naming the new one.", "",
+            "| former key | now |", "|---|---|"]  # fmt: skip
+    for old, new in physics.renamed_keys().items():
+        out.append(f"| `{old}` | `{old.split('.')[0]}.{new}` |")
+    out.append("")
     return "\n".join(out)

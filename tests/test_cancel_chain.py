@@ -59,7 +59,7 @@ ALL_TERMS = {  # every compensator term on, each mirroring the drive's effect
     "drive": {"b_asymmetry": 0.3, "Fc": 0.3e-3, "Fs": 0.5e-3, "stribeck_velocity": 2e-3, "fc_asymmetry": 0.2,
               "cogging": 5e-5, "cogging_period": 50e-6, "cogging_phase": 0.4, "kf_linear": 0.3, "kf_quadratic": -0.1,
               "sigma": 416.0, "Ha": 1.5e-3},
-    "compensator": {"sigma": 416.0, "Ha": 1.5e-3, "Fc": 1.5e-3, "b_asymmetry": 0.3, "coulomb": 0.3e-3,
+    "compensator": {"sigma": 416.0, "Ha": 1.5e-3, "sliding_level": 1.5e-3, "b_asymmetry": 0.3, "coulomb_extra": 0.3e-3,
                     "coulomb_static": 0.5e-3, "stribeck_velocity": 2e-3, "coulomb_asymmetry": 0.2,
                     "periodic_amplitudes": [5e-5, 1e-5], "periodic_phases": [0.4, 0.0], "periodic_period": 50e-6,
                     "kf_linear": 0.3, "kf_quadratic": -0.1, "authority": 5e-3, "kf_authority": 0.5},
@@ -90,7 +90,7 @@ def test_every_compensator_term_runs_the_same_bits_through_the_emulator_in_locks
         assert np.array_equal(sim[k], hil[k]), k
     assert len(sim["x"]) == cfg.n_ticks and np.ptp(sim["x"]) > 10e-6  # the 20 um step happened
     assert np.max(np.abs(sim["u_c"])) <= 5e-3 + 1e-15
-    eq9 = base.replace(drive=ALL_TERMS["drive"], compensator={"sigma": 416.0, "Ha": 1.5e-3, "Fc": 1.5e-3})
+    eq9 = base.replace(drive=ALL_TERMS["drive"], compensator={"sigma": 416.0, "Ha": 1.5e-3, "sliding_level": 1.5e-3})
     plain = _log(eq9, SimDriver(eq9, scenario_inputs(eq9)))
     assert np.max(np.abs(sim["u_c"] - plain["u_c"])) > 1e-4  # the terms beyond eq. 9 acted
 

@@ -13,7 +13,7 @@ LARGE = 5e-3 * np.sign(np.sin(2 * np.pi * 20 * T + 0.1))  # sliding, eq. 3 regim
 CASES = {
     "viscous asymmetry": (dict(B=0.05, b_asymmetry=0.5), dict(B=0.05, b_asymmetry=0.5)),
     "Coulomb, Stribeck, asymmetry": (dict(Fc=1.5e-3, Fs=2.5e-3, stribeck_velocity=5e-3, fc_asymmetry=0.3),
-                                     dict(coulomb=1.5e-3, coulomb_static=2.5e-3, stribeck_velocity=5e-3,
+                                     dict(coulomb_extra=1.5e-3, coulomb_static=2.5e-3, stribeck_velocity=5e-3,
                                           coulomb_asymmetry=0.3)),
     "periodic force": (dict(cogging=1e-3, cogging_period=2e-4, cogging_phase=0.5),
                        dict(periodic_amplitudes=[1e-3], periodic_phases=[0.5], periodic_period=2e-4)),

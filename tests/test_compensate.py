@@ -33,7 +33,8 @@ def test_the_default_drive_gives_the_default_compensator(tmp_path):
     from the drive's config, the compensator is that one, field for field."""
     p = compensate(_config_file(tmp_path, Config()), Config())
     got, want = apply(Config(), p).compensator, CompensatorConfig()
-    for k in ("B", "Fc", "K", "h0", "sigma", "Ha", "alpha", "b_asymmetry", "coulomb", "periodic_amplitudes", "kf_linear"):
+    for k in ("B", "sliding_level", "K", "h0", "sigma", "Ha", "alpha", "b_asymmetry", "coulomb_extra", "periodic_amplitudes",
+              "kf_linear"):
         assert getattr(got, k) == getattr(want, k), k
     assert {t for t in ("resonance", "time_delay")} <= {t.name for t in p.not_cancelled}
 
@@ -48,7 +49,7 @@ def test_each_effect_of_a_drive_is_mirrored_and_restores_the_double_integrator(t
     cfg = cfg.replace(controller={"pi": dict(kp=0.0, ki=0.0, kd=0.0)})
     p = compensate(_config_file(tmp_path, cfg), cfg)
     c = apply(cfg, p).compensator
-    assert (c.b_asymmetry, c.coulomb, c.coulomb_static, c.coulomb_asymmetry) == (0.5, 1.5e-3, 2.5e-3, 0.3)
+    assert (c.b_asymmetry, c.coulomb_extra, c.coulomb_static, c.coulomb_asymmetry) == (0.5, 1.5e-3, 2.5e-3, 0.3)
     assert (c.periodic_amplitudes, c.periodic_phases, c.periodic_period) == ([1e-3], [0.5], 2e-4)
     assert (c.kf_linear, c.kf_quadratic, c.kf_stroke) == (0.3, -0.2, cfg.drive.stroke)
     xs, un = drive_open_loop_cfg(apply(cfg, p), LARGE)
@@ -77,7 +78,7 @@ def test_a_diagnosis_gives_the_term_it_found(asym_report):
     assert c.b_asymmetry == pytest.approx(truth["drive"]["b_asymmetry"], rel=0.05)
     assert apply(base, paper).compensator.b_asymmetry == 0.0
     # eq. 9 folds the Coulomb level into one sliding level; the full one keeps it apart
-    assert apply(base, paper).compensator.Fc == pytest.approx(c.coulomb, rel=1e-9)
+    assert apply(base, paper).compensator.sliding_level == pytest.approx(c.coulomb_extra, rel=1e-9)
     # the authority covers the model's force over the motion it was found on, with margin
     report = json.loads(path.read_text())
     a = full.authority
@@ -110,7 +111,7 @@ def test_an_identification_gives_eq9(tmp_path):
         "J": 1e-3, "B": 3e-3, "Fc": 8e-4, "K": 0.07, "h0": 2e-3}}}}))  # fmt: skip
     base = Config()
     c = apply(base, compensate(summary, base)).compensator
-    assert (c.B, c.K, c.h0, c.Fc, c.Ha) == (3e-3, 0.07, 2e-3, 8e-4, 8e-4)
+    assert (c.B, c.K, c.h0, c.sliding_level, c.Ha) == (3e-3, 0.07, 2e-3, 8e-4, 8e-4)
     # the base config's Dahl length (Ha/sigma) carried over
     assert c.Ha / c.sigma == pytest.approx(base.compensator.Ha / base.compensator.sigma)
 

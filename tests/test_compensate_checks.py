@@ -48,27 +48,27 @@ def _cli(capsys, *args):
 
 def test_a_coulomb_level_within_its_noise_is_left_out(tmp_path):
     """A Coulomb level of 15 +- 9 uA (1.7 standard deviations) on a Dahl pivot is noise at
-    the diagnosis's 5 %: no ``coulomb`` term, and eq. 9's sliding level is the Dahl
-    element's alone.  (Before: a 15 uA ``coulomb`` term and eq. 9's level Ha + 15 uA.)"""
+    the diagnosis's 5 %: no ``coulomb_extra`` term, and eq. 9's sliding level is the Dahl
+    element's alone.  (Before: a 15 uA ``coulomb_extra`` term and eq. 9's level Ha + 15 uA.)"""
     src = _write(tmp_path, REPORT)
     full, paper = compensate(src, Config()), compensate(src, Config(), paper=True)
-    assert full.section.get("coulomb", 0.0) == 0.0 and [t.physics for t in full.left_out] == ["coulomb_friction"]
-    assert paper.section["Fc"] == paper.section["Ha"] == 1e-3
+    assert full.section.get("coulomb_extra", 0.0) == 0.0 and [t.physics for t in full.left_out] == ["coulomb_friction"]
+    assert paper.section["sliding_level"] == paper.section["Ha"] == 1e-3
     assert "left out coulomb_friction (Fc 1.5e-05 +- 9e-06 A; 1.67 standard deviations" in format_summary(full)
     # the same size, three standard deviations from zero: found, and kept
     doc = json.loads(json.dumps(REPORT))
     doc["final_model"]["terms"][2]["std"]["Fc"] = 5e-6
     kept = compensate(_write(tmp_path, doc, "r2.json"), Config())
-    assert kept.section.get("coulomb") == 1.5e-5 and not kept.left_out
+    assert kept.section.get("coulomb_extra") == 1.5e-5 and not kept.left_out
     # ... and at the diagnosis's own level: at 0.1 %, three standard deviations are not enough
     doc["settings"]["alpha"] = 0.001
-    assert compensate(_write(tmp_path, doc, "r3.json"), Config()).section.get("coulomb", 0.0) == 0.0
+    assert compensate(_write(tmp_path, doc, "r3.json"), Config()).section.get("coulomb_extra", 0.0) == 0.0
 
 
 def test_a_fixed_term_is_kept_as_given(tmp_path):
     doc = json.loads(json.dumps(REPORT))
     doc["final_model"]["terms"][2]["fixed"] = True  # from a model file: no size test
-    assert compensate(_write(tmp_path, doc), Config()).section.get("coulomb") == 1.5e-5
+    assert compensate(_write(tmp_path, doc), Config()).section.get("coulomb_extra") == 1.5e-5
 
 
 def test_an_identifications_sizes_are_tested_too(tmp_path):
@@ -80,7 +80,7 @@ def test_an_identifications_sizes_are_tested_too(tmp_path):
         "std": {"J": 1e-6, "B": 1e-3, "Fc": 1e-5, "K": 1e-3, "h0": 1e-5}}}}  # fmt: skip
     p = compensate(_write(tmp_path, doc, "summary.json"), Config())
     assert p.section["B"] == 0.0 and [t.physics for t in p.left_out] == ["viscous_friction"]
-    assert p.section["Ha"] == p.section["Fc"] == 8e-4 and p.section["K"] == 0.07
+    assert p.section["Ha"] == p.section["sliding_level"] == 8e-4 and p.section["K"] == 0.07
 
 
 @pytest.fixture(scope="module")
@@ -106,9 +106,9 @@ def test_on_a_dahl_pivot_the_baseline_coulomb_noise_is_not_cancelled(dahl_report
     (fc,) = [t for t in rep["final_model"]["terms"] if t["physics"] == "coulomb_friction"]
     assert abs(fc["params"]["Fc"]) < 1.96 * fc["std"]["Fc"], fc  # the premise: not distinguishable from zero
     full, paper = compensate(path, Config()), compensate(path, Config(), paper=True)
-    assert full.section.get("coulomb", 0.0) == 0.0 and "coulomb_friction" in [t.physics for t in full.left_out]
+    assert full.section.get("coulomb_extra", 0.0) == 0.0 and "coulomb_friction" in [t.physics for t in full.left_out]
     (ha,) = [t for t in rep["final_model"]["terms"] if t["physics"] == "hysteresis"]
-    assert paper.section["Fc"] == paper.section["Ha"] == ha["params"]["Ha"]
+    assert paper.section["sliding_level"] == paper.section["Ha"] == ha["params"]["Ha"]
 
 
 # -- absurd and malformed models ------------------------------------------------------------
@@ -241,7 +241,7 @@ def test_the_augmented_compensator_is_proposed_only_where_it_beats_eq9(tmp_path)
     assert not any(w.startswith("step") for w in c.against), c.against
     assert any(w.startswith("Fig. 8 spread") for w in c.why), c.why
     assert "proposed: eq. 9's compensator: the augmented one is worse on the model" in format_summary(r)
-    assert r.proposal.section.get("coulomb", 0.0) == 0.0 and r.augmented.section["coulomb"] == 0.2e-3
+    assert r.proposal.section.get("coulomb_extra", 0.0) == 0.0 and r.augmented.section["coulomb_extra"] == 0.2e-3
 
 
 def test_on_the_default_drive_the_default_compensator_passes_with_a_warning(tmp_path):

@@ -11,6 +11,7 @@ from servo.diagnose.model import Design, Model, Term
 from servo.diagnose.sensor_lag import SensorLag, lag_coefficient, lowpass
 from servo.diagnose.signals import make_signals
 from servo.diagnose.terms import NAMES, VOCABULARY
+from servo.physics import EFFECTS
 from servo.identify.regressors import RobustSettings
 from servo.io.recording import Recording
 from tests.helpers import NO_MODES, quiet_config, simulate_open_loop
@@ -108,13 +109,13 @@ def test_the_drive_sensor_filters_the_measured_position_and_nothing_else():
 
 
 def test_drive_mapping_round_trip():
-    phys = VOCABULARY["sensor_lag"]
+    phys, drive_map = VOCABULARY["sensor_lag"], EFFECTS["sensor_lag"].drive_map
     d = Config().replace(drive={"sensor_cutoff_hz": 1500.0}).drive
-    [(theta, coef)] = phys.from_drive(d)
+    [(theta, coef)] = drive_map.from_drive(d)
     assert coef == () and theta["time_constant_s"] == pytest.approx(1 / (2 * math.pi * 1500.0))
     P = {"sensor_lag": phys.physical(theta, coef)}
-    assert phys.to_drive(P, None) == {"sensor_cutoff_hz": pytest.approx(1500.0)}
-    assert phys.from_drive(Config().drive) == [] and phys.absent == {"sensor_cutoff_hz": 0.0}
+    assert drive_map.to_drive(P, None) == {"sensor_cutoff_hz": pytest.approx(1500.0)}
+    assert drive_map.from_drive(Config().drive) == [] and drive_map.absent == {"sensor_cutoff_hz": 0.0}
 
 
 def test_compensate_says_what_to_do_about_a_sensor_lag(tmp_path):

@@ -247,7 +247,7 @@ def test_every_controller_kind_is_the_numba_kernels_bit_for_bit(lib, kind, terms
     after 3000 samples."""
     cfg = CFG.replace(controller={"kind": kind})
     if terms == "every_term":
-        cfg = cfg.replace(compensator={"kf_linear": 0.05, "kf_quadratic": -0.1, "coulomb": 1e-3, "b_asymmetry": 0.1,
+        cfg = cfg.replace(compensator={"kf_linear": 0.05, "kf_quadratic": -0.1, "coulomb_extra": 1e-3, "b_asymmetry": 0.1,
                                        "periodic_amplitudes": [1e-4, 5e-5], "periodic_phases": [0.3, 1.0],
                                        "authority": 0.5})  # fmt: skip
     py, c = Controller(cfg), Controller(cfg)

@@ -24,6 +24,7 @@ TOP_LEVEL = ("kernels", "servo", "hil", "studies")
 LAYERS = [
     ["kernels", "servo.errors", "servo._version", "servo._callable", "servo.design"],
     ["servo.fields", "servo.hdd"],  # config fields; the HDD benchmark's plant and signals
+    ["servo.physics"],  # one module per physical effect: its config fields, records, term
     ["servo.controllers", "servo.scenarios"],  # controller kinds, scenario kinds
     ["servo.config"],
     ["servo.io"],

@@ -102,12 +102,12 @@ def run(cfg: Config, fast: bool, tmp_path, name: str):
         # every cancellation term of the compensator beyond eq. (9) on (kernels/cancel.py)
         {"drive": {"Fc": 1e-3, "Fs": 1.5e-3, "fc_asymmetry": 0.2, "b_asymmetry": 0.3, "cogging": 1e-4,
                    "kf_linear": 0.2, "kf_quadratic": -0.1},
-         "compensator": {"coulomb": 1e-3, "coulomb_static": 1.5e-3, "coulomb_asymmetry": 0.2, "b_asymmetry": 0.3,
+         "compensator": {"coulomb_extra": 1e-3, "coulomb_static": 1.5e-3, "coulomb_asymmetry": 0.2, "b_asymmetry": 0.3,
                          "periodic_amplitudes": [1e-4, 2e-5], "periodic_phases": [0.0, 1.0],
                          "kf_linear": 0.2, "kf_quadratic": -0.1}},
         # the same with the authority acting: |u_c| clipped, kf(x) held near 1
         {"drive": {"Fc": 1e-3, "Fs": 1.5e-3, "b_asymmetry": 0.3, "cogging": 1e-4, "kf_linear": 0.2},
-         "compensator": {"coulomb": 1e-3, "coulomb_static": 1.5e-3, "b_asymmetry": 0.3, "periodic_amplitudes": [1e-4],
+         "compensator": {"coulomb_extra": 1e-3, "coulomb_static": 1.5e-3, "b_asymmetry": 0.3, "periodic_amplitudes": [1e-4],
                          "periodic_phases": [0.0], "kf_linear": 0.2, "authority": 3.0e-3, "kf_authority": 1e-4}},
     ],
 )  # fmt: skip

@@ -30,24 +30,15 @@ from pathlib import Path
 
 from scipy import stats
 
+from servo import physics
 from servo.config import Config, ConfigError, from_dict, load_config, to_dict
 from servo.diagnose.select import ALPHA
 from servo.errors import ServoError, first_line
+from servo.physics import EFFECTS, VOCABULARY
 
-#: Terms of a model no static compensator term can cancel, and what to do instead.
-NOT_CANCELLABLE = {
-    "time_delay": "an input delay cannot be cancelled by a static term: use a predictor (a Smith predictor on "
-                  "the delay) or keep the crossover well below 1/(2*pi*delay)",
-    "resonance": "a flexible mode cannot be cancelled by a static term: notch it in the controller "
-                 "([controller.track] notch_hz) or keep the crossover below it",
-    "input_saturation": "a saturation is a limit, not a force: set [controller] current_limit at or below it so "
-                        "the loop knows the room it has",
-    "sensor_lag": "a low-pass on the position sensor is a lag in the loop, not a force: raise the sensor's "
-                  "bandwidth (its filter's cutoff well above the crossover), or estimate the position ahead of the "
-                  "filter with an observer that inverts it",
-    "quantization": "the sensor's resolution is not a force: nothing to cancel (a finer encoder, or a velocity "
-                    "cutoff that averages over several steps)",
-}  # fmt: skip
+#: Terms of a model no static compensator term can cancel, and what to do instead (each
+#: effect's module in servo.physics says why)
+NOT_CANCELLABLE = physics.not_cancellable()
 
 
 class CompensateError(ServoError):
@@ -186,7 +177,10 @@ def _from_report(p: Path, doc: dict) -> SourceModel:
 
 
 #: an identification's eq. (3) parameters and the vocabulary term of each
-EQ3 = {"J": "inertia", "B": "viscous_friction", "Fc": "coulomb_friction", "K": "stiffness", "h0": "offset"}
+EQ3 = physics.BASELINE_TERMS
+#: the term an identification's Coulomb level is (the Dahl asymptote's effect: eq. 9
+#: compensates it as the Dahl element's sliding level)
+DAHL = physics.owner("drive", "Ha").name
 
 
 def _from_summary(p: Path, doc: dict, base: Config) -> SourceModel:
@@ -212,7 +206,7 @@ def _from_summary(p: Path, doc: dict, base: Config) -> SourceModel:
     drive = _drive(p, drive)
     # the Coulomb level is the Dahl asymptote here: its size test is the hysteresis term's
     units = fit.get("units") if isinstance(fit.get("units"), dict) else {}
-    sizes = [Size("hysteresis" if k == "Fc" else EQ3[k], {"Ha" if k == "Fc" else k: float(q[k])},
+    sizes = [Size(DAHL if k == "Fc" else EQ3[k], {"Ha" if k == "Fc" else k: float(q[k])},
                   {"Ha" if k == "Fc" else k: float(std[k])} if _number(std.get(k)) else {},
                   {"Ha" if k == "Fc" else k: units[k]} if isinstance(units.get(k), str) else {})
              for k in q if k in EQ3 and k != "J"]  # fmt: skip
@@ -228,13 +222,7 @@ def _from_config(p: Path) -> SourceModel:
         raise CompensateError(str(exc)) from None
     d = cfg.drive
     drive = to_dict(cfg)["drive"]
-    physics = ["inertia", "viscous_friction", "stiffness", "offset", "hysteresis"]
-    physics += [name for name, on in (
-        ("coulomb_friction", d.Fc > 0), ("stribeck_friction", d.Fs > d.Fc), ("asymmetric_friction", d.b_asymmetry != 0),
-        ("cogging", d.cogging > 0), ("position_dependent_gain", d.kf_linear != 0 or d.kf_quadratic != 0),
-        ("resonance", len(d.mode_hz) > 0), ("time_delay", d.input_delay_s > 0), ("quantization", d.position_quantum > 0),
-        ("sensor_lag", d.sensor_cutoff_hz > 0),
-    ) if on]  # fmt: skip
+    physics = [name for name in VOCABULARY if EFFECTS[name].drive_map.in_drive(d)]
     return SourceModel(str(p), "config", drive, physics, "A", None, d.stroke)
 
 

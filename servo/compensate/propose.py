@@ -10,12 +10,12 @@ drive (``[drive]``)        compensator (``[compensator]``)
 =========================  =============================================================
 ``B``, ``K``, ``h0``       ``B``, ``K``, ``h0`` (eq. 9)
 ``sigma, Ha, alpha``       ``sigma, Ha, alpha`` (the Dahl element, eq. 6-7, with its
-                           turnaround memory), ``Fc = Ha`` (its level in eq. 3's
+                           turnaround memory), ``sliding_level = Ha`` (eq. 3's
                            large-motion regime) and ``fast_on_distance``: 4 Dahl
-                           lengths (:data:`SATURATED`) before that regime takes over
+                           lengths (:data:`servo.physics.hysteresis.SATURATED`) before that regime takes over
 ``b_asymmetry``            ``b_asymmetry``
 ``Fc, Fs, stribeck_velocity, fc_asymmetry``
-                           ``coulomb, coulomb_static, stribeck_velocity,
+                           ``coulomb_extra, coulomb_static, stribeck_velocity,
                            coulomb_asymmetry`` (a Coulomb element beyond the Dahl one)
 ``cogging*``               ``periodic_amplitudes/phases/period`` (one harmonic)
 ``kf_linear, kf_quadratic, stroke``
@@ -23,8 +23,9 @@ drive (``[drive]``)        compensator (``[compensator]``)
 =========================  =============================================================
 
 ``paper=True`` writes what eq. (9) alone can hold of the model: one sliding-friction
-level ``Fc = Ha + Fc_extra`` for both the Dahl asymptote and the large-motion regime, and
-none of the terms beyond it (the paper's compensator identified on this drive).
+level ``sliding_level = Ha + Fc`` (the drive's Coulomb level beyond the Dahl element
+added) for both the Dahl asymptote and the large-motion regime, and none of the terms
+beyond it (the paper's compensator identified on this drive).
 
 **The authority** (docs/compensate.md).  A compensator term is a feedback of the measured
 motion; a wrong one (a sign, an over-fit, a term extrapolated beyond the motion it was
@@ -52,18 +53,14 @@ import numpy as np
 from servo.compensate.model import NOT_CANCELLABLE, CompensateError, SourceModel
 from servo.compensate.plausible import implausible
 from servo.compensate.significance import significant
+from servo import physics
 from servo.config import Config, from_dict, to_dict
+from servo.physics.base import Cancelling
 
 #: The authority is this times the largest force (or kf change) the model itself makes.
 MARGIN = 1.5
 #: and never more than this fraction of the current limit.
 U_FRACTION = 0.5
-#: a Dahl element below this fraction of the model's largest force is no Dahl element
-NEGLIGIBLE = 1e-6
-#: Dahl lengths after a turnaround before eq. (3)'s regime may take over: the Dahl
-#: estimate is then within exp(-4) = 2 % of its asymptote (the default config's 12.5 um
-#: over its 3.125 um Dahl length)
-SATURATED = 4.0
 
 
 @dataclass
@@ -99,57 +96,22 @@ class Proposal:
     position_unit: str = "m"
 
 
-def _f(d: dict, k: str, default: float = 0.0) -> float:
-    return float(d.get(k, default))
-
-
-def mirror(d: dict, paper: bool = False, dahl_length: float = 3.125e-6) -> list[Term]:
-    """The compensator terms of the drive fields ``d`` (see module doc); ``dahl_length``
-    (m) is the Dahl element's when ``paper`` folds a Coulomb level without one."""
-    B, K, h0 = _f(d, "B"), _f(d, "K"), _f(d, "h0")
-    Ha, sigma, alpha = _f(d, "Ha", 1e-12), _f(d, "sigma", 1e-12), _f(d, "alpha", 1.0)
-    Fc, Fs = _f(d, "Fc"), _f(d, "Fs")
-    scale = max(abs(Ha), abs(Fc), abs(Fs), abs(h0), 1e-300)
-    dahl = Ha > NEGLIGIBLE * scale
-    terms = [Term("viscous friction, bias (eq. 9)", dict(B=B, K=K, h0=h0))]
-    if paper:
-        level = (Ha if dahl else 0.0) + Fc  # one sliding level, as eq. (9) has
-        length = Ha / sigma if dahl else dahl_length
-        if level > 0:
-            keys = dict(Fc=level, Ha=level, sigma=level / length, alpha=alpha if dahl else 1.0,
-                        fast_on_distance=SATURATED * length)  # fmt: skip
-        else:
-            keys = dict(Fc=0.0, Ha=1e-12, sigma=1e-12, alpha=1.0)
-        terms.append(Term("sliding friction (eq. 9: Coulomb and its Dahl element)", keys))
-        return terms
-    keys = dict(sigma=sigma, Ha=Ha, alpha=alpha, Fc=Ha)
-    if dahl:
-        keys["fast_on_distance"] = SATURATED * Ha / sigma
-    terms.append(Term("Dahl hysteresis (eq. 6-7)" if dahl else "Dahl hysteresis: none in the model (the term off)", keys))
-    if _f(d, "b_asymmetry"):
-        terms.append(Term("asymmetric viscous friction", dict(b_asymmetry=_f(d, "b_asymmetry"))))
-    if Fc > 0 or Fs > 0:
-        keys = dict(coulomb=Fc, coulomb_static=Fs if Fs > Fc else 0.0, coulomb_asymmetry=_f(d, "fc_asymmetry"))
-        if Fs > Fc:
-            keys["stribeck_velocity"] = _f(d, "stribeck_velocity", 1e-3)
-        name = "Coulomb friction beyond the Dahl element" + (" with its Stribeck rise" if Fs > Fc else "")
-        terms.append(Term(name, keys))
-    if _f(d, "cogging"):
-        terms.append(Term("force periodic in position", dict(
-            periodic_amplitudes=[_f(d, "cogging")], periodic_phases=[_f(d, "cogging_phase")],
-            periodic_period=_f(d, "cogging_period", 1e-4))))  # fmt: skip
-    if _f(d, "kf_linear") or _f(d, "kf_quadratic"):
-        terms.append(Term("position-dependent force constant", dict(
-            kf_linear=_f(d, "kf_linear"), kf_quadratic=_f(d, "kf_quadratic"), kf_stroke=_f(d, "stroke", 15e-3))))
-    return terms
+def mirror(d: dict, paper: bool = False, dahl_length: float = 3.125e-6, c=None) -> list[Term]:
+    """The compensator terms of the drive fields ``d`` (see module doc): each effect's own
+    (its ``cancel`` hook, :func:`servo.physics.cancel_terms`, in the order the stage
+    applies them to the compensator section ``c``, default the default one);
+    ``dahl_length`` (m) is the Dahl element's when ``paper`` folds a Coulomb level
+    without one."""
+    c = Config().compensator if c is None else c
+    return [Term(name, keys) for name, keys in physics.cancel_terms(d, Cancelling(paper, dahl_length), c)]
 
 
 def largest_force(c: dict, speed: float, position: float) -> float:
     """The largest ``|u_c|`` (A) the compensator fields ``c`` make at speeds up to
     ``speed`` (m/s) and positions up to ``|position|`` (m), bounding each term by its
     largest magnitude (a sum: the terms may line up)."""
-    coul = max(abs(c.get("coulomb", 0.0)), abs(c.get("coulomb_static", 0.0))) * (1 + abs(c.get("coulomb_asymmetry", 0.0)))
-    sliding = max(abs(c.get("Fc", 0.0)), abs(c.get("Ha", 0.0)))
+    coul = max(abs(c.get("coulomb_extra", 0.0)), abs(c.get("coulomb_static", 0.0))) * (1 + abs(c.get("coulomb_asymmetry", 0.0)))
+    sliding = max(abs(c.get("sliding_level", 0.0)), abs(c.get("Ha", 0.0)))
     viscous = abs(c.get("B", 0.0)) * (1 + abs(c.get("b_asymmetry", 0.0))) * speed
     bias = abs(c.get("h0", 0.0)) + abs(c.get("K", 0.0)) * position
     return viscous + sliding + coul + bias + sum(abs(a) for a in c.get("periodic_amplitudes", []))
@@ -222,7 +184,7 @@ def propose(model: SourceModel, base: Config, paper: bool = False, force_constan
     bad = implausible(d, base, unit, model.speed_max)
     if bad:
         raise CompensateError(f"{model.source}: not a model of a drive this config can run: {'; '.join(bad)}")
-    terms = mirror(d, paper, base.compensator.Ha / base.compensator.sigma)
+    terms = mirror(d, paper, base.compensator.Ha / base.compensator.sigma, base.compensator)
     section: dict = {}
     for t in terms:
         section.update(t.keys)

@@ -27,29 +27,12 @@ import dataclasses
 from scipy import stats
 
 from servo.compensate.model import SourceModel
+from servo.physics import EFFECTS, VOCABULARY
 
 
-def _without_coulomb(d: dict) -> None:
-    d["Fs"] = max(d.get("Fs", 0.0) - d.get("Fc", 0.0), 0.0)  # a Stribeck rise found on its own stays
-    d["Fc"] = 0.0
-
-
-def _without_stribeck(d: dict) -> None:
-    d["Fs"] = d.get("Fc", 0.0)  # exact sticking, as the drive holds without the term
-
-
-#: physics -> how a drive's fields read without the term (in place)
-LEAVE_OUT = {
-    "viscous_friction": lambda d: d.update(B=0.0),
-    "coulomb_friction": _without_coulomb,
-    "stiffness": lambda d: d.update(K=0.0),
-    "offset": lambda d: d.update(h0=0.0),
-    "hysteresis": lambda d: d.update(Ha=1e-12, sigma=1e-12),
-    "asymmetric_friction": lambda d: d.update(b_asymmetry=0.0),
-    "stribeck_friction": _without_stribeck,
-    "cogging": lambda d: d.update(cogging=0.0),
-    "position_dependent_gain": lambda d: d.update(kf_linear=0.0, kf_quadratic=0.0),
-}
+#: physics -> how a drive's fields read without the term (in place): each compensator
+#: term's own :attr:`~servo.physics.base.Effect.leave_out`
+LEAVE_OUT = {name: EFFECTS[name].leave_out for name in VOCABULARY if EFFECTS[name].leave_out is not None}
 
 
 def z_level(alpha: float) -> float:

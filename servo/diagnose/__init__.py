@@ -1,7 +1,8 @@
 """``servo diagnose``: find the physics a model left out, model it, prove the fit improves.
 
 Modules, bottom up: :mod:`~servo.diagnose.signals` (the inverse-dynamics path at full
-rate and its rows), :mod:`~servo.diagnose.terms` (the vocabulary of physics),
+rate and its rows), :mod:`~servo.diagnose.terms` (the vocabulary of physics, whose
+terms live in the effect modules of :mod:`servo.physics`),
 :mod:`~servo.diagnose.model` (a model's terms and its rows), :mod:`~servo.diagnose.select`
 (blocked cross-validation, the tests, greedy selection), :mod:`~servo.diagnose.partial`
 (terms present from some time on), :mod:`~servo.diagnose.concealed`
@@ -9,8 +10,8 @@ rate and its rows), :mod:`~servo.diagnose.terms` (the vocabulary of physics),
 explains the method.
 """
 
-# terms in modules of their own register themselves into the vocabulary of
-# servo.diagnose.terms on import; importing any module of the package imports them first
+# terms beside the diagnosis's signal path register themselves into the vocabulary of
+# servo.physics on import; importing any module of the package imports them first
 import servo.diagnose.sensor_lag  # noqa: E402,F401
 
 from servo._callable import make_callable  # noqa: E402

@@ -25,6 +25,7 @@ import numpy as np
 from servo.config import DriveConfig, load_config
 from servo.diagnose.model import GATE, Design, Model, Term
 from servo.diagnose.terms import BASELINE_TERMS, VOCABULARY
+from servo.physics import EFFECTS
 from servo.errors import ConfigError, ServoError, first_line
 from servo.identify.least_squares import check_identifiable
 from servo.identify.regressors import TERMS, IdentificationError, Regression, parse_terms
@@ -69,18 +70,17 @@ def _fixed(physics: str, params: dict) -> Term:
 
 def drive_terms(d: DriveConfig) -> Model:
     """The fixed terms of a simulated drive's physics (``servo.config.DriveConfig``):
-    each vocabulary term as the drive has it (:meth:`~servo.diagnose.terms.Physics.from_drive`)."""
-    return Model([Term.make(phys.name, theta, coef) for phys in VOCABULARY.values() for theta, coef in phys.from_drive(d)])
+    each vocabulary term as the drive has it (:meth:`servo.physics.base.DriveMap.from_drive`)."""
+    return Model([Term.make(name, theta, coef) for name in VOCABULARY for theta, coef in EFFECTS[name].drive_map.from_drive(d)])
 
 
 def without_idle_inputs(model: Model, u: np.ndarray) -> Model:
-    """``model`` without the input saturations that clip nothing of the recorded input
-    ``u`` (a drive config always has a current limit): such a term changes no row, and
-    held in the model it would keep ``input_saturation`` from being tested, so a drive
-    config and the same fit without a limit (a fitted baseline, a report) would differ
-    in what they can find."""
-    peak = float(np.max(np.abs(u))) if u.size else 0.0
-    return Model([t for t in model.terms if not (t.physics == "input_saturation" and t.params["level"] >= peak)])
+    """``model`` without the input terms that leave the recorded input ``u`` as it is
+    (:meth:`~servo.physics.base.Term.idle`: a saturation that clips nothing, as a drive
+    config's current limit does): such a term changes no row, and held in the model it
+    would keep the term from being tested, so a drive config and the same fit without a
+    limit (a fitted baseline, a report) would differ in what they can find."""
+    return Model([t for t in model.terms if not VOCABULARY[t.physics].idle(t.params, u)])
 
 
 def _basic_complete(model: Model) -> Model:

@@ -91,6 +91,12 @@ from scipy.ndimage import maximum_filter1d
 
 from servo.diagnose.breakaway_evidence import TAU, combine, event_pvalues, nearest, window_lengths
 from servo.diagnose.signals import butter_ba
+from servo.physics import EFFECTS, diagnosed_by
+
+#: the term a breakaway at rest is (the effect that registers this stage) and the
+#: sliding level it rises from (the term it requires)
+BREAKAWAY = diagnosed_by("breakaway")
+SLIDING = EFFECTS[BREAKAWAY].term.requires[0]
 
 #: an event's window reaches this many Butterworth time scales (``fs/cutoff`` samples) past its run
 WIDEN = 2.0
@@ -258,7 +264,7 @@ class Result:
 def applicable(model, candidates) -> bool:
     """Whether the breakaway test shares the round of ``candidates`` (``stribeck_friction``
     among them: the model has a Coulomb friction and no Stribeck term yet)."""
-    return "stribeck_friction" in candidates
+    return BREAKAWAY in candidates
 
 
 def held_force(design, fit) -> np.ndarray:
@@ -269,7 +275,7 @@ def held_force(design, fit) -> np.ndarray:
     sig = design.sig
     f = sig.force(design.u_eff(fit.model)).copy()
     for i, t in enumerate(fit.model.terms):
-        if VOCABULARY[t.physics].kind != "column" or t.physics in ("coulomb_friction", "stribeck_friction"):
+        if VOCABULARY[t.physics].kind != "column" or t.physics in (SLIDING, BREAKAWAY):
             continue
         # as the force balance of the measured motion sees it: through a sensor lag the
         # model holds, zero before a gated term's onset (Design.full_columns)
@@ -421,7 +427,7 @@ def step_pulse(sig, fit, step: float) -> float:
     each a pulse that no sliding window shows (0 without a lattice)."""
     if not step > 0:
         return 0.0
-    J = abs(float(fit.combined().get("inertia", {}).get("J", 0.0)))
+    J = abs(float(fit.mass()))
     fs = 1.0 / sig.dt
     return J * step * _step_accel(int(sig.settings.butter_order), float(sig.settings.cutoff(fs) / (fs / 2))) / sig.dt**2
 
@@ -458,11 +464,11 @@ def test(design, fit, step: float = 0.0) -> Result:
     (0: none), whose pulses near rest are added to the bound (:func:`step_pulse`)."""
     sig = design.sig
     res = Result()
-    ci = next((i for i, t in enumerate(fit.model.terms) if t.physics == "coulomb_friction"), None)
+    ci = next((i for i, t in enumerate(fit.model.terms) if t.physics == SLIDING), None)
     if ci is None:
-        res.note = "needs coulomb_friction in the model"
+        res.note = f"needs {SLIDING} in the model"
         return res
-    Fc = float(fit.combined()["coulomb_friction"]["Fc"])
+    Fc = float(fit.combined()[SLIDING]["Fc"])
     Fc_std = float(fit.term_std(ci).get("Fc", 0.0)) if fit.model.terms[ci].free else 0.0
     if not Fc > 0:
         res.note = "the Coulomb level is not positive"

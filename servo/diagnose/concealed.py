@@ -24,6 +24,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy import signal
 
+from servo import physics
 from servo.config import Config
 from servo.diagnose.terms import VOCABULARY, Effect
 from servo.runtime.closedloop import simulate
@@ -38,13 +39,9 @@ NULL_DRIVE = dict(
 DEFAULT_BASELINE = "J,B,Fc,K,h0"
 
 
-#: the effects of the study, in the order its tables list them: each term's own
-#: :attr:`~servo.diagnose.terms.Physics.effect` (its sizes, its baseline, its drive fields)
-EFFECTS = {name: VOCABULARY[name].effect for name in (
-    "coulomb_friction", "viscous_friction", "stiffness", "offset", "asymmetric_friction", "stribeck_friction",
-    "hysteresis", "resonance", "time_delay", "input_saturation", "position_dependent_gain", "cogging", "quantization",
-    "sensor_lag",
-)}  # fmt: skip
+#: the effects of the study, in the vocabulary's order: each effect module's
+#: :attr:`~servo.physics.base.Effect.study` (its sizes, its baseline, its drive fields)
+EFFECTS = {name: physics.EFFECTS[name].study for name in VOCABULARY if physics.EFFECTS[name].study is not None}
 
 
 @dataclass(frozen=True)
@@ -90,10 +87,9 @@ def concealed_recording(effect: str | None, size: float = 0.0, seed: int = 0, sc
     position) and the truth (what a diagnosis should find, with the drive's fields)."""
     cfg = drive_config(effect, size, seed)
     r, e = scenario_inputs(scenario, seed, cfg.dt)
-    if effect == "input_saturation":  # the limit that clips a fraction `size` of the samples
-        log = simulate(cfg, e, r=r)
-        limit = float(np.quantile(np.abs(log["u"]), 1.0 - size))
-        cfg = cfg.replace(drive={"current_limit": limit})
+    calibrate = EFFECTS[effect].calibrate if effect else None
+    if calibrate is not None:  # a size measured on the run itself (a saturation's clipped share)
+        cfg = cfg.replace(drive=calibrate(simulate(cfg, e, r=r), size))
     log = simulate(cfg, e, r=r)
     truth = {"physics": effect, "size": size, "seed": seed,
              "drive": {k: getattr(cfg.drive, k) for k in sorted(NULL_DRIVE) + ["stroke"]

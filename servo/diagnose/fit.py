@@ -15,6 +15,7 @@ import numpy as np
 from servo.diagnose.model import Design, Model
 from servo.diagnose.select import integrated_time, solve
 from servo.diagnose.terms import VOCABULARY
+from servo.physics import EFFECTS, MASS
 
 
 @dataclass
@@ -48,6 +49,15 @@ class Fit:
         out.update(phys.std_extra(self.term_params(i), out))
         return out
 
+    def mass(self, default: float | None = 0.0) -> float | None:
+        """The moving mass ``J`` (:data:`servo.physics.MASS`; ``default`` without one)."""
+        return self.combined().get(MASS, {}).get("J", default)
+
+    def mass_std(self) -> float | None:
+        """The std of a fitted mass (0 when the model holds it fixed or lacks it)."""
+        i = next((i for i, t in enumerate(self.model.terms) if t.physics == MASS), None)
+        return self.term_std(i).get("J") if i is not None and self.model.terms[i].free else 0.0
+
     def combined(self) -> dict:
         """Physics name -> reported parameters, a fixed term and its correction added
         (a model file's ``B`` plus a found ``viscous_friction`` correction)."""
@@ -62,15 +72,16 @@ class Fit:
 
     def drive(self) -> dict:
         """The model as the simulated drive's ``[drive]`` fields (force unit, m, s), each
-        term's own (:meth:`~servo.diagnose.terms.Physics.to_drive`), the ``absent``
+        term's own (:meth:`servo.physics.base.DriveMap.to_drive`), the ``absent``
         values of the terms it lacks; not validated (a fitted ``B`` may be negative)."""
         P = self.combined()
         d: dict = {}
-        for phys in VOCABULARY.values():
-            d.update(phys.absent)
-        for phys in VOCABULARY.values():  # vocabulary order: a Stribeck term after the Coulomb one
-            if phys.name in P:
-                d.update(phys.to_drive(P, self))
+        maps = [EFFECTS[name].drive_map for name in VOCABULARY]  # each term's effect's
+        for m in maps:
+            d.update(m.absent)
+        for m in maps:  # vocabulary order: a Stribeck term after the Coulomb one
+            if m.name in P:
+                d.update(m.to_drive(P, self))
         return d
 
     def contribution(self, design: Design, i: int) -> np.ndarray:

@@ -50,6 +50,7 @@ from servo.diagnose.signals import Signals, distance_since_reversal, make_signal
 from servo.diagnose.simulate import Prediction, Unsimulable, horizon_samples, predict, starts_in
 from servo.diagnose.terms import VOCABULARY
 from servo.errors import ServoError
+from servo.physics import diagnosed_by
 from servo.identify.regressors import IdentificationError, RobustSettings
 from servo.io import progress
 from servo.io.recording import Recording
@@ -65,6 +66,10 @@ BYTES_PER_SAMPLE = 160
 BYTES_PER_ROW = 2400
 #: a finding may not raise the held-out output NRMSE by more than this fraction
 OUTPUT_TOLERANCE = 0.05
+#: the terms the stages beside the selection rounds name, each the effect's that
+#: registers the stage (:attr:`servo.physics.base.Effect.diagnosed_by`): the sensor's
+#: lattice test, the breakaway test at rest, the frequency response above the rows' band
+LATTICE, BREAKAWAY, FRF = diagnosed_by("lattice"), diagnosed_by("breakaway"), diagnosed_by("frf")
 
 
 @dataclass
@@ -118,6 +123,11 @@ class Finding:
     @property
     def physics(self) -> str:
         return self.term.physics
+
+    @property
+    def sensor(self) -> bool:
+        """Whether the finding is the sensor's (a lattice): not a term of the force balance."""
+        return VOCABULARY[self.physics].kind == "sensor"
 
 
 @dataclass
@@ -290,10 +300,7 @@ def _rounds(sel: Selector, model: Model, opt: Options, corrections: bool, findin
 def _scope_of(design: Design, fit: Fit) -> str:
     """Why the force balance of ``fit`` does not describe the recording ("" when it
     does; :func:`servo.diagnose.verdict.out_of_scope`)."""
-    ji = next((i for i, t in enumerate(fit.model.terms) if t.physics == "inertia"), None)
-    J_std = fit.term_std(ji).get("J") if ji is not None and fit.model.terms[ji].free else 0.0
-    return verdict_mod.out_of_scope(fit.combined().get("inertia", {}).get("J"), J_std,
-                                    force_error_pct(design, fit, design.train_valid))  # fmt: skip
+    return verdict_mod.out_of_scope(fit.mass(None), fit.mass_std(), force_error_pct(design, fit, design.train_valid))
 
 
 def _sequence(design: Design, base: Model, findings: list) -> list:
@@ -302,9 +309,9 @@ def _sequence(design: Design, base: Model, findings: list) -> list:
     :meth:`Model.refitted`)."""
     models = [base]
     for f in findings:
-        if f.physics != "quantization":
+        if not f.sensor:
             models.append(models[-1].plus(f.term))
-    ts = [{} for _ in base.terms] + [f.theta_std for f in findings if f.physics != "quantization"]
+    ts = [{} for _ in base.terms] + [f.theta_std for f in findings if not f.sensor]
     return [fit_model(design, m if i == 0 else m.refitted(), ts[: len(m.terms)]) for i, m in enumerate(models)]
 
 
@@ -369,7 +376,7 @@ def _quantization(rec: Recording, opt: Options, base: Model, design: Design, H: 
     p0_te = predict(design, fit0, starts_te, H)
     nr0, nr2 = p0_te.nrmse(), predict(d2, f2, starts_te, H).nrmse()
     s2 = d2.sig.settings
-    q = Finding(Term.make("quantization", {"step": lat.step}), None, level, {}, lat, (t, p), prediction=p0_te)
+    q = Finding(Term.make(LATTICE, {"step": lat.step}), None, level, {}, lat, (t, p), prediction=p0_te)
     q.params = {"step": lat.step, "offset": lat.offset, "noise_share": min(lat.step**2 / 12 / max(sig.noise_x**2, 1e-300), 1.0),
                 "decimate": float(s2.decimate), "cutoff_hz": s2.cutoff(1.0 / sig.dt)}  # fmt: skip
     q.before = {"force_rel_pct": force_error_pct(design, fit0, ~design.train_rows & sig.valid), "output_nrmse": nr0}
@@ -392,7 +399,7 @@ def _quantum_on_default_rows(design: Design, fit0: Fit, lat: Lattice, level: flo
     nope = f"quantised sensor (step {lat.step:.3g} m) but a narrower band does not predict better"
     frac_te, p_te = heldout_on_lattice(sig.x[~design.train_samples], lat)
     test = ~design.train_rows & sig.valid
-    J = fit0.combined().get("inertia", {}).get("J", 0.0)
+    J = fit0.mass()
     rms = float(np.sqrt(np.mean(fit0.residual[test] ** 2))) if test.any() else 0.0
     floor_q = quantum_floor(lat.step, J, sig.settings, 1.0 / sig.dt)
     share = error_share(floor_q, rms)
@@ -450,14 +457,14 @@ def _breakaway(design: Design, fit: Fit, rounds: list, errs: list, nr: list, opt
     that model); ``step`` a quantised sensor's lattice step (0: none).  Returns
     ``(finding, unconfirmed entry)``, either None."""
     shared = [r["level"] for r in rounds if r.get("breakaway_share")]
-    if not shared or not fit.model.has("coulomb_friction") or fit.model.has("stribeck_friction"):
+    if not shared or not all(map(fit.model.has, VOCABULARY[BREAKAWAY].requires)) or fit.model.has(BREAKAWAY):
         return None, None
     if _scope_of(design, fit):
         return None, None
     level = shared[-1]
     res = breakaway_mod.test(design, fit, step)
     if not res.testable and not_testable is not None:  # say why it could not be tested
-        not_testable["stribeck_friction (breakaway at rest)"] = res.note
+        not_testable[f"{BREAKAWAY} (breakaway at rest)"] = res.note
     if not res.passes(level):
         return None, None
     alt = res.split  # the held-out part holds too few intervals at rest: proven on training events held out from the fit
@@ -465,7 +472,7 @@ def _breakaway(design: Design, fit: Fit, rounds: list, errs: list, nr: list, opt
     if not res.confirmed(opt.alpha) and alt is not None and alt.passes(level) and alt.confirmed(opt.alpha):
         res = alt
     vs = float(design.sig.v_threshold)
-    term = Term.make("stribeck_friction", {"stribeck_velocity": vs}, (res.Fs - res.Fc,))
+    term = Term.make(BREAKAWAY, {"stribeck_velocity": vs}, (res.Fs - res.Fc,))
     ev = {**res.evidence(), "level": level}
     f = Finding(term, None, level, {}, breakaway=ev)
     f.params = {"dFs": res.Fs - res.Fc, "stribeck_velocity": vs, "Fs": res.Fs}
@@ -519,7 +526,7 @@ def _frf_modes(design: Design, fits: list, errs: list, nr: list, preds: list, st
     test_rows = ~design.train_rows & design.sig.valid
     for m in list(res.modes):
         p = m.params
-        term = Term.make("resonance", {"frequency_hz": p["frequency_hz"], "zeta": p["zeta"]}, (p["gain"],))
+        term = Term.make(FRF, {"frequency_hz": p["frequency_hz"], "zeta": p["zeta"]}, (p["gain"],))
         fit = fit_model(design, fits[-1].model.plus(term), fits[-1].theta_std)
         k = len(fit.model.terms) - 1
         fit.std[k] = (m.std.get("gain", 0.0),)
@@ -546,7 +553,7 @@ def _frf_modes(design: Design, fits: list, errs: list, nr: list, preds: list, st
         found.append(f)
         terms.append(term)
     for m in res.dropped:  # dropped by the held-out H1: reported with their parameters
-        term = Term.make("resonance", {"frequency_hz": m.params["frequency_hz"], "zeta": m.params["zeta"]},
+        term = Term.make(FRF, {"frequency_hz": m.params["frequency_hz"], "zeta": m.params["zeta"]},
                          (m.params["gain"],))  # fmt: skip
         ev = m.evidence
         before = {"force_rel_pct": errs[-1], "output_nrmse": nr[-1], "frf_sse": ev.get("test_sse_before")}
@@ -663,16 +670,14 @@ def _diagnose(rec: Recording, opt: Options | None) -> Diagnosis:
         w = design.train_valid
         first, last = np.flatnonzero(w)[[0, -1]]
         tau_r = integrated_time(np.where(w, r, 0.0)[first : last + 1])
-        J = fit.combined().get("inertia", {}).get("J", 0.0)
+        J = fit.mass()
         return verdict_mod.assess(design, r, J, tau_r, variables, opt.alpha, nrmse, noise_x,
                                   verdict_mod.estimation_error(design, fit))  # fmt: skip
 
     base_checks, final_checks = checks(fits[0], r_before, nr[0]), checks(final, r_after, nr[-1])
     verdict_mod.add_frf(base_checks, frf.before, frf)
     verdict_mod.add_frf(final_checks, frf.after, frf)
-    ji = next((i for i, t in enumerate(final.model.terms) if t.physics == "inertia"), None)
-    J_std = final.term_std(ji).get("J") if ji is not None and final.model.terms[ji].free else 0.0
-    scope = verdict_mod.out_of_scope(final.combined().get("inertia", {}).get("J"), J_std,
+    scope = verdict_mod.out_of_scope(final.mass(None), final.mass_std(),
                                      force_error_pct(design, final, design.train_valid))
     sensor = ""
     if qfind is not None and qfind.quant_heldout is not None and len(findings) == 1:  # the quantum alone, on these rows

@@ -154,10 +154,10 @@ class Design:
             self._u[key] = self._u.pop(key)  # most recent last
             return self._u[key]
         u = self.sig.u
-        for name in ("input_saturation", "time_delay", "sensor_lag"):
+        for phys in sorted((p for p in VOCABULARY.values() if p.kind == "input"), key=lambda p: p.path_order):
             for t in terms:
-                if t.physics == name:
-                    u = VOCABULARY[name].transform(u, t.params, self.sig.dt)
+                if t.physics == phys.name:
+                    u = phys.transform(u, t.params, self.sig.dt)
         while len(self._u) >= U_CACHE:
             del self._u[next(iter(self._u))]
         self._u[key] = u
@@ -177,11 +177,6 @@ class Design:
         key = ("y",) + self.input_key(model) + ((extra.physics, extra.theta) if extra else ())
         if key in self._rows:
             return self._rows[key]
-        if extra is not None and extra.physics == "time_delay" and not model.has("time_delay"):
-            shift = extra.params["delay_s"] / self.sig.dt
-            df = self._delayed_force(model)
-            if abs(shift) <= df.max_shift:
-                return self.cached_rows(key, lambda: df.rows(shift))
         if extra is not None and not model.has(extra.physics):
             fast = VOCABULARY[extra.physics].screen_target(self, model, extra.params)
             if fast is not None:
@@ -192,7 +187,7 @@ class Design:
     def per_input(self, name: str, model: Model, build):
         """``build()``'s result for ``model``'s effective input, kept under ``name`` for
         the most recent input only (a full-rate array or an object holding one): what a
-        term's :meth:`~servo.diagnose.terms.Physics.screen_target` derives once from
+        term's :meth:`~servo.physics.base.Term.screen_target` derives once from
         the input and reuses over its grid."""
         key = self.input_key(model)
         held = self._per_input.get(name)
@@ -200,23 +195,23 @@ class Design:
             held = self._per_input[name] = (key, build())
         return held[1]
 
-    def _delayed_force(self, model: Model):
-        """The :class:`~servo.diagnose.delayed.DelayedForce` of ``model``'s effective input."""
+    def delayed_force(self, model: Model):
+        """The :class:`~servo.diagnose.delayed.DelayedForce` of ``model``'s effective input
+        (what a delay's :meth:`~servo.physics.base.Term.screen_target` interpolates)."""
         from servo.diagnose.delayed import DelayedForce
 
         q = self.sig.settings.decimate
-        return self.per_input("time_delay", model, lambda: DelayedForce(self.sig, self.u_eff(model), 2.0 * q + 1.0))
+        return self.per_input("delayed_force", model, lambda: DelayedForce(self.sig, self.u_eff(model), 2.0 * q + 1.0))
 
     def column_design(self, phys, model: Model):
         """The design whose ``sig`` the term ``phys``'s columns read under ``model``: this
         one, or where ``model`` holds a sensor lag and ``phys`` is nonlinear in the motion,
         the lag-corrected one (:class:`servo.diagnose.sensor_lag.LagCorrected`: the motion
         the arm made, its rows through the lag)."""
-        if model.has("sensor_lag"):
-            from servo.diagnose.sensor_lag import corrects
-
-            if corrects(phys):
-                return VOCABULARY["sensor_lag"].corrected(self, model)
+        for name in dict.fromkeys(t.physics for t in model.terms):
+            other = VOCABULARY[name].column_design(self, model, phys)
+            if other is not None:
+                return other
         return self
 
     def full_columns(self, term: Term, model: Model) -> np.ndarray:

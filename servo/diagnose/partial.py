@@ -61,8 +61,6 @@ from servo.diagnose.select import Grams, Score, Selector, fit_rows, integrated_t
 from servo.diagnose.terms import VOCABULARY
 from servo.io import progress
 
-#: terms never gated (a mass does not appear half-way)
-NOT_GATED = ("inertia",)
 #: rows scanned either side of the chosen gain-block boundary when refining ``t0``
 FINE_STEPS = 40
 
@@ -78,7 +76,7 @@ def gateable(sel: Selector, model: Model) -> list:
     ok = []
     for name in sel.eligible(model)[0]:
         phys = VOCABULARY[name]
-        if phys.kind != "column" or phys.screening or name in NOT_GATED or model.corrects(name):
+        if phys.kind != "column" or phys.screening or not phys.gated or model.corrects(name):
             continue
         ok.append(name)
     return ok
@@ -99,7 +97,7 @@ def located(sel: Selector, model: Model, alpha: float) -> list:
     first, last = np.flatnonzero(w)[[0, -1]]
     tau = integrated_time(np.where(w, r, 0.0)[first : last + 1])
     fit = fit_model(d, model)
-    J = fit.combined().get("inertia", {}).get("J", 0.0)
+    J = fit.mass()
     floor = verdict_mod.force_floor(d.sig, J)
     return [[x["t0"], x["t1"]] for x in verdict_mod.window_checks(d, r, floor, tau, alpha) if x["flagged"]
             and not x["test_part"]]  # fmt: skip

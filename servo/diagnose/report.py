@@ -15,6 +15,7 @@ from servo.diagnose.job import Diagnosis, Finding
 from servo.diagnose.model import GATE
 from servo.diagnose.terms import VOCABULARY
 from servo.errors import ConfigError
+from servo.physics import EFFECTS
 from servo.io.atomic import atomic_write, write_json
 from servo.io.units import substitute
 
@@ -60,11 +61,11 @@ def _evidence(f: Finding) -> dict:
         return {k: v for k, v in f.frf.items() if k != "reason"}
     if f.breakaway is not None:
         return {k: v for k, v in f.breakaway.items() if k != "reason"}
-    if f.physics == "quantization" and f.quant_heldout is not None:  # named on the default rows
+    if f.sensor and f.quant_heldout is not None:  # named on the default rows
         return {"test": "lattice, held-out lattice + share of the held-out residual", "fraction_on_lattice":
                 f.lattice.fraction, "lattice_p": f.lattice.p, "output_t": f.quant_test[0], "output_p": f.quant_test[1],
                 **f.quant_heldout, "level": f.level}  # fmt: skip
-    if f.physics == "quantization":
+    if f.sensor:
         return {"test": "lattice + output improvement", "fraction_on_lattice": f.lattice.fraction,
                 "lattice_p": f.lattice.p, "output_t": f.quant_test[0], "output_p": f.quant_test[1], "level": f.level}  # fmt: skip
     s = f.score
@@ -83,11 +84,12 @@ def finding_dict(f: Finding, fu: str, pu: str = "m") -> dict:
     }  # fmt: skip
 
 
-def drive_section(fit: Fit, lattice_step: float | None, extra: dict | None = None) -> tuple[dict | None, str]:
+def drive_section(fit: Fit, extra: dict | None = None) -> tuple[dict | None, str]:
     """The final model as a ``[drive]`` section of a servo config (A, m), validated by
     :func:`servo.config.from_dict`; ``(None, why)`` when it is not a valid drive.  ``extra``:
-    fields of findings that are not terms of the rows' fit (a breakaway level)."""
-    d = {**fit.drive(), "position_quantum": lattice_step or 0.0, **(extra or {})}
+    fields of findings that are not terms of the rows' fit (a sensor's lattice, a
+    breakaway level)."""
+    d = {**fit.drive(), **(extra or {})}
     d = {k: (float(v) if not isinstance(v, list) else [float(x) for x in v]) for k, v in d.items()}
     try:
         from_dict({"drive": d})
@@ -112,9 +114,13 @@ def build_report(D: Diagnosis, files: list | None = None) -> dict:
     sig = D.sig
     rec = D.rec
     brk = [f for f in D.findings if f.breakaway is not None]  # a breakaway found at rest (not a column)
-    extra = {"Fs": brk[0].params["Fs"], "stribeck_velocity": brk[0].params["stribeck_velocity"]} if brk else None
-    drive, why = drive_section(D.final_fit, next((f.params["step"] for f in D.findings if f.physics == "quantization"), None),
-                               extra)  # fmt: skip
+    extra = {}
+    for f in D.findings:  # the sensor's finding: its fields in the drive
+        if f.sensor:
+            extra.update(EFFECTS[f.physics].drive_map.to_drive({f.physics: f.params}, D.final_fit))
+    if brk:
+        extra.update(Fs=brk[0].params["Fs"], stribeck_velocity=brk[0].params["stribeck_velocity"])
+    drive, why = drive_section(D.final_fit, extra)
     rounds = []
     for r in D.rounds:
         rounds.append([{"physics": s.physics, "t": s.t, "p": s.p, "level": r["level"], "delta_ic": s.delta_ic,
@@ -146,8 +152,9 @@ def build_report(D: Diagnosis, files: list | None = None) -> dict:
                                "test_output_nrmse": D.errors["test_output_nrmse"]["before"]}},
         "findings": [finding_dict(f, fu, pu) for f in D.findings],
         "final_model": {"terms": fit_terms(D.final_fit, fu, D.frf_terms, pu) + [
-                            {"physics": "quantization", "params": f.params, "std": {}, "units": {"step": pu, "offset": pu},
-                             "fixed": False} for f in D.findings if f.physics == "quantization"] + [
+                            {"physics": f.physics, "params": f.params, "std": {},
+                             "units": {k: substitute(u, fu, pu, "F") for k, u in VOCABULARY[f.physics].units.items()},
+                             "fixed": False} for f in D.findings if f.sensor] + [
                             {"physics": f.physics, "params": f.params, "std": f.std,
                              "units": _units(f.physics, f.params, fu, pu), "fixed": False, "fitted_on": "intervals at rest"}
                             for f in brk],

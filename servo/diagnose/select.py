@@ -488,7 +488,7 @@ class Selector:
         v = best[name]
         if lg:
             return (np.log(max(lo, v / 1.6)), np.log(min(hi, v * 1.6)))
-        width = self.d.sig.dt if phys.name == "time_delay" else 0.15 * abs(v)
+        width = phys.refine_width(self.d, name, v)
         return (max(lo, v - width), min(hi, v + width))
 
     def _theta_std(self, f, z, names, logs, theta) -> dict:

@@ -51,9 +51,10 @@ section 3).
 
 **The simulated drive** has the field ``sensor_cutoff_hz`` (:mod:`kernels.plant`: the
 same filter on the noiseless measured position, before noise and quantisation), so the
-term maps to and from a drive config and the concealed-effect study can hide it.  It is
+term maps to and from a drive config and the concealed-effect study can hide it
+(:mod:`servo.physics.sensor_lag`: the effect's module, which holds both).  It is
 not cancellable by a static compensator term: see
-:data:`servo.compensate.model.NOT_CANCELLABLE`.
+:mod:`servo.physics.sensor_lag`, which owns its drive field.
 """
 from __future__ import annotations
 
@@ -64,7 +65,8 @@ from scipy import signal
 
 from servo.diagnose.band import band_hz
 from servo.diagnose.signals import Signals
-from servo.diagnose.terms import Effect, Physics, register
+from servo.physics import register_term
+from servo.physics.base import Term
 
 
 def lag_coefficient(tau: float, dt: float) -> float:
@@ -125,19 +127,15 @@ def unlag(z: np.ndarray, a: float) -> np.ndarray:
     return out
 
 
-#: column terms linear in the motion: their columns of the measured motion already obey
-#: the lagged force balance exactly (``L`` commutes with them), and the true motion would
-#: only add the inverse filter's noise
-LINEAR_IN_MOTION = frozenset({"inertia", "viscous_friction", "stiffness", "offset"})
-
-
 def corrects(phys) -> bool:
     """Whether a model holding a sensor lag builds ``phys``'s columns on the lag-corrected
     motion (:class:`LagCorrected`): a column term that is a nonlinear function of the
     motion alone (Coulomb, asymmetric friction, Stribeck, hysteresis, cogging).  Terms of
     the input (a resonance: linear in it, exact already; a position-dependent gain, the
     product of the motion and the input: not corrected) and the linear terms are not."""
-    return phys.kind == "column" and not phys.uses_input and phys.name not in LINEAR_IN_MOTION
+    # a column linear in the motion (``linear_in_motion``) already obeys the lagged force
+    # balance exactly (``L`` commutes with it); the true motion would only add noise
+    return phys.kind == "column" and not phys.uses_input and not phys.linear_in_motion
 
 
 class LaggedSignals(Signals):
@@ -192,7 +190,7 @@ class LagCorrected:
         self.train_rows, self.train_valid, self.train_samples = d.train_rows, d.train_valid, d.train_samples
 
 
-class SensorLag(Physics):
+class SensorLag(Term):
     name, kind, thetas = "sensor_lag", "input", ("time_constant_s",)
     units = {"time_constant_s": "s", "cutoff_hz": "Hz"}
     doc = ("a first-order low-pass of time constant tau on the position sensor, y[k] = y[k-1] + a*(x[k] - y[k-1]), "
@@ -206,22 +204,7 @@ class SensorLag(Physics):
     DELAY_LIKE = 0.3
     #: the longest, in row spacings
     HI_ROWS = 2.0
-
-    absent = {"sensor_cutoff_hz": 0.0}
-    #: sizes: the time constant, from 1.2 samples at 50 kHz (the shortest lag tried at
-    #: decimation by 10, :attr:`DELAY_LIKE`) to 4.8
-    effect = Effect("sensor_lag", "s", "sensor time constant (first-order low-pass, cutoff 1/(2*pi*tau))",
-                    (24e-6, 32e-6, 48e-6, 64e-6, 96e-6), 64e-6)  # fmt: skip
-
-    def to_drive(self, P, fit):
-        return {"sensor_cutoff_hz": P[self.name]["cutoff_hz"]}
-
-    def from_drive(self, d):
-        fc = d.sensor_cutoff_hz
-        return [({"time_constant_s": 1.0 / (2 * math.pi * fc)}, ())] if fc > 0 else []
-
-    def conceal(self, size):
-        return {"sensor_cutoff_hz": 1.0 / (2 * math.pi * size)}
+    path_order = 2  # the sensor's lag acts last (it commutes with the linear dynamics)
 
     @staticmethod
     def transform(u, theta, dt):
@@ -231,6 +214,9 @@ class SensorLag(Physics):
     def screen_target(self, d, model, theta):
         lagged = d.per_input(self.name, model, lambda: LaggedForce(d.sig, d.u_eff(model)))
         return lagged.rows(theta["time_constant_s"])
+
+    def column_design(self, d, model, phys):
+        return self.corrected(d, model) if corrects(phys) else None
 
     def corrected(self, d, model):
         """The :class:`LagCorrected` design of ``model``'s lag (which ``model`` holds),
@@ -265,6 +251,6 @@ class SensorLag(Physics):
         return {}
 
 
-register(SensorLag)
+register_term(SensorLag)
 
 __all__ = ["LagCorrected", "LaggedForce", "LaggedSignals", "SensorLag", "corrects", "lag_coefficient", "lowpass", "unlag"]

@@ -13,7 +13,7 @@ estimated at ``k`` and stepped ``horizon`` samples under the recorded input:
 
 The model's drive is the simulated drive's own kernel (:func:`kernels.plant.plant_step`)
 with the fitted parameters: every vocabulary term maps onto a field of the drive
-(:meth:`~servo.diagnose.terms.Physics.to_drive`; the input terms are applied to the
+(:meth:`~servo.physics.base.DriveMap.to_drive`; the input terms are applied to the
 input beforehand: clipped, then delayed).  The error is
 normalised by what the force model has to explain, the motion that is not coasting::
 
@@ -32,8 +32,10 @@ from kernels.plant import PLANT_STATE
 from kernels.predict import mode_trace, multistep
 from servo.diagnose.fit import Fit
 from servo.diagnose.model import Design
-from servo.diagnose.terms import VOCABULARY
+from servo import physics
 from servo.config import DriveConfig
+from servo.physics import EFFECTS
+from servo.physics.base import Simulation
 from servo.runtime.simplant import mode_matrices, plant_params
 
 #: default horizon, in row spacings (decimation factor samples each)
@@ -74,34 +76,13 @@ def drive_params(fit: Fit, design: Design) -> tuple[np.ndarray, dict]:
     applied beforehand), no noise.  Raises :class:`Unsimulable` without a positive ``J``."""
     d = fit.drive()
     sig = design.sig
-    J = d["J"]
-    if not J > 0:
+    if not fit.mass() > 0:
         raise Unsimulable("the model has no positive inertia J: its output cannot be simulated")
     stroke = 10.0 * float(np.max(np.abs(sig.x))) + 1.0  # stops the motion never reaches
-    Fc = d["Fc"]
-    dahl = has_dahl(fit)
-    # no Dahl element: a negligible one that never saturates (Dahl length 1 m), since
-    # the plant's closed form overflows for a saturated element of vanishing length
-    Ha_off = 1e-12 * max(float(np.max(np.abs(sig.u))), TINY)
-    kf_scale = stroke / d.get("stroke", stroke)  # the plant's kf fields are the changes at its stroke
-    drive = DriveConfig(
-        J=J, B=d["B"], b_asymmetry=d.get("b_asymmetry", 0.0), Fc=Fc, Fs=max(d["Fs"], 0.0) if Fc > 0 else 0.0,
-        fc_asymmetry=0.0, stribeck_velocity=d.get("stribeck_velocity", 1.0), sigma=d["sigma"] if dahl else Ha_off,
-        Ha=d["Ha"] if dahl else Ha_off, alpha=d.get("alpha", 1.0) if dahl else 1.0, K=d["K"], h0=d["h0"],
-        cogging=d.get("cogging", 0.0), cogging_period=d.get("cogging_period", 1.0),
-        cogging_phase=d.get("cogging_phase", 0.0), kf_linear=d.get("kf_linear", 0.0) * kf_scale,
-        kf_quadratic=d.get("kf_quadratic", 0.0) * kf_scale**2,
-        # the modes are stepped apart (mode_trace), the input terms applied to the input beforehand
-        mode_hz=[], mode_zeta=[], mode_gain=[], input_delay_s=0.0, current_limit=1e300, stroke=stroke,
-        position_noise=0.0, velocity_noise=0.0, position_quantum=0.0, sensor_cutoff_hz=0.0,
-        measures_velocity=False, substeps=2,
-    )  # fmt: skip
+    sim = Simulation(fit.combined(), stroke, max(float(np.max(np.abs(sig.u))), TINY))
+    drive = DriveConfig(**physics.simulated_drive(d, sim), substeps=2)
     rec = plant_params(drive, sig.dt)  # the runtime's one mapping of a drive onto the plant's record
     return rec, {"hz": d["mode_hz"], "zeta": d["mode_zeta"], "gain": d["mode_gain"]}
-
-
-def has_dahl(fit: Fit) -> bool:
-    return fit.combined().get("hysteresis", {}).get("Ha", 0.0) > 0
 
 
 def starts_in(design: Design, rows: np.ndarray, horizon: int) -> np.ndarray:
@@ -131,11 +112,13 @@ def predict(design: Design, fit: Fit, starts: np.ndarray, horizon: int) -> Predi
     q0 = np.ascontiguousarray(qtr[starts])
     x0 = sig.xf[starts] - (q0[:, :, 0] @ gain if nm else 0.0)
     v0 = sig.vf[starts] - (q0[:, :, 1] @ gain if nm else 0.0)
-    hy = fit.model.get("hysteresis")
-    if hy is not None and has_dahl(fit):
-        H0 = VOCABULARY["hysteresis"].full(design, hy.params, u)[starts] * pp["Ha"][0]
-    else:
-        H0 = np.zeros(starts.size)
+    H0 = np.zeros(starts.size)
+    P = fit.combined()
+    for t in fit.model.terms:  # a term that holds a hidden state of the plant (a Dahl element's force)
+        h = EFFECTS[t.physics].drive_map.state(design, t.params, P, u, pp)
+        if h is not None:
+            H0 = h[starts]
+            break
     out = np.zeros((starts.size, horizon))
     ps = np.zeros(1, PLANT_STATE)
     multistep(ps, pp, np.zeros((nm, 2)), mab, gain, np.zeros(2), u, np.ascontiguousarray(x0, dtype=float),

@@ -86,9 +86,9 @@ def record(sd: SyntheticDrive, duration_s: float = 0.5) -> Recording:
         drive.update(EFFECTS[sd.defect].drive(sd.size))
     cfg = Config().replace(drive=drive, run={"seed": int(sd.seed), "sample_rate_hz": RATE_HZ})
     r, e = scenario_inputs(Scenario(duration_s=duration_s), sd.seed, cfg.dt)
-    if sd.defect == "input_saturation":  # the limit that clips a fraction `size` of the samples
-        log = simulate(cfg, e, r=r)
-        cfg = cfg.replace(drive={"current_limit": float(np.quantile(np.abs(log["u"]), 1.0 - sd.size))})
+    calibrate = EFFECTS[sd.defect].calibrate if sd.defect is not None else None
+    if calibrate is not None:  # a size measured on the run itself (a saturation's clipped share)
+        cfg = cfg.replace(drive=calibrate(simulate(cfg, e, r=r), sd.size))
     log = simulate(cfg, e, r=r)
     return Recording(log["t"], log["u"], log["x"], None, source=f"synthetic:{sd.name}")
 

@@ -12,9 +12,9 @@ import math
 import numpy as np
 
 from kernels._cache import entry_point
-from kernels.cancel import harmonic_coefficients
 from kernels.compose import LOG_COLUMNS, LOG_UNITS
 from kernels.stage import STAGE_PARAMS
+from servo import physics
 from servo.config import Config
 from servo.controllers import get_kind
 from servo.errors import ConfigError
@@ -31,22 +31,10 @@ def stage_params(cfg: Config, compensation: bool | None = None) -> np.ndarray:
         use_measured_v=1.0 if c.velocity_source == "auto" else 0.0,
         v_alpha=math.exp(-2.0 * math.pi * c.velocity_cutoff_hz * cfg.dt),
         v_deadband=c.direction_deadband, comp_on=1.0 if on else 0.0,
-        B=k.B, Fc=k.Fc, K=k.K, h0=k.h0, sigma=k.sigma, Ha=k.Ha, alpha=k.alpha,
         v_on=k.fast_on_speed, v_off=k.fast_off_speed, xi_on=k.fast_on_distance,
+        uc_max=k.authority if k.authority > 0 else math.inf,
     )  # fmt: skip
-    extras = dict(
-        b_asym=k.b_asymmetry, coul_c=k.coulomb, coul_s=k.coulomb_static or k.coulomb, coul_vs=k.stribeck_velocity,
-        coul_asym=k.coulomb_asymmetry, n_per=len(k.periodic_amplitudes), per_period=k.periodic_period,
-        kf1=k.kf_linear, kf2=k.kf_quadratic, kf_stroke=k.kf_stroke,
-        uc_max=k.authority if k.authority > 0 else math.inf, kf_lo=1.0 - k.kf_authority, kf_hi=1.0 + k.kf_authority,
-    )  # fmt: skip
-    values.update(extras)
-    values["extras"] = 1.0 if (k.b_asymmetry or k.coulomb or k.coulomb_static or k.periodic_amplitudes) else 0.0
-    values["kf_on"] = 1.0 if (k.kf_linear or k.kf_quadratic) else 0.0
-    for name, v in values.items():
-        p[name] = v
-    n = len(k.periodic_amplitudes)
-    p["per_sin"][0, :n], p["per_cos"][0, :n] = harmonic_coefficients(k.periodic_amplitudes, k.periodic_phases)
+    physics.fill(p, {**values, **physics.stage_values(k)})  # each effect's compensator term
     return p
 
 

@@ -12,8 +12,10 @@ import numpy as np
 from scipy.linalg import expm
 
 from kernels.plant import PLANT_PARAMS, PLANT_STATE
+from servo import physics
 from servo.config import DriveConfig
 from servo.errors import ConfigError
+from servo.physics.time_delay import split_delay  # noqa: F401  (importable from here, as before)
 
 
 @dataclass
@@ -37,16 +39,6 @@ class SimPlant:
     u_hold: float
 
 
-def split_delay(delay_s: float, dt: float) -> tuple[int, float]:
-    """Input delay as ``(whole samples, remainder in s)`` with the remainder in ``[0, dt)``."""
-    n = delay_s / dt
-    whole = math.floor(round(n, 9))
-    frac = delay_s - whole * dt
-    if frac < 1e-12 * dt:
-        frac = 0.0
-    return whole, frac
-
-
 def mode_matrices(hz, zeta, J: float, h1: float, h2: float) -> np.ndarray:
     """Exact zero-order-hold discretisation of ``q'' + 2*zeta*w*q' + w^2*q = u/J`` over
     intervals of ``h1`` and ``h2`` seconds.  Returns (n, 2, 6): ``a11 a12 a21 a22 b1 b2``."""
@@ -65,21 +57,11 @@ def mode_matrices(hz, zeta, J: float, h1: float, h2: float) -> np.ndarray:
 
 
 def plant_params(d: DriveConfig, dt: float) -> np.ndarray:
-    """The :data:`~kernels.plant.PLANT_PARAMS` record of a drive config at period ``dt``."""
-    whole, frac = split_delay(d.input_delay_s, dt)
+    """The :data:`~kernels.plant.PLANT_PARAMS` record of a drive config at period ``dt``:
+    each physical effect's fields (:func:`servo.physics.plant_values`), the sample period
+    and the integration's sub-steps."""
     p = np.zeros(1, PLANT_PARAMS)
-    values = dict(
-        J=d.J, B=d.B, b_asym=d.b_asymmetry, Fc=d.Fc, Fs=d.Fs, fc_asym=d.fc_asymmetry,
-        vs=d.stribeck_velocity, sigma=d.sigma, Ha=d.Ha, alpha=d.alpha, K=d.K, h0=d.h0,
-        cog_amp=d.cogging, cog_period=d.cogging_period, cog_phase=d.cogging_phase,
-        kf1=d.kf_linear, kf2=d.kf_quadratic, stroke=d.stroke, u_max=d.current_limit,
-        dt=dt, delay_frac=frac, delay_whole=whole, n_sub=d.substeps,
-        noise_x=d.position_noise, noise_v=d.velocity_noise, quantum=d.position_quantum,
-        has_velocity=1.0 if d.measures_velocity else 0.0,
-        sensor_a=1.0 - math.exp(-2.0 * math.pi * d.sensor_cutoff_hz * dt) if d.sensor_cutoff_hz > 0 else 0.0,
-    )  # fmt: skip
-    for k, v in values.items():
-        p[k] = v
+    physics.fill(p, {**physics.plant_values(d, dt), "dt": dt, "n_sub": d.substeps})
     return p
 
 

@@ -1,0 +1,475 @@
+"""What every physical effect module provides, and the small objects it is built from.
+
+A module of :mod:`servo.physics` describes one physical effect of the drive and owns
+everything about it in one :class:`Effect`, ``EFFECT``; adding an effect is that module
+and its name in :data:`servo.physics.MODULES`.  The registry derives the config
+sections, the record mappings, the diagnosis's vocabulary, the compensator's terms and
+the docs tables from the modules.
+
+**What an author writes** (the minimum, by what the effect is to do):
+
+=====================================  ==============================================
+the effect ...                         writes
+=====================================  ==============================================
+exists (the docs table)                ``Effect(name, doc)``
+is carried by the simulated drive      ``drive`` its ``[drive]`` fields
+                                       (:func:`servo.fields.P`: default, unit, doc,
+                                       range) and ``plant(d, dt)`` the fields of
+                                       :data:`kernels.plant.PLANT_PARAMS` it sets (the
+                                       kernel's arithmetic reads them)
+is named by ``servo diagnose``         ``term``: a :class:`Term` with ``name``,
+                                       ``coefs``, ``units`` and ``full(design, theta,
+                                       u_eff)`` its columns (n, k); a nonlinear one
+                                       also ``thetas`` and ``grid(design, model)``.
+                                       ``drive_map`` (:class:`DriveMap`: ``absent``,
+                                       ``to_drive``, ``from_drive``) for the fitted
+                                       model's ``[drive]`` fields
+is hidden by the concealed study       ``study`` (:class:`Concealment`)
+is cancelled by ``servo compensate``   ``compensator`` its fields, ``stage(c)`` the
+                                       fields of :data:`kernels.stage.STAGE_PARAMS`
+                                       it sets, ``cancel(d, how)`` its compensator
+                                       term from a model's fields
+                                       (:class:`Cancelling`), ``leave_out(d)`` the
+                                       drive without it
+cannot be cancelled                    ``not_cancellable``: why, and what to do
+=====================================  ==============================================
+
+**What has defaults** (override only what the effect needs):
+
+* :class:`Effect`: ``engaged`` (the stage's ``extras`` switch), ``simulated`` (its
+  fields in the short-horizon simulation of a fitted model, default as fitted),
+  ``diagnosed_by`` (a stage beside the selection rounds), ``renamed`` (former keys).
+* :class:`Term` is four concerns, each a base class with defaults that are exact and
+  always correct: :class:`Columns` (``rows`` through the rows' filter, ``physical`` /
+  ``from_physical`` the same names), :class:`SignalPath` (a column term of the measured
+  motion: ``kind``, ``requires``, ``path_order``, ``gated``, ``idle``,
+  ``column_design``, ``eligible``, ...), :class:`Search` (what only the screening and
+  refinement machinery asks, for speed: ``screen*``, ``bounds``, ``refine_width``) and
+  :class:`Judging` (how the report judges a fit: ``POSITIVE``, ``implausible``,
+  ``std_extra``).  :class:`OneField` is a term that is one coefficient linear in the
+  motion, :class:`OneFieldDrive` its drive map.
+* :class:`DriveMap`: ``in_drive`` (whether a drive holds the term, from
+  ``from_drive``), ``state`` (a hidden plant state the term holds, none).
+
+The smallest named effect, the viscous friction (``servo/physics/viscous.py``)::
+
+    class Viscous(OneField):
+        name, coefs, units = "viscous_friction", ("B",), {"B": "F*s/m"}
+
+        def full(self, d, theta, u_eff):
+            return d.sig.vf
+
+    EFFECT = Effect(
+        "viscous_friction", "viscous friction B*x'",
+        drive=dict(B=P(2.0e-3, "A*s/m", "viscous friction", 0.0)),
+        compensator=dict(B=P(2.0e-3, "A*s/m", "viscous friction estimate", None, None)),
+        plant=one_field("B"), stage=one_field("B"), term=Viscous(),
+        drive_map=OneFieldDrive("viscous_friction", "B"), study=..., leave_out=zero("B"),
+        cancel=lambda d, how: [(EQ9, {"B": number(d, "B")})],
+    )
+
+Forces are in the recording's (or the drive's) force unit ``F`` (A of VCM current, or N),
+positions in m, times in s.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import Callable
+
+import numpy as np
+
+
+@dataclass(frozen=True)
+class Concealment:
+    """How the concealed-effect study (:mod:`servo.diagnose.concealed`) hides a term in the
+    null drive: the ``physics`` a diagnosis should name, the size's ``unit`` and meaning
+    (``what``), the sizes of the detection study, a clearly detectable size for the tests,
+    the baseline to diagnose with and drive fields ``fixed`` at every size."""
+
+    physics: str
+    unit: str
+    what: str
+    sizes: tuple
+    clear: float
+    baseline: str = "J,B,Fc,K,h0"
+    fixed: dict = field(default_factory=dict)
+    #: ``fields(size)``: the ``[drive]`` fields that put the effect into the null drive
+    #: at ``size`` (beside ``fixed``)
+    fields: Callable = lambda size: {}
+    #: ``calibrate(log, size)``: for a size measured on the run itself, the ``[drive]``
+    #: fields set from a first run's log (None: ``fields`` alone)
+    calibrate: Callable | None = None
+
+    def drive(self, size: float) -> dict:
+        """The ``[drive]`` fields of the effect at ``size``."""
+        return {**self.fixed, **self.fields(size)}
+
+
+@dataclass(frozen=True)
+class Effect:
+    """One physical effect, as its module declares it (see module doc).
+
+    ``name`` the effect's name (its diagnosis term's vocabulary name when it has one);
+    ``doc`` one line for the docs table; ``drive``/``compensator`` its config fields,
+    name -> :func:`servo.fields.P` field, in the order the sections list them;
+    ``plant(d, dt) -> dict`` its :data:`~kernels.plant.PLANT_PARAMS` fields;
+    ``stage(c) -> dict`` its :data:`~kernels.stage.STAGE_PARAMS` fields (an array field
+    as a sequence filling its first entries); ``engaged(c) -> bool`` whether its
+    compensator term is on (the stage's ``extras`` switch; None: not one of those);
+    ``term`` its diagnosis term (None: the diagnosis does not name it, or names it
+    from a module of its own, :func:`servo.physics.register_term`);
+    ``drive_map`` the term's ``[drive]`` fields in a fitted model (:class:`DriveMap`);
+    ``leave_out(d)`` sets the ``[drive]`` fields ``d`` (a dict) in place to what the drive
+    holds without the term, so that a compensator leaves it out
+    (:mod:`servo.compensate.significance`; None: not a compensator term);
+    ``study`` how the concealed-effect study hides it (:class:`Concealment`);
+    ``not_cancellable`` why no static compensator term cancels it ("" if one does);
+    ``simulated(d, sim) -> dict`` its ``[drive]`` fields in the short-horizon simulation of a
+    fitted model (:class:`Simulation`; None: as fitted, :meth:`simulation`);
+    ``diagnosed_by`` the diagnosis stage beside the selection rounds that names its term
+    (``"lattice"`` the sensor's lattice test, :mod:`servo.diagnose.quantization`;
+    ``"breakaway"`` the test at rest, :mod:`servo.diagnose.breakaway`; ``"frf"`` the
+    frequency response above the rows' band, :mod:`servo.diagnose.frf_modes`; "": the
+    rounds alone);
+    ``cancel(d, how) -> list[(name, keys)]`` its compensator term(s) for the drive fields
+    ``d`` of a model (a dict): what each cancels and the ``[compensator]`` fields it
+    sets (:class:`Cancelling`; entries of the same name from several effects are one
+    term, their fields in registry order; None or ``[]``: none);
+    ``renamed`` its config keys' former names, ``"section.old" -> "new"`` (a config that
+    uses an old one is refused with the new name)."""
+
+    name: str
+    doc: str
+    drive: dict = field(default_factory=dict)
+    compensator: dict = field(default_factory=dict)
+    plant: Callable | None = None
+    stage: Callable | None = None
+    engaged: Callable | None = None
+    term: "Term | None" = None
+    not_cancellable: str = ""
+    renamed: dict = field(default_factory=dict)
+    drive_map: DriveMap | None = None
+    leave_out: Callable | None = None
+    study: Concealment | None = None
+    simulated: Callable | None = None
+    diagnosed_by: str = ""
+    cancel: Callable | None = None
+
+    def simulation(self, d: dict, sim: "Simulation") -> dict:
+        """The effect's ``[drive]`` fields in the short-horizon simulation of a fitted
+        model whose fields are ``d`` (:meth:`servo.diagnose.fit.Fit.drive`): the
+        ``simulated`` hook's, or else its fields as fitted."""
+        if self.simulated is not None:
+            return self.simulated(d, sim)
+        return {k: d[k] for k in self.drive}
+
+
+@dataclass(frozen=True)
+class Cancelling:
+    """How :mod:`servo.compensate.propose` asks each effect's ``cancel`` hook for its
+    compensator term: ``paper`` what eq. (9) alone can hold (one sliding level, none of
+    the terms beyond it: an effect beyond eq. 9 gives none); ``dahl_length`` (m) the
+    Dahl element's to fold a Coulomb level into when the model has none."""
+
+    paper: bool = False
+    dahl_length: float = 3.125e-6
+
+
+@dataclass(frozen=True)
+class Simulation:
+    """What the short-horizon simulation of a fitted model
+    (:mod:`servo.diagnose.simulate`) tells each effect's ``simulated`` hook: ``P`` every
+    term's reported parameters (:meth:`~servo.diagnose.fit.Fit.combined`), ``stroke``
+    (m) stops the motion never reaches, ``u_scale`` the largest ``|u|`` of the recording
+    (force unit, at least 1e-300).  The simulation applies the input terms to the input
+    beforehand and steps the flexible modes apart: their fields are off in it."""
+
+    P: dict
+    stroke: float
+    u_scale: float
+
+
+class Columns:
+    """What a term's author writes: the columns of the force balance and their parameters.
+
+    ``name`` the vocabulary name (the effect's); ``coefs`` the coefficients the columns
+    are linear in, ``thetas`` the nonlinear parameters fixed while they are fitted;
+    ``units`` name -> unit (``F`` the force unit); ``doc`` one line;
+    ``full(design, theta, u_eff)`` the full-rate columns (n, k) of the filtered motion
+    (``design.sig``); ``grid(design, model)`` the ``theta`` a diagnosis tries (``[{}]``
+    for a linear term); ``physical``/``from_physical`` between the internal ``(theta,
+    coef)`` and the reported parameters (default: the same names)."""
+
+    name = ""
+    coefs: tuple = ()
+    thetas: tuple = ()
+    units: dict = {}
+    doc = ""
+
+    def full(self, d, theta: dict, u_eff: np.ndarray) -> np.ndarray:
+        """Full-rate columns (n, k)."""
+        raise NotImplementedError
+
+    def rows(self, d, theta: dict, u_eff: np.ndarray) -> np.ndarray:
+        """The exact rows (m, k): :meth:`full` through the rows' parallel filter."""
+        F = np.atleast_2d(self.full(d, theta, u_eff).T).T
+        return np.column_stack([d.sig.rows(np.ascontiguousarray(F[:, j])) for j in range(F.shape[1])])
+
+    def grid(self, d, model) -> list:
+        return [{}]
+
+    def physical(self, theta: dict, coef) -> dict:
+        """Reported parameters (name -> value)."""
+        return {**dict(zip(self.coefs, map(float, coef))), **{k: float(v) for k, v in theta.items()}}
+
+    def from_physical(self, p: dict) -> tuple[dict, tuple]:
+        return {k: p[k] for k in self.thetas}, tuple(p[k] for k in self.coefs)
+
+
+class SignalPath:
+    """Where a term sits on the signal path of the force balance (defaults: a column
+    term of the measured motion, tried once, with no prerequisite).
+
+    ``kind`` ``"column"``, ``"input"`` or ``"sensor"`` (:class:`Term`); ``requires`` the
+    terms a model must hold before this one is tried; ``uses_input`` its columns read
+    the effective input; ``linear_in_motion`` its columns of the measured motion obey a
+    lagged force balance exactly; ``path_order`` an input term's place on the input's
+    path to the arm; ``gated`` whether it may be present from some time on only;
+    ``idle`` an input term that changes no row; ``column_design`` the signals other
+    terms' columns read when the model holds this one; ``eligible`` whether it may be
+    tried on top of a model."""
+
+    kind = "column"
+    requires: tuple = ()
+    uses_input = False
+    #: a column term linear in the motion (its columns of the measured motion obey a
+    #: lagged force balance exactly: a sensor lag leaves them as they are)
+    linear_in_motion = False
+    #: an input term's place on the input's path to the arm (lower first, as in the drive)
+    path_order = 0
+    #: whether the term may be present from some time on only (a mass does not appear
+    #: half-way: :mod:`servo.diagnose.partial`)
+    gated = True
+
+    def idle(self, params: dict, u: np.ndarray) -> bool:
+        """Whether the term, with ``params``, leaves the recorded input ``u`` (n,) as it
+        is (an input term that changes no row)."""
+        return False
+
+    def column_design(self, d, model, phys: "Term"):
+        """The design whose signals the term ``phys``'s columns read when ``model`` holds
+        this term (a sensor lag: the lag-corrected motion); None: the design ``d`` itself."""
+        return None
+
+    def eligible(self, model) -> str | None:
+        """None when the term may be tried on top of ``model``, else why not."""
+        if model.has_free(self.name) or (model.has(self.name) and self.thetas):
+            return "already in the model"
+        for r in self.requires:
+            if not model.has(r):
+                return f"needs {r} in the model first"
+        return None
+
+
+class Search:
+    """What only the screening and refinement machinery of the selection
+    (:mod:`servo.diagnose.select`) asks of a term: fast approximations for large grids
+    and the final refinement's intervals.  The defaults are exact and always correct;
+    a term overrides them for speed (``screening``, ``screen``, ``screen_batch``,
+    ``screen_sums``, ``screen_target``) or to refine its ``thetas`` between grid points
+    (``bounds``, ``refine_width``)."""
+
+    screening = False  # large grids scanned with fast approximate rows
+
+    def screen(self, d, theta: dict, model) -> np.ndarray:
+        return d.variant_rows(self.name, theta, model)
+
+    def screen_batch(self, d, thetas: list, model) -> np.ndarray:
+        """Approximate rows of several variants at once, (J, k, m)."""
+        return np.stack([np.atleast_2d(self.screen(d, th, model).T) for th in thetas], axis=0)
+
+    def screen_sums(self, d, thetas: list, model, r: np.ndarray, blocks):
+        """Screening sums ``(a, H)`` of all ``thetas`` at once, (K, J, k) and (K, J, k, k)
+        as :func:`servo.diagnose.select.screen_stats` of :meth:`screen_batch`, computed
+        without the columns (a compiled kernel); None: not available, the caller builds
+        the columns in chunks."""
+        return None
+
+    def screen_target(self, d, model, theta: dict) -> np.ndarray | None:
+        """An input term's target rows (m,) tried on top of ``model`` (which lacks the
+        term), computed faster than the exact chain; None: use the exact chain."""
+        return None
+
+    def bounds(self, d, model) -> dict:
+        """Refinement bounds per theta: name -> (lo, hi, log_scale)."""
+        return {}
+
+    def refine_width(self, d, name: str, value: float) -> float:
+        """Half-width of the final refinement's interval around a grid point ``value`` of
+        the linear-scale parameter ``name``: 15 % of the value."""
+        return 0.15 * abs(value)
+
+
+class Judging:
+    """How the report judges and shows a fitted term (defaults: any sign, no derived
+    parameter): ``POSITIVE`` parameter -> what a negative value means (:meth:`note`);
+    ``implausible`` why fitted parameters do not describe the physics (then it is not
+    named); ``unit`` a parameter's unit in a force unit; ``std_extra`` the std of
+    derived reported parameters."""
+
+    POSITIVE: dict = {}
+
+    def note(self, params: dict) -> str:
+        """A remark when a fitted parameter has a sign the physics does not expect."""
+        for k, v in params.items():
+            if k in self.POSITIVE and v < 0:
+                return f"{k} < 0: {self.POSITIVE[k]}"
+        return ""
+
+    def implausible(self, params: dict) -> str:
+        """Why fitted parameters (:meth:`physical`) do not describe this physics ("" if
+        they do): then the term is not named, whatever the test said."""
+        return ""
+
+    def unit(self, name: str, force_unit: str) -> str:
+        return self.units.get(name, "-").replace("F", force_unit)
+
+    def std_extra(self, params: dict, std: dict) -> dict:
+        """Std of the derived reported parameters (``std`` holds the fitted ones')."""
+        return {}
+
+
+class Term(Columns, SignalPath, Search, Judging):
+    """A diagnosis term: its columns (:class:`Columns`, what its author writes), its place
+    on the signal path (:class:`SignalPath`), what the screening and refinement machinery
+    asks of it (:class:`Search`) and how the report judges it (:class:`Judging`); the
+    base is a linear column term with no nonlinear parameter.
+
+    Each term contributes to the force balance ``u_eff = sum coef * column`` (see
+    :mod:`servo.diagnose.model`) in one of three ways (``kind``):
+
+    * ``column`` terms add regressor columns, linear in their coefficients ``coefs`` for
+      fixed nonlinear parameters ``thetas`` (a Stribeck velocity, a Dahl length, a mode's
+      frequency and damping, a cogging period).  The columns are built at full rate from
+      the filtered motion and passed through the rows' parallel filter.
+    * ``input`` terms transform the recorded input before it reaches the arm (a
+      saturation level, a delay); they change the target, not the columns.
+    * ``sensor`` terms (quantisation) change neither: see
+      :mod:`servo.diagnose.quantization`.
+
+    What the rest of the tool knows of the effect is not the term's: its ``[drive]``
+    fields in a fitted model (:class:`DriveMap`), how a compensator leaves it out and
+    how a study conceals it (:class:`Concealment`) are the effect module's other
+    objects (:class:`Effect`)."""
+
+
+#: the compensator term of eq. (9)'s viscous friction and bias (``B``, ``K``, ``h0``)
+EQ9 = "viscous friction, bias (eq. 9)"
+
+
+def number(d: dict, key: str, default: float = 0.0) -> float:
+    """The field ``key`` of the fields ``d`` as a float (``default`` when it lacks it)."""
+    return float(d.get(key, default))
+
+
+def geom(lo: float, hi: float, per_decade: float) -> np.ndarray:
+    """A geometric grid from ``lo`` to ``hi`` with about ``per_decade`` points a decade."""
+    if not (hi > lo > 0):
+        return np.zeros(0)
+    k = max(2, int(math.ceil(math.log10(hi / lo) * per_decade)) + 1)
+    return np.geomspace(lo, hi, k)
+
+
+def contiguous(z) -> np.ndarray:
+    """``z`` as a contiguous float64 array (what the kernels take)."""
+    return np.ascontiguousarray(z, dtype=float)
+
+
+def fold_ranges(blocks) -> tuple[np.ndarray, np.ndarray]:
+    """Each fold's first and past-the-end row (K,), int64."""
+    starts = np.array([sl.start for sl in blocks.slices], dtype=np.int64)
+    stops = np.array([sl.stop for sl in blocks.slices], dtype=np.int64)
+    return starts, stops
+
+
+def valid_speed(d) -> np.ndarray:
+    """The speeds (m/s) of the design's valid training rows."""
+    s = d.sig
+    m = d.train_valid if getattr(d, "train_valid", None) is not None else s.valid
+    return np.abs(s.v_rows[m])
+
+
+class OneField(Term):
+    """A term that is one coefficient, linear in the motion."""
+
+    linear_in_motion = True
+
+
+class DriveMap:
+    """A term's fields in the simulated drive's ``[drive]`` section (``DriveConfig``):
+    ``absent`` its fields when a model lacks the term; ``to_drive(P, fit)`` its fields
+    (force unit, m, s) in a fitted model (``P`` is ``fit.combined()``, every term's
+    reported parameters, ``fit`` the :class:`~servo.diagnose.fit.Fit`): the final model
+    written as a config, its short-horizon simulation; ``from_drive(d)`` the term as a
+    drive ``d`` has it, ``(theta, coef)`` pairs (fixed coefficients), ``[]`` when the
+    drive lacks it: a drive config held as a model file; ``in_drive(d)`` whether it
+    holds the term at all."""
+
+    name = ""
+    absent: dict = {}
+
+    def to_drive(self, P: dict, fit) -> dict:
+        return {}
+
+    def from_drive(self, d) -> list:
+        return []
+
+    def in_drive(self, d) -> bool:
+        return bool(self.from_drive(d))
+
+    def state(self, design, theta: dict, P: dict, u: np.ndarray, record: np.ndarray) -> np.ndarray | None:
+        """The plant's hidden state the term holds at every sample (n,) (the Dahl
+        element's force), for a simulation started from the measured motion: the term
+        with nonlinear parameters ``theta`` in a model whose reported parameters are
+        ``P``, on the input ``u`` (n,) and the plant record ``record``; None: no state
+        (it starts at 0)."""
+        return None
+
+
+class OneFieldDrive(DriveMap):
+    """The drive map of a term whose one coefficient is the ``[drive]`` field ``key``."""
+
+    def __init__(self, name: str, key: str):
+        self.name, self.key, self.absent = name, key, {key: 0.0}
+
+    def to_drive(self, P, fit):
+        return {self.key: P[self.name][self.key]}
+
+    def from_drive(self, d):
+        return [({}, (getattr(d, self.key),))]
+
+
+def field_at(key: str):
+    """A concealment's ``fields``: the ``[drive]`` field ``key`` at the size."""
+    return lambda size: {key: size}
+
+
+def zero(key: str):
+    """A ``leave_out``: the ``[drive]`` field ``key`` set to 0."""
+
+    def leave_out(d: dict) -> None:
+        d[key] = 0.0
+
+    return leave_out
+
+
+def one_field(name: str):
+    """A plant or stage mapping that copies the section field ``name`` into the record
+    field of the same name."""
+    return lambda section, *_: {name: getattr(section, name)}
+
+
+__all__ = ["EQ9", "Cancelling", "Columns", "Concealment", "DriveMap", "Effect", "Judging", "Search", "SignalPath",
+           "OneField", "OneFieldDrive", "Simulation", "Term", "contiguous", "field_at", "fold_ranges", "geom",
+           "number", "one_field", "valid_speed", "zero"]  # fmt: skip
