@@ -41,3 +41,15 @@ def test_a_run_starts_without_the_heavy_libraries(excitation):
     loaded = json.loads(r.stdout.strip().splitlines()[-1])
     heavy = [m for m in loaded if any(m == h or m.startswith(h + ".") for h in HEAVY)]
     assert heavy == [], f"imported before the first tick: {heavy}"
+
+
+def test_the_config_loads_no_kernel_and_no_scipy():
+    """The config's sections are built from the physics modules (:mod:`servo.physics`);
+    those keep their diagnosis and compensator kernels behind the calls that use them, so
+    that reading a config (every command's first step) compiles or loads no kernel and
+    imports no scipy."""
+    probe = ("import json, sys; import servo.config; "
+             "print(json.dumps(sorted(m for m in sys.modules if m.split('.')[0] in ('kernels', 'scipy'))))")
+    r = subprocess.run([sys.executable, "-c", probe], capture_output=True, text=True, cwd=ROOT, timeout=300)
+    assert r.returncode == 0, r.stderr[-3000:]
+    assert json.loads(r.stdout.strip().splitlines()[-1]) == ["kernels", "kernels._cache"]

@@ -9,8 +9,6 @@ import math
 
 import numpy as np
 
-from kernels.cancel import harmonic_coefficients
-from kernels.screen import cogging_stats
 from servo.fields import P
 from servo.physics.base import Concealment, DriveMap, Effect, Term, contiguous, fold_ranges, number, valid_speed
 
@@ -63,6 +61,8 @@ class Cogging(Term):
         K, J = starts.size, k.size
         a, H = np.empty((K, J, 2)), np.empty((K, J, 2, 2))
         dk = (k[-1] - k[0]) / (J - 1)
+        from kernels.screen import cogging_stats
+
         cogging_stats(contiguous(d.sig.x_rows), contiguous(r), contiguous(blocks.weights), starts, stops, float(k[0]), float(dk), a, H)
         return a, H
 
@@ -124,6 +124,8 @@ _STUDY = Concealment("cogging", "A", "cogging amplitude (period 50 um)", (1e-6, 
 
 def _stage(c):
     n = len(c.periodic_amplitudes)
+    from kernels.cancel import harmonic_coefficients
+
     sin, cos = harmonic_coefficients(c.periodic_amplitudes, c.periodic_phases)
     return {"n_per": n, "per_period": c.periodic_period, "per_sin": sin, "per_cos": cos}
 

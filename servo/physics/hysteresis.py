@@ -7,7 +7,6 @@ from __future__ import annotations
 
 import numpy as np
 
-from kernels.hysteresis import dahl_trace
 from servo.fields import P
 from servo.physics.base import Concealment, DriveMap, Effect, Term, geom, number
 
@@ -33,6 +32,8 @@ class Hysteresis(Term):
         s = d.sig
         out = np.empty(s.n)
         lam = theta["dahl_length"]
+        from kernels.hysteresis import dahl_trace
+
         dahl_trace(s.xf, s.vf, s.v_threshold, 1.0 / lam, 1.0, float(theta.get("alpha", 1.0)), 0.0, out)
         return out
 

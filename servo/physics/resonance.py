@@ -9,7 +9,6 @@ import math
 
 import numpy as np
 
-from kernels.screen import biquad_stats
 from servo.fields import P
 from servo.physics.base import Concealment, DriveMap, Effect, Term, contiguous, fold_ranges
 
@@ -63,6 +62,8 @@ class Resonance(Term):
         K, J = starts.size, len(thetas)
         a, H = np.empty((K, J, 1)), np.empty((K, J, 1, 1))
         y = np.ascontiguousarray(d.target_raw(model), dtype=float)
+        from kernels.screen import biquad_stats
+
         biquad_stats(y, contiguous(r), contiguous(blocks.weights), starts, stops, B, A, -1.0, a, H)
         return a, H
 
