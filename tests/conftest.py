@@ -32,3 +32,35 @@ def _kernels_compiled(tmp_path_factory):
 @pytest.fixture(autouse=True)
 def _no_progress_lines(monkeypatch):
     monkeypatch.setattr("servo.io.progress.DELAY_S", math.inf)
+
+
+#: modules the fast tier runs only in other processes (so never in this one's sys.modules)
+OTHER_PROCESS_ONLY = {
+    "servo.__main__": "`python -m servo`, which the CLI tests start as subprocesses",
+    "servo.fleet.workerlog": "a Dask worker plugin, imported in the workers the fleet tests start",
+}
+
+
+def _package_modules(root) -> set[str]:
+    out = set()
+    for top in ("servo", "kernels", "hil"):
+        for path in (root / top).rglob("*.py"):
+            parts = path.relative_to(root).with_suffix("").parts
+            out.add(".".join(parts[:-1] if parts[-1] == "__init__" else parts))
+    return out
+
+
+def pytest_sessionfinish(session, exitstatus):
+    """The README's test command (the fast tier over every test file) must import every
+    module of the package in this process, but for :data:`OTHER_PROCESS_ONLY`: a module
+    that only the slow tier touches fails the run here, with its name."""
+    cfg = session.config
+    whole = not cfg.option.keyword and [str(a) for a in cfg.args] in ([], ["tests"], [str(cfg.rootpath / "tests")])
+    if exitstatus != 0 or not whole or cfg.option.markexpr != "not slow" or cfg.option.collectonly:
+        return
+    import sys
+
+    missing = sorted(_package_modules(cfg.rootpath) - set(sys.modules) - set(OTHER_PROCESS_ONLY))
+    if missing:
+        print(f"\nthe fast tier imports no test of: {', '.join(missing)} (tests/conftest.py)", file=sys.stderr)
+        session.exitstatus = pytest.ExitCode.TESTS_FAILED

@@ -66,6 +66,7 @@ CHANGE = {"compensator.periodic_amplitudes": {"compensator": {"periodic_amplitud
 
 #: What a changed field needs beside it to act (its companion switched on).
 WITH = {
+    "link.loop": {"link": {"command_latency_ticks": 2}},  # on the board, the link's latency leaves the loop
     "scenario.hdd_version": {"scenario": {"kind": "hdd_benchmark"}, "run": {"sample_rate_hz": 52800.0}},
     "scenario.excitation_amplitude": {"scenario": {"excitation": "chirp"}},
     "scenario.excitation_f_min": {"scenario": {"excitation": "chirp"}},

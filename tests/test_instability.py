@@ -149,6 +149,7 @@ def test_an_unstable_plugin_stops_servo_run_with_exit_3(plugin, fast):
 
 @pytest.mark.slow
 def test_an_unstable_plugin_stops_over_the_serial_link(plugin, tmp_path):
+    sys.modules.pop("my_pid", None)  # an earlier test may have imported (and unregistered) it
     import my_pid  # noqa: F401  (registers "pid" in this process)
     from hil.emulator import Board, start_in_thread
     from hil.serialdriver import SerialDriver
