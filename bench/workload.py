@@ -74,7 +74,7 @@ def motion(cfg: Config, seed: int = 7) -> Motion:
 #: large cycles, and the authority (2.5 mA) holds |u_c| on the samples where the paper's
 #: terms, the Coulomb term and the periodic force add up beyond it.
 EVERY_TERM = dict(
-    b_asymmetry=0.2, coulomb=1e-3, coulomb_static=1.5e-3, stribeck_velocity=2e-3, coulomb_asymmetry=0.1,
+    b_asymmetry=0.2, coulomb_extra=1e-3, coulomb_static=1.5e-3, stribeck_velocity=2e-3, coulomb_asymmetry=0.1,
     periodic_amplitudes=[1e-4, 5e-5, 2e-5, 1e-5], periodic_phases=[0.3, -1.0, 2.0, 0.5], periodic_period=2e-6,
     kf_linear=0.9, kf_quadratic=0.5, kf_stroke=30e-6, kf_authority=0.3, authority=2.5e-3,
 )

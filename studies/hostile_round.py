@@ -219,7 +219,7 @@ CROSS = {
     "watchdog below the timeout": ["link.watchdog_s=0.001", "link.timeout_s=5"],
     "ready timeout zero": ["link.ready_timeout_s=0"],
     "compensator K huge": ["compensator.K=1e11"],
-    "compensator authority zero with terms": ["compensator.authority=0", "compensator.Fc=0.01"],
+    "compensator authority zero with terms": ["compensator.authority=0", "compensator.sliding_level=0.01"],
     "periodic lists of other lengths": ["compensator.periodic_amplitudes=[0.01, 0.02]", "compensator.periodic_phases=[0.0]"],
     "periodic period zero": ["compensator.periodic_amplitudes=[0.01]", "compensator.periodic_phases=[0.0]", "compensator.periodic_period=0"],
     "fast off above fast on": ["compensator.fast_on_speed=0.001", "compensator.fast_off_speed=1.0"],
