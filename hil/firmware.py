@@ -281,22 +281,8 @@ def instructions_per_tick(cfg: Config, workdir: Path, timeout: float = 120.0) ->
     instructions per tick (``frames``: SAMPLES out and COMMANDS in, host in the loop at
     b = 1; ``refs``: the loop on the board's REFS frames in, 32 ticks a frame) and per log
     row sent (``log``: a LOG frame of one 13-column row out, CRC and COBS)."""
-    elf = build_mps2_bench(cfg, workdir)
+    buf = _qemu_output(build_mps2_bench(cfg, workdir), timeout)
     out: dict[str, dict[str, int]] = {}
-    with serve_qemu(elf, icount=True) as (proc, url):
-        fd = os.open(url, os.O_RDWR | os.O_NOCTTY)
-        try:
-            import tty
-
-            tty.setraw(fd)
-            os.write(fd, b"g")  # the program waits for it
-            buf, end = b"", time.monotonic() + timeout
-            while b"done" not in buf and time.monotonic() < end:
-                ready, _, _ = select.select([fd], [], [], 1.0)
-                if ready:
-                    buf += os.read(fd, 4096)
-        finally:
-            os.close(fd)
     for line in buf.decode().splitlines():
         f = line.split()
         if len(f) == 11:
