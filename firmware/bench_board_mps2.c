@@ -17,17 +17,7 @@
 
 #include "board.h"
 #include "hal.h"
-
-#define REG(a) (*(volatile uint32_t *)(a))
-#define UART_DATA REG(0x40004000u)
-#define UART_STATE REG(0x40004004u)
-#define UART_CTRL REG(0x40004008u)
-#define UART_BAUDDIV REG(0x40004010u)
-#define TIMER_CTRL REG(0x40000000u)
-#define TIMER_VALUE REG(0x40000004u)
-#define TIMER_RELOAD REG(0x40000008u)
-#define CPACR REG(0xE000ED88u)
-#define INSN_PER_COUNT 40u /* 1 ns per instruction, 40 ns per 25 MHz count */
+#include "mps2.h"
 
 extern const int BENCH_SESSIONS;
 extern const uint32_t BENCH_TICKS;
@@ -61,27 +51,6 @@ size_t hal_stream(const uint8_t *tx, size_t tx_len, size_t *tx_taken, uint8_t *r
     return n;
 }
 
-static void put(const char *s)
-{
-    while (*s) {
-        while (UART_STATE & 1u)
-            ;
-        UART_DATA = (uint8_t)*s++;
-    }
-}
-
-static void put_u32(uint32_t v)
-{
-    char b[11];
-    int i = 10;
-    b[i] = 0;
-    do {
-        b[--i] = (char)('0' + v % 10u);
-        v /= 10u;
-    } while (v);
-    put(b + i);
-}
-
 static board bd;
 
 int main(void)
@@ -104,8 +73,8 @@ int main(void)
             board_poll(&bd);
         board_poll(&bd);
         if (bd.state != BOARD_ACTIVE) {
-            put(BENCH_LABEL[s]);
-            put(" not active\n");
+            mps2_put(BENCH_LABEL[s]);
+            mps2_put(" not active\n");
             continue;
         }
         until = BENCH_LEN[s];
@@ -113,36 +82,14 @@ int main(void)
         while (bd.k < BENCH_TICKS && bd.state == BOARD_ACTIVE)
             board_poll(&bd);
         uint32_t t = (t0 - TIMER_VALUE) * INSN_PER_COUNT / BENCH_TICKS;
-        put(BENCH_LABEL[s]);
-        put(bd.k == BENCH_TICKS ? " board " : " fault ");
-        put_u32(t);
-        put("\n");
+        mps2_put(BENCH_LABEL[s]);
+        mps2_put(bd.k == BENCH_TICKS ? " board " : " fault ");
+        mps2_put_u32(t);
+        mps2_put("\n");
     }
-    put("done\n");
+    mps2_put("done\n");
     for (;;)
         ;
 }
 
-extern uint32_t __data_load, __data_start, __data_end, __bss_start, __bss_end, __stack_top;
-
-void reset_handler(void)
-{
-    uint32_t *src_ = &__data_load, *dst = &__data_start;
-    while (dst < &__data_end)
-        *dst++ = *src_++;
-    for (dst = &__bss_start; dst < &__bss_end;)
-        *dst++ = 0;
-    CPACR |= 0xFu << 20;
-    __asm__ volatile("dsb\n isb");
-    main();
-}
-
-static void hang(void)
-{
-    for (;;)
-        ;
-}
-
-__attribute__((section(".vectors"), used)) static void (*const vectors[16])(void) = {
-    (void (*)(void))&__stack_top, reset_handler, hang, hang, hang, hang, hang, 0, 0, 0, 0, hang, hang, 0, hang, hang,
-};
+void mps2_fault(void) {}

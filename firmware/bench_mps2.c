@@ -18,43 +18,13 @@
 #include "controller.h"
 #include "crc32.h"
 #include "drive.h"
+#include "mps2.h"
 
-#define REG(a) (*(volatile uint32_t *)(a))
-#define UART_DATA REG(0x40004000u)
-#define UART_STATE REG(0x40004004u)
-#define UART_CTRL REG(0x40004008u)
-#define UART_BAUDDIV REG(0x40004010u)
-#define TIMER_CTRL REG(0x40000000u)
-#define TIMER_VALUE REG(0x40000004u)
-#define TIMER_RELOAD REG(0x40000008u)
-#define CPACR REG(0xE000ED88u)
 #define N 2000
-#define INSN_PER_COUNT 40u /* 1 ns per instruction, 40 ns per 25 MHz count */
 
 extern const double FW_PI_SS[], FW_PI_SP[], FW_PI_CS[], FW_PI_CP[];
 extern const double FW_TRACK_SS[], FW_TRACK_SP[], FW_TRACK_CS[], FW_TRACK_CP[];
 extern const double FW_NSS_SS[], FW_NSS_SP[], FW_NSS_CS[], FW_NSS_CP[];
-
-static void put(const char *s)
-{
-    while (*s) {
-        while (UART_STATE & 1u)
-            ;
-        UART_DATA = (uint8_t)*s++;
-    }
-}
-
-static void put_u32(uint32_t v)
-{
-    char b[11];
-    int i = 10;
-    b[i] = 0;
-    do {
-        b[--i] = (char)('0' + v % 10u);
-        v /= 10u;
-    } while (v);
-    put(b + i);
-}
 
 static uint32_t now(void) { return TIMER_VALUE; } /* counts down */
 
@@ -166,44 +136,22 @@ int main(void)
         uint32_t p = time_plant();
         uint32_t f = time_frames(3, 1);
         uint32_t refs = time_frames(0, 64) / 32u, log = time_frames(13, 0);
-        put(names[i]);
-        put(" controller ");
-        put_u32(c);
-        put(" plant ");
-        put_u32(p);
-        put(" frames ");
-        put_u32(f);
-        put(" refs ");
-        put_u32(refs);
-        put(" log ");
-        put_u32(log);
-        put("\n");
+        mps2_put(names[i]);
+        mps2_put(" controller ");
+        mps2_put_u32(c);
+        mps2_put(" plant ");
+        mps2_put_u32(p);
+        mps2_put(" frames ");
+        mps2_put_u32(f);
+        mps2_put(" refs ");
+        mps2_put_u32(refs);
+        mps2_put(" log ");
+        mps2_put_u32(log);
+        mps2_put("\n");
     }
-    put("done\n");
+    mps2_put("done\n");
     for (;;)
         ;
 }
 
-extern uint32_t __data_load, __data_start, __data_end, __bss_start, __bss_end, __stack_top;
-
-void reset_handler(void)
-{
-    uint32_t *src = &__data_load, *dst = &__data_start;
-    while (dst < &__data_end)
-        *dst++ = *src++;
-    for (dst = &__bss_start; dst < &__bss_end;)
-        *dst++ = 0;
-    CPACR |= 0xFu << 20;
-    __asm__ volatile("dsb\n isb");
-    main();
-}
-
-static void hang(void)
-{
-    for (;;)
-        ;
-}
-
-__attribute__((section(".vectors"), used)) static void (*const vectors[16])(void) = {
-    (void (*)(void))&__stack_top, reset_handler, hang, hang, hang, hang, hang, 0, 0, 0, 0, hang, hang, 0, hang, hang,
-};
+void mps2_fault(void) {}

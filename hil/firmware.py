@@ -122,7 +122,7 @@ def build_test_library(cfg: Config, workdir: Path, cc: str | None = None) -> Pat
 
 
 ARM_CC = "arm-none-eabi-gcc"
-MPS2 = PORTABLE + ("main_mps2.c",)
+MPS2 = PORTABLE + ("main_mps2.c", "mps2_start.c")
 MPS2_FLAGS = ("-mcpu=cortex-m7", "-mfpu=fpv5-d16", "-mfloat-abi=hard", "-mthumb", "-nostartfiles", "-T",
               str(ROOT / "mps2.ld"), "--specs=nano.specs", "--specs=nosys.specs")  # fmt: skip
 """Cortex-M7 with its double-precision FPU (FPv5-D16), newlib's string and math functions only."""
@@ -181,7 +181,7 @@ def build_mps2_bench(cfg: Config, workdir: Path) -> Path:
     kind's controller, of the simulated drive and of one tick's frames."""
     if shutil.which(ARM_CC) is None:
         raise RuntimeError(f"no {ARM_CC} on the PATH")
-    sources = tuple(s for s in PORTABLE if s not in ("board.c", "hal_sim.c")) + ("bench_mps2.c",)
+    sources = tuple(s for s in PORTABLE if s not in ("board.c", "hal_sim.c")) + ("bench_mps2.c", "mps2_start.c")
     return _build(cfg, workdir, sources, MPS2_FLAGS, "servo_fw_bench.elf", ARM_CC, records_source(cfg))
 
 
@@ -241,7 +241,7 @@ def board_instructions_per_tick(cfg: Config, workdir: Path, periods: tuple[int, 
     (``firmware/bench_board_mps2.c``); ``{kind: {p: n}}``."""
     if shutil.which(ARM_CC) is None:
         raise RuntimeError(f"no {ARM_CC} on the PATH")
-    sources = ("cobs.c", "crc32.c", "board.c", "dahl.c", "controller.c", "bench_board_mps2.c")
+    sources = ("cobs.c", "crc32.c", "board.c", "dahl.c", "controller.c", "bench_board_mps2.c", "mps2_start.c")
     elf = _build(cfg, workdir, sources, MPS2_FLAGS, "servo_fw_board_bench.elf", ARM_CC,
                  session_source(cfg, periods))  # fmt: skip
     buf = _qemu_output(elf, timeout)
