@@ -31,7 +31,7 @@ from pathlib import Path
 
 import numpy as np
 
-from studies.hostile_round import FINDINGS, TRIED, _good, _write, check
+from studies.hostile_round import FINDINGS, TRIED, _good, _write, check, run_steps
 
 ENV = {**os.environ, "PYTHONPATH": os.getcwd(), "MPLBACKEND": "Agg"}
 
@@ -415,15 +415,7 @@ def main(argv=None) -> int:
     write_fleet(fleet, synthetic_drives(12, 1, seed=2), duration_s=1.0)
     steps = {"fleets": lambda: fleets(a.root), "boards": lambda: boards(a.root), "writers": lambda: two_writers(a.root, rec),
              "interrupts": lambda: interrupts(a.root, rec, journal, fleet)}  # fmt: skip
-    for name in a.only.split(","):
-        steps[name]()
-        print(f"-- after {name}:", file=sys.__stdout__, flush=True)
-        for (kind, outcome), n in sorted(TRIED.items()):
-            print(f"  {kind:40s} {outcome:40s} {n}", file=sys.__stdout__)
-        for f in FINDINGS:
-            print(f, file=sys.__stdout__)
-        FINDINGS.clear()
-        sys.__stdout__.flush()
+    run_steps(steps, a.only)
     return 0
 
 

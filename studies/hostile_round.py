@@ -595,6 +595,20 @@ def outs(d: Dirs, g: dict):
     os.chmod(ro, 0o755)
 
 
+def run_steps(steps: dict, only: str) -> None:
+    """Run the named ``steps`` (comma-separated ``only``) in order, printing after each
+    the tally of what was tried, by kind and outcome, and the findings since the last."""
+    for name in only.split(","):
+        steps[name]()
+        print(f"-- after {name}:", file=sys.__stdout__, flush=True)
+        for (kind, outcome), n in sorted(TRIED.items()):
+            print(f"  {kind:40s} {outcome:40s} {n}", file=sys.__stdout__)
+        for f in FINDINGS:
+            print(f, file=sys.__stdout__)
+        FINDINGS.clear()
+        sys.__stdout__.flush()
+
+
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("root", type=Path)
@@ -606,15 +620,7 @@ def main(argv=None) -> int:
     g = _good()
     steps = {"configs": lambda: configs(d, a.quick), "cross": lambda: cross_fields(d), "recordings": lambda: recordings(d, g),
              "options": lambda: tool_options(d, g), "models": lambda: models(d, g), "outs": lambda: outs(d, g)}  # fmt: skip
-    for name in a.only.split(","):
-        steps[name]()
-        print(f"-- after {name}:", file=sys.__stdout__, flush=True)
-        for (kind, outcome), n in sorted(TRIED.items()):
-            print(f"  {kind:40s} {outcome:40s} {n}", file=sys.__stdout__)
-        for f in FINDINGS:
-            print(f, file=sys.__stdout__)
-        FINDINGS.clear()
-        sys.__stdout__.flush()
+    run_steps(steps, a.only)
     return 0
 
 
