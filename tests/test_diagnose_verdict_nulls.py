@@ -1,4 +1,4 @@
-"""Null recordings read `consistent` where two checks misread noise (docs/diagnosis.md 6a;
+"""Null recordings read `consistent` where two checks misread noise (docs/verdict.md 6a;
 docs/studies/2026-11-24-nulls-consistent.md).
 
 * ``windows``: the misfit of the direction-uncertain samples (a stick, where friction is
