@@ -17,7 +17,7 @@ from __future__ import annotations
 import numpy as np
 
 from servo.fields import P
-from servo.physics.base import Concealment, DriveMap, Effect, Term, number
+from servo.physics.base import Concealment, DriveMap, Effect, Term, field_at, number, zero
 
 
 class DeadZone(Term):
@@ -78,7 +78,7 @@ def _stage(c):
 #: the null drive's PI loop (a double integrator under a lead) is conditionally stable: a
 #: half-width of 1 mA (a third of the median |u|) lowers its gain into a diverging limit cycle
 _STUDY = Concealment("dead_zone", "A", "half-width of the input dead zone", (5e-5, 1e-4, 2e-4, 3e-4, 5e-4), 5e-4,
-                     fields=lambda size: {"dead_zone": size})
+                     fields=field_at("dead_zone"))
 
 
 EFFECT = Effect(
@@ -91,7 +91,7 @@ EFFECT = Effect(
     stage=_stage,
     term=DeadZone(),
     drive_map=DeadZoneDrive(),
-    leave_out=lambda d: d.update(dead_zone=0.0),
+    leave_out=zero("dead_zone"),
     study=_STUDY,
     simulated=lambda d, sim: {"dead_zone": 0.0},  # applied to the input beforehand
     cancel=_cancel,
