@@ -16,7 +16,9 @@ Forces are normalised to amperes (force constant 1 at the stroke centre)::
   a periodic (cogging) force; ``k3*x^3`` a cubic spring (hardening ``k3 > 0``, softening
   ``k3 < 0``); hard stops at ``+-stroke``.
 * An input dead zone of half-width ``dz_width`` after the clipping: the arm gets
-  ``sgn(u)*max(|u| - dz_width, 0)`` of the clipped command.
+  ``sgn(u)*max(|u| - dz_width, 0)`` of the clipped command, applied to each delayed
+  piece (the input delay buffer holds the clipped commands: a memoryless map commutes
+  with the delay, and what entered the amplifier stays the command).
 * Flexible modes ``q_i'' + 2*zeta_i*w_i*q_i' + w_i**2*q_i = u/J`` add ``g_i*q_i`` to the
   measured position; they are linear and advanced with their exact zero-order-hold
   discretisation (matrices from :mod:`servo.runtime.simplant`), once per constant-input interval.
