@@ -125,6 +125,18 @@ static double cancel_force_constant(double x, double k1, double k2, double strok
     return 1.0 + k1 * r + k2 * r * r;
 }
 
+static double cubic_spring(double x, double k3) { return k3 * x * x * x; }
+
+/* the command an input dead zone of half-width w turns into u */
+static double dead_zone_inverse(double u, double w)
+{
+    if (u > 0.0)
+        return u + w;
+    if (u < 0.0)
+        return u - w;
+    return 0.0;
+}
+
 /* ------------------------ kernels/stage.py with servo/controllers/pi.py inside it */
 
 /* _extras: the terms beyond eq. (9) */
@@ -137,6 +149,8 @@ static double extras(const stage_state *c, const stage_params *p, double x)
         f += coulomb_stribeck(c->v, c->s, p->coul_c, p->coul_s, p->coul_vs, p->coul_asym);
     if (p->n_per > 0.0)
         f += periodic(x, p->per_sin, p->per_cos, (int64_t)p->n_per, p->per_period);
+    if (p->k3 != 0.0)
+        f += cubic_spring(x, p->k3);
     return f;
 }
 
@@ -159,13 +173,16 @@ static double stage_kf(const stage_params *p, double x)
 /* stage_room: the range of u_n that keeps the command within the limit */
 static void stage_room(const stage_params *p, double u_c, double x, double *lo, double *hi)
 {
+    double u_max = p->u_max;
+    if (p->dz_w > 0.0 && p->comp_on != 0.0)
+        u_max = py_max(p->u_max - p->dz_w, 0.0);
     if (p->kf_on != 0.0 && p->comp_on != 0.0) {
-        double m = p->u_max * stage_kf(p, x);
+        double m = u_max * stage_kf(p, x);
         *lo = -m - u_c;
         *hi = m - u_c;
     } else {
-        *lo = -p->u_max - u_c;
-        *hi = p->u_max - u_c;
+        *lo = -u_max - u_c;
+        *hi = u_max - u_c;
     }
 }
 
@@ -194,6 +211,8 @@ static double stage_output(stage_state *c, const stage_params *p, double x, doub
     double u = u_n + u_c;
     if (p->kf_on != 0.0 && p->comp_on != 0.0)
         u = u / stage_kf(p, x);
+    if (p->dz_w > 0.0 && p->comp_on != 0.0)
+        u = dead_zone_inverse(u, p->dz_w);
     u = py_min(py_max(u, -p->u_max), p->u_max);
     c->e = (c->r_base + r) - x;
     c->u_n = u_n;

@@ -11,11 +11,23 @@ static double force_constant(double x, const plant_params *p)
     return 1.0 + p->kf1 * r + p->kf2 * r * r;
 }
 
+/* the input dead zone of half-width w: sgn(u)*max(|u| - w, 0) */
+static double dead_zone(double u, double w)
+{
+    if (u > w)
+        return u - w;
+    if (u < -w)
+        return u + w;
+    return 0.0;
+}
+
 static double drive_force(double x, double u, double d, const plant_params *p)
 {
     double f = force_constant(x, p) * u + d - p->K * x - p->h0;
     if (p->cog_amp != 0.0)
         f -= p->cog_amp * sin(2.0 * PI * x / p->cog_period + p->cog_phase);
+    if (p->k3 != 0.0)
+        f -= p->k3 * x * x * x;
     return f;
 }
 
@@ -123,6 +135,10 @@ void plant_step_on(plant_state *st, const plant_params *p, double *q, const doub
     int64_t m = (int64_t)p->delay_whole;
     double u_late = ubuf[m];
     double u_early = ubuf[m + 1];
+    if (p->dz_width > 0.0) {
+        u_late = dead_zone(u_late, p->dz_width);
+        u_early = dead_zone(u_early, p->dz_width);
+    }
     if (p->delay_frac > 0.0) {
         rigid_advance(st, p, u_early, d, p->delay_frac);
         modes_advance(q, mab, n_modes, 0, u_early);

@@ -35,8 +35,10 @@ typedef struct {
     double uc_max;
     double kf_lo;
     double kf_hi;
+    double k3;
+    double dz_w;
 } stage_params;
-_Static_assert(sizeof(stage_params) == 312, "stage_params layout");
+_Static_assert(sizeof(stage_params) == 328, "stage_params layout");
 typedef struct {
     double r_base;
     double x_prev;
@@ -115,8 +117,10 @@ typedef struct {
     double quantum;
     double has_velocity;
     double sensor_a;
+    double dz_width;
+    double k3;
 } plant_params;
-_Static_assert(sizeof(plant_params) == 224, "plant_params layout");
+_Static_assert(sizeof(plant_params) == 240, "plant_params layout");
 typedef struct {
     double x;
     double v;

@@ -12,7 +12,10 @@ by ``u_n`` stays ``J*x'' = u_n`` (eq. 10).
   position (cogging, a screw's lead), harmonics ``i = 1..n`` (A), evaluated as sine and
   cosine coefficients (:func:`harmonic_coefficients`) with one ``sin``/``cos`` pair;
 * :func:`force_constant`: ``kf(x) = 1 + k1*(x/stroke) + k2*(x/stroke)^2``; the command is
-  divided by it (a gain, not a force).
+  divided by it (a gain, not a force);
+* :func:`cubic_spring`: ``k3*x^3``, a hardening (``k3 > 0``) or softening spring (A);
+* :func:`dead_zone_inverse`: ``u + sgn(u)*w``, the command whose input dead zone of
+  half-width ``w`` gives ``u`` (an input transform, not a force).
 """
 import math
 
@@ -80,3 +83,20 @@ def force_constant(x, k1, k2, stroke):
     """``kf(x)`` (dimensionless), as :func:`kernels.plant.force_constant`."""
     r = x / stroke
     return 1.0 + k1 * r + k2 * r * r
+
+
+@kernel(float64(float64, float64))
+def cubic_spring(x, k3):
+    """``k3*x^3`` (A): ``x`` m, ``k3`` A/m^3, as the drive's (:func:`kernels.plant.drive_force`)."""
+    return k3 * x * x * x
+
+
+@kernel(float64(float64, float64))
+def dead_zone_inverse(u, w):
+    """``u + sgn(u)*w`` (A; ``u`` at 0): the command an input dead zone of half-width ``w``
+    (A) turns into ``u`` (:func:`kernels.plant.dead_zone`)."""
+    if u > 0.0:
+        return u + w
+    if u < 0.0:
+        return u - w
+    return 0.0

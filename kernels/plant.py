@@ -2,10 +2,10 @@
 
 Forces are normalised to amperes (force constant 1 at the stroke centre)::
 
-    J*x'' = kf(x)*u + d - B(s)*x' - C(x', s)*s - H - K*x - h0 - cog(x)
+    J*x'' = kf(x)*u + d - B(s)*x' - C(x', s)*s - H - K*x - k3*x^3 - h0 - cog(x)
 
-* ``u`` the applied current (A): the command, clipped to ``+-u_max`` and delayed by
-  ``delay_whole*dt + delay_frac`` seconds; ``d`` a disturbance force (A).
+* ``u`` the applied current (A): the command, clipped to ``+-u_max``, through the dead
+  zone and delayed by ``delay_whole*dt + delay_frac`` seconds; ``d`` a disturbance force (A).
 * ``H`` the pivot's Dahl hysteresis (eq. 6, its sliding level ``Ha`` is the pivot friction),
   integrated *exactly in position* inside each sub-step (:func:`kernels.dahl.dahl_flow`
   from the sub-step's start), so the element stays exact at any speed where its
@@ -13,7 +13,12 @@ Forces are normalised to amperes (force constant 1 at the stroke centre)::
 * ``C`` an optional Coulomb/Stribeck friction with static friction ``Fs`` (breakaway) and
   ``Fc`` (sliding), direction-asymmetric by ``fc_asym``; ``B(s) = B*(1 + s*b_asym)``.
 * ``kf(x) = 1 + kf1*(x/stroke) + kf2*(x/stroke)**2`` force-constant variation; ``cog(x)``
-  a periodic (cogging) force; hard stops at ``+-stroke``.
+  a periodic (cogging) force; ``k3*x^3`` a cubic spring (hardening ``k3 > 0``, softening
+  ``k3 < 0``); hard stops at ``+-stroke``.
+* An input dead zone of half-width ``dz_width`` after the clipping: the arm gets
+  ``sgn(u)*max(|u| - dz_width, 0)`` of the clipped command, applied to each delayed
+  piece (the input delay buffer holds the clipped commands: a memoryless map commutes
+  with the delay, and what entered the amplifier stays the command).
 * Flexible modes ``q_i'' + 2*zeta_i*w_i*q_i' + w_i**2*q_i = u/J`` add ``g_i*q_i`` to the
   measured position; they are linear and advanced with their exact zero-order-hold
   discretisation (matrices from :mod:`servo.runtime.simplant`), once per constant-input interval.
@@ -68,6 +73,8 @@ PLANT_PARAMS = np.dtype(
         ("quantum", "f8"),  # position quantisation step, m (0: none)
         ("has_velocity", "f8"),  # 1: the drive measures velocity (LDV), 0: not
         ("sensor_a", "f8"),  # first-order position sensor low-pass, a = 1 - exp(-2*pi*fc*dt) (0: none)
+        ("dz_width", "f8"),  # input dead zone half-width, A (0: none)
+        ("k3", "f8"),  # cubic spring k3*x^3, A/m^3 (> 0 hardening, < 0 softening; 0: none)
     ]
 )
 PLANT_STATE = np.dtype(
@@ -94,12 +101,24 @@ def force_constant(x, p):
     return 1.0 + p.kf1 * r + p.kf2 * r * r
 
 
+@kernel(float64(float64, float64))
+def dead_zone(u, w):
+    """The input dead zone of half-width ``w`` (A): ``sgn(u)*max(|u| - w, 0)`` (A)."""
+    if u > w:
+        return u - w
+    if u < -w:
+        return u + w
+    return 0.0
+
+
 @kernel(float64(float64, float64, float64, params_rec_t))
 def drive_force(x, u, d, p):
     """Every force on the arm except friction and hysteresis (A)."""
     f = force_constant(x, p) * u + d - p.K * x - p.h0
     if p.cog_amp != 0.0:
         f -= p.cog_amp * math.sin(2.0 * math.pi * x / p.cog_period + p.cog_phase)
+    if p.k3 != 0.0:
+        f -= p.k3 * x * x * x
     return f
 
 
@@ -215,6 +234,9 @@ def plant_step(ps, pp, q, mab, ubuf, u_cmd, d):
     m = int(p.delay_whole)
     u_late = ubuf[m]
     u_early = ubuf[m + 1]
+    if p.dz_width > 0.0:  # the buffer holds the clipped commands, the arm gets them through the dead zone
+        u_late = dead_zone(u_late, p.dz_width)
+        u_early = dead_zone(u_early, p.dz_width)
     if p.delay_frac > 0.0:
         rigid_advance(ps[0], p, u_early, d, p.delay_frac)
         modes_advance(q, mab, 0.0, u_early)

@@ -9,6 +9,9 @@ position error; this stage wraps it, the same for every kind::
     u_n = controller(x, v, r, u_exc, lo, hi)
     u = clip(u_n + u_c, -u_max, u_max)      eq. (8)
 
+(``u_n + u_c`` divided by ``kf(x)`` and through the inverse dead zone when those terms
+are on)
+
 so that with exact estimates the plant any controller sees is ``J*x'' = u_n`` (eq. 10).
 The reference ``r`` (m) is relative to the *holding position* ``r_base``: where the arm
 was when the loop took over.  State and parameters are one-element record arrays
@@ -22,7 +25,9 @@ from numba import float64, from_dtype
 from numba.types import UniTuple
 
 from kernels._cache import kernel
-from kernels.cancel import MAX_HARMONICS, coulomb_stribeck, force_constant, periodic, viscous_asymmetry
+from kernels.cancel import (
+    MAX_HARMONICS, coulomb_stribeck, cubic_spring, dead_zone_inverse, force_constant, periodic, viscous_asymmetry,
+)
 from kernels.compensator import FAST, SLOW, compensate, direction, regime_switch, velocity_estimate
 from kernels.dahl import dahl_update
 
@@ -63,6 +68,8 @@ STAGE_PARAMS = np.dtype(
         ("uc_max", "f8"),  # |u_c| <= uc_max, A (inf: eq. 9 unbounded, as the paper writes it)
         ("kf_lo", "f8"),  # the divisor kf(x) is held within [kf_lo, kf_hi]
         ("kf_hi", "f8"),
+        ("k3", "f8"),  # cubic spring k3*x^3 cancelled (an extra, within uc_max), A/m^3
+        ("dz_w", "f8"),  # inverse dead zone: sgn(u)*dz_w added to the command, A (its authority applied; 0: off)
     ]
 )
 STAGE_STATE = np.dtype(
@@ -105,6 +112,8 @@ def _extras(c, p, x):
         f += coulomb_stribeck(c.v, c.s, p.coul_c, p.coul_s, p.coul_vs, p.coul_asym)
     if p.n_per > 0.0:
         f += periodic(x, p.per_sin, p.per_cos, int(p.n_per), p.per_period)
+    if p.k3 != 0.0:
+        f += cubic_spring(x, p.k3)
     return f
 
 
@@ -143,8 +152,10 @@ def stage_start(c, p, x, v_meas, u_now):
     c.e = 0.0
     u_c = _compensation(c, p, x)
     force = u_now  # what u_n + u_c must make for the first command to be u_now
+    if p.dz_w > 0.0 and p.comp_on != 0.0:  # what the command makes through the dead zone
+        force = u_now - min(max(u_now, -p.dz_w), p.dz_w)
     if p.kf_on != 0.0 and p.comp_on != 0.0:
-        force = u_now * _kf(p, x)
+        force = force * _kf(p, x)
     c.u_c = u_c
     c.u_n = force - u_c
     c.u = u_now
@@ -177,11 +188,15 @@ def stage_update(c, p, x, v_meas):
 @kernel(UniTuple(float64, 2)(stage_params_rec_t, float64, float64))
 def stage_room(p, u_c, x):
     """``(lo, hi)`` (A): the range of ``u_n`` that keeps the command within the limit
-    (``u_n + u_c``, divided by ``kf(x)`` when the force constant is cancelled)."""
+    (``u_n + u_c``, divided by ``kf(x)`` when the force constant is cancelled, widened
+    by the inverse dead zone's ``dz_w`` when that is on)."""
+    u_max = p.u_max
+    if p.dz_w > 0.0 and p.comp_on != 0.0:
+        u_max = max(p.u_max - p.dz_w, 0.0)
     if p.kf_on != 0.0 and p.comp_on != 0.0:
-        m = p.u_max * _kf(p, x)
+        m = u_max * _kf(p, x)
         return -m - u_c, m - u_c
-    return -p.u_max - u_c, p.u_max - u_c
+    return -u_max - u_c, u_max - u_c
 
 
 @kernel(float64(stage_state_rec_t, stage_params_rec_t, float64, float64, float64, float64))
@@ -191,6 +206,8 @@ def stage_output(c, p, x, r, u_n, u_c):
     u = u_n + u_c  # eq. (8)
     if p.kf_on != 0.0 and p.comp_on != 0.0:  # the force is kf(x)*u: command what makes u_n + u_c of it
         u = u / _kf(p, x)
+    if p.dz_w > 0.0 and p.comp_on != 0.0:  # the force is dz(u): command what makes u of it
+        u = dead_zone_inverse(u, p.dz_w)
     u = min(max(u, -p.u_max), p.u_max)
     c.e = (c.r_base + r) - x
     c.u_n = u_n

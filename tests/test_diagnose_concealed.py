@@ -23,6 +23,8 @@ EXPECT = {
     "position_dependent_gain": ("kf_linear", lambda d: d["kf_linear"] / d["stroke"], 0.05),
     "cogging": ("period", lambda d: d["cogging_period"], 0.01),
     "quantization": ("step", lambda d: d["position_quantum"], 1e-6),
+    "dead_zone": ("width", lambda d: d["dead_zone"], 0.05),
+    "cubic_spring": ("k3", lambda d: d["k3"], 0.05),
 }
 
 

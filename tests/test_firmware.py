@@ -58,7 +58,8 @@ CFG = comparable(Config().replace(run={"duration_s": 0.02},
 #: a drive with every effect the plant models, for the kernel vectors
 FULL = comparable(Config().replace(
     drive={"input_delay_s": 1.3 / RATE, "cogging": 2e-3, "alpha": 0.7, "fc_asymmetry": 0.1, "b_asymmetry": 0.05, "kf_linear": 0.05, "kf_quadratic": -0.1,
-           "sensor_cutoff_hz": 3000.0, "Fs": 0.004, "Fc": 0.003}))  # fmt: skip
+           "sensor_cutoff_hz": 3000.0, "Fs": 0.004, "Fc": 0.003,
+           "dead_zone": 1e-3, "k3": 1e3}))  # fmt: skip
 IDLE, HELLO, READY, ACTIVE, FAULTED = range(5)
 
 
@@ -121,7 +122,8 @@ def test_the_simulated_drive_is_the_numba_plant_bit_for_bit(fw_dir):
     """``firmware/plant.c`` against ``kernels/plant.py`` on the same commands and forces,
     with every effect on: input delay with a fractional part, flexible modes, cogging,
     force-constant variation, Stribeck friction, Dahl hysteresis, the sensor low-pass,
-    quantiser and hard stops (the commands drive the arm into them)."""
+    quantiser, an input dead zone, a cubic spring and hard stops (the commands drive the
+    arm into them)."""
     lib = _lib(FULL, fw_dir)
     n = 4000
     rng = np.random.default_rng(11)
@@ -249,7 +251,7 @@ def test_every_controller_kind_is_the_numba_kernels_bit_for_bit(lib, kind, terms
     if terms == "every_term":
         cfg = cfg.replace(compensator={"kf_linear": 0.05, "kf_quadratic": -0.1, "coulomb_extra": 1e-3, "b_asymmetry": 0.1,
                                        "periodic_amplitudes": [1e-4, 5e-5], "periodic_phases": [0.3, 1.0],
-                                       "authority": 0.5})  # fmt: skip
+                                       "authority": 0.5, "k3": 1e4, "dead_zone": 2e-4})  # fmt: skip
     py, c = Controller(cfg), Controller(cfg)
     py.start(1e-7, 0.0, 2e-3)
     c.buf[:] = py.buf

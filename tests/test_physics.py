@@ -160,7 +160,7 @@ def test_the_compensator_terms_come_from_the_effects_in_stage_order():
 
 def test_input_terms_are_ordered_along_the_input_path():
     inputs = sorted((t for t in physics.VOCABULARY.values() if t.kind == "input"), key=lambda t: t.path_order)
-    assert [t.name for t in inputs] == ["input_saturation", "time_delay", "sensor_lag"]
+    assert [t.name for t in inputs] == ["input_saturation", "dead_zone", "time_delay", "sensor_lag"]
 
 
 def test_docs_model_effects_table_is_current():

@@ -8,7 +8,7 @@ model is refused, with the reason, when a term
 
 * needs more than the current limit ``u_max`` (the base config's ``[controller]
   current_limit``, the command's unit) anywhere the arm can be: the bias
-  ``|h0| + |K|*stroke``, the sliding level ``max(Ha, Fc, Fs)*(1 + |asymmetry|)``, a
+  ``|h0| + |K|*stroke + |k3|*stroke^3``, an input dead zone's half-width, the sliding level ``max(Ha, Fc, Fs)*(1 + |asymmetry|)``, a
   periodic force's amplitude, or the viscous force ``|B|*(1 + |b_asymmetry|)*v`` at the
   largest speed the recording reached (when the source says it);
 * puts a pole of the rigid body beyond the Nyquist frequency of the loop that would run
@@ -33,10 +33,14 @@ def implausible(d: dict, base: Config, unit: str = "A", speed: float | None = No
     J = float(d.get("J", base.drive.J))
     nyquist = math.pi / base.dt  # rad/s
     out = []
-    bias = g("h0") + g("K") * stroke
+    bias = g("h0") + g("K") * stroke + g("k3") * stroke**3
     if bias > u_max:
-        out.append(f"the bias |h0| + |K|*stroke = {g('h0'):.3g} + {g('K'):.3g}*{stroke:.3g} m = {bias:.3g} {unit} is "
-                   f"beyond the current limit {u_max:.3g} {unit}")  # fmt: skip
+        cubic = f" + |k3|*stroke^3 ({g('k3'):.3g} {unit}/m^3)" if g("k3") else ""
+        out.append(f"the bias |h0| + |K|*stroke{cubic} = {g('h0'):.3g} + {g('K'):.3g}*{stroke:.3g} m"
+                   f"{' + ...' if cubic else ''} = {bias:.3g} {unit} is beyond the current limit {u_max:.3g} {unit}")  # fmt: skip
+    if g("dead_zone") > u_max:
+        out.append(f"the input dead zone's half-width {g('dead_zone'):.3g} {unit} is beyond the current limit "
+                   f"{u_max:.3g} {unit}")  # fmt: skip
     sliding = max(g("Ha", 1e-12), g("Fc"), g("Fs")) * (1 + g("fc_asymmetry"))
     if sliding > u_max:
         out.append(f"the sliding friction level {sliding:.3g} {unit} is beyond the current limit {u_max:.3g} {unit}")

@@ -20,6 +20,9 @@ drive (``[drive]``)        compensator (``[compensator]``)
 ``cogging*``               ``periodic_amplitudes/phases/period`` (one harmonic)
 ``kf_linear, kf_quadratic, stroke``
                            ``kf_linear, kf_quadratic, kf_stroke`` (the command divided)
+``k3``                     ``k3`` (``k3*x^3`` fed forward)
+``dead_zone``              ``dead_zone`` (the inverse dead zone on the command, at most
+                           ``authority``)
 =========================  =============================================================
 
 ``paper=True`` writes what eq. (9) alone can hold of the model: one sliding-friction
@@ -113,8 +116,8 @@ def largest_force(c: dict, speed: float, position: float) -> float:
     coul = max(abs(c.get("coulomb_extra", 0.0)), abs(c.get("coulomb_static", 0.0))) * (1 + abs(c.get("coulomb_asymmetry", 0.0)))
     sliding = max(abs(c.get("sliding_level", 0.0)), abs(c.get("Ha", 0.0)))
     viscous = abs(c.get("B", 0.0)) * (1 + abs(c.get("b_asymmetry", 0.0))) * speed
-    bias = abs(c.get("h0", 0.0)) + abs(c.get("K", 0.0)) * position
-    return viscous + sliding + coul + bias + sum(abs(a) for a in c.get("periodic_amplitudes", []))
+    bias = abs(c.get("h0", 0.0)) + abs(c.get("K", 0.0)) * position + abs(c.get("k3", 0.0)) * position**3
+    return viscous + sliding + coul + bias + sum(abs(a) for a in c.get("periodic_amplitudes", [])) + abs(c.get("dead_zone", 0.0))
 
 
 def kf_change(c: dict) -> float:
@@ -177,7 +180,7 @@ def propose(model: SourceModel, base: Config, paper: bool = False, force_constan
     if model.force_unit != "A" and force_constant is not None:
         if not force_constant > 0 or not math.isfinite(force_constant):
             raise ValueError(f"--force-constant {force_constant!r}: expected a positive number of {unit}/A")
-        for k in ("B", "K", "h0", "Ha", "Fc", "Fs", "cogging", "sigma", "J"):
+        for k in ("B", "K", "h0", "Ha", "Fc", "Fs", "cogging", "sigma", "J", "k3", "dead_zone"):
             if k in d:
                 d[k] = float(d[k]) / force_constant
         unit = "A"

@@ -29,6 +29,8 @@ from servo.physics.base import Cancelling, Concealment, Effect, Term
 MODULES = (
     "inertia", "viscous", "coulomb", "stiffness", "offset", "asymmetric", "stribeck", "hysteresis", "resonance",
     "time_delay", "saturation", "position_gain", "cogging", "quantization", "sensor_lag", "stops", "noise",
+    "dead_zone",
+    "cubic_spring",
 )  # fmt: skip
 
 #: effect name -> its :class:`~servo.physics.base.Effect`
@@ -41,12 +43,9 @@ FILES: dict[str, str] = {}
 #: the diagnosis's signal path register themselves, :func:`register_term`)
 VOCABULARY: dict[str, Term] = {}
 
-#: every physics name a finding can carry, in the order the docs list them
-NAMES = (
-    "inertia", "viscous_friction", "coulomb_friction", "stiffness", "offset", "asymmetric_friction",
-    "stribeck_friction", "hysteresis", "resonance", "time_delay", "sensor_lag", "input_saturation",
-    "position_dependent_gain", "cogging", "quantization",
-)  # fmt: skip
+#: every physics name a finding can carry (each effect whose diagnosis term has a
+#: ``drive_map``, in registry order): derived from the modules below
+NAMES: tuple[str, ...] = ()
 
 #: the baseline terms of eq. (3) and the vocabulary term each is
 BASELINE_TERMS = {"J": "inertia", "B": "viscous_friction", "Fc": "coulomb_friction", "K": "stiffness", "h0": "offset"}
@@ -206,6 +205,7 @@ for _name in MODULES:
     register(_effect)
     FILES[_effect.name] = f"servo/physics/{_name}.py"
 del _name, _effect
+NAMES = tuple(e.name for e in EFFECTS.values() if e.drive_map is not None)
 
 __all__ = ["BASELINE_TERMS", "EFFECTS", "FILES", "MASS", "MODULES", "NAMES", "VOCABULARY", "Cancelling",
            "Concealment", "Effect", "Term", "cancel_terms", "compensator_fields", "diagnosed_by", "drive_fields",

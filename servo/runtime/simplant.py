@@ -66,22 +66,34 @@ def plant_params(d: DriveConfig, dt: float) -> np.ndarray:
 
 
 def holding_current(d: DriveConfig, x: float) -> float:
-    """Current (A) that balances the bias and cogging forces at rest at ``x`` with the
-    pivot's Dahl element relaxed (``H = 0``)."""
+    """Current (A) that balances the bias, cubic-spring and cogging forces at rest at ``x``
+    with the pivot's Dahl element relaxed (``H = 0``): what reaches the arm (after the
+    input dead zone, :func:`holding_command` the command that gives it)."""
     r = x / d.stroke
     kf = 1.0 + d.kf_linear * r + d.kf_quadratic * r * r
     f = d.K * x + d.h0
+    if d.k3 != 0.0:
+        f += d.k3 * x * x * x
     if d.cogging != 0.0:
         f += d.cogging * math.sin(2.0 * math.pi * x / d.cogging_period + d.cogging_phase)
     return f / kf
 
 
+def holding_command(d: DriveConfig, u: float) -> float:
+    """The command (A) whose current after the input dead zone is ``u`` (A)."""
+    if d.dead_zone > 0.0 and u != 0.0:
+        return u + math.copysign(d.dead_zone, u)
+    return u
+
+
 def build_plant(d: DriveConfig, dt: float) -> SimPlant:
     """Fresh plant arrays for drive ``d`` sampled every ``dt`` s: the arm at rest at
-    ``d.initial_position``, held there by :func:`holding_current`, the flexible modes at
-    their static deflection under that current."""
+    ``d.initial_position``, held there by :func:`holding_current` (``u_hold`` the command
+    that gives it through the dead zone), the flexible modes at their static deflection
+    under that current."""
     whole, frac = split_delay(d.input_delay_s, dt)
-    u_hold = holding_current(d, d.initial_position)
+    u_arm = holding_current(d, d.initial_position)
+    u_hold = holding_command(d, u_arm)
     if abs(u_hold) > d.current_limit:
         raise ConfigError(
             f"config: drive.initial_position needs {u_hold:.3g} A to hold, beyond drive.current_limit"
@@ -90,7 +102,7 @@ def build_plant(d: DriveConfig, dt: float) -> SimPlant:
     state["x"] = d.initial_position
     with np.errstate(all="ignore"):  # an overflow shows as a non-finite array, checked below
         q = np.zeros((len(d.mode_hz), 2))
-        q[:, 0] = u_hold / (d.J * (2.0 * np.pi * np.asarray(d.mode_hz)) ** 2)  # static deflection
+        q[:, 0] = u_arm / (d.J * (2.0 * np.pi * np.asarray(d.mode_hz)) ** 2)  # static deflection
         plant = SimPlant(
             params=plant_params(d, dt),
             state=state,
