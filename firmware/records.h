@@ -115,13 +115,15 @@ typedef struct {
     double quantum;
     double has_velocity;
     double sensor_a;
+    double backlash;
 } plant_params;
-_Static_assert(sizeof(plant_params) == 224, "plant_params layout");
+_Static_assert(sizeof(plant_params) == 232, "plant_params layout");
 typedef struct {
     double x;
     double v;
     double H;
     double y_lp;
+    double y_load;
 } plant_state;
-_Static_assert(sizeof(plant_state) == 32, "plant_state layout");
+_Static_assert(sizeof(plant_state) == 40, "plant_state layout");
 #endif

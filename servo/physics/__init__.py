@@ -29,6 +29,7 @@ from servo.physics.base import Cancelling, Concealment, Effect, Term
 MODULES = (
     "inertia", "viscous", "coulomb", "stiffness", "offset", "asymmetric", "stribeck", "hysteresis", "resonance",
     "time_delay", "saturation", "position_gain", "cogging", "quantization", "sensor_lag", "stops", "noise",
+    "backlash",
 )  # fmt: skip
 
 #: effect name -> its :class:`~servo.physics.base.Effect`
