@@ -47,6 +47,7 @@ NAMES = (
     "inertia", "viscous_friction", "coulomb_friction", "stiffness", "offset", "asymmetric_friction",
     "stribeck_friction", "hysteresis", "resonance", "time_delay", "sensor_lag", "input_saturation",
     "position_dependent_gain", "cogging", "quantization",
+    "backlash",
 )  # fmt: skip
 
 #: the baseline terms of eq. (3) and the vocabulary term each is
