@@ -23,7 +23,7 @@ EXPECT = {
     "position_dependent_gain": ("kf_linear", lambda d: d["kf_linear"] / d["stroke"], 0.05),
     "cogging": ("period", lambda d: d["cogging_period"], 0.01),
     "quantization": ("step", lambda d: d["position_quantum"], 1e-6),
-    # from the dwells at reversals (servo/physics/backlash.py): 1.10-1.13 x on 1-2 um
+    # from the dwells at reversals (servo/physics/backlash.py): 0.995 and 1.075 x on 1 and 2 um
     "backlash": ("half_gap", lambda d: d["backlash_half_gap"], 0.15),
 }
 

@@ -33,20 +33,24 @@ seen across the gap: ``J_gap`` is the model's ``J`` when the term is right), wit
 * a dwell is a run of samples whose filtered speed is within ``LOOSE`` (10) times the
   direction threshold, runs closer than the restart's window ``w`` (two Butterworth
   periods) merged;
-* the restart ``t2`` and velocity ``v2``: the filtered motion ``w`` samples after the
-  run, extrapolated back (its acceleration held) to the position the load stood at;
+* the restart ``t2`` and velocity ``v2``: a parabola through the raw position over
+  ``w`` samples just after it (first placed from the filtered motion ``w`` samples after
+  the run), extrapolated back to the position the load stood at (the filtered motion
+  alone rings after the kink: its ``v2`` was 10 % off);
 * across the dwell ``e`` is the cubic (Hermite) from ``(s_before*b, e' = 0)`` at the
   run's start to ``(s_after*b, e' = v2)`` at ``t2``, constant after;
 * the motor's reversal ``t1``: the load's deceleration before the run extrapolated to
   zero speed.
 
 ``e`` is linear in ``b`` (``e = b*E1 + E2``), but the rows hardly see ``E1`` (the dwell's
-interior is kept out): a least-squares ``b`` was 0.46 um for 1 um.  The dwell's
+interior is kept out): a least-squares ``b`` was 0.46 um for 1 um (with a first, cruder
+restart).  The dwell's
 *duration* does: the motor leaves the gap's edge at rest at ``t1`` and crosses ``2*b``
 by ``t2``, where it moves at ``v2``; under a roughly constant force ``2*b = v2*(t2 -
 t1)/2``.  So the half-gap is **fitted on the dwells** of the training part, the median
-of ``|v2|*(t2 - t1)/4`` over its reversals (1.10 um for 1 um; 0.03 um on a null, where
-``J_gap`` then stays near 0), a one-point grid; the column's coefficient is fitted on the
+of ``|v2|*(t2 - t1)/4`` over its reversals (2.00 um for 2 um on an open-loop swing;
+0.995 and 2.15 um for 1 and 2 um on the concealed study's closed loop), a one-point
+grid; the column's coefficient is fitted on the
 rows and the term is judged by the held-out rows like any other
 (``servo.diagnose.select``).  Viscous and stiffness parts of ``e`` (``B*e'``,
 ``K*e``) are left out: ``K*b*s`` is a Coulomb column (a fitted ``Fc`` carries it), the
@@ -72,12 +76,23 @@ HELD = 1.0 + 1e-6
 MIN_REVERSALS = 3
 
 
+def _restart(k: int, dx: float, v: float, a: float, dt: float) -> float:
+    """The sample (fractional) at which a motion at ``dx`` (m) from where it stood, with
+    velocity ``v`` and acceleration ``a`` at sample ``k``, left it:
+    ``dx = v*h - a*h^2/2``, ``h`` the time since."""
+    disc = v * v - 2.0 * a * dx
+    h = (v - math.copysign(math.sqrt(disc), v)) / a if a != 0.0 and disc > 0.0 else dx / v
+    if not h >= 0.0:
+        h = max(dx / v, 0.0)
+    return k - h / dt
+
+
 def _dwells(sig) -> list[tuple]:
     """The dwells of the measured motion ``sig`` (:class:`~servo.diagnose.signals.Signals`):
     ``(i1, ka, t1, t2, s_before, s_after, v2)`` each, ``i1`` the run's first sample,
     ``ka`` the sample the restart is read at, ``t1``/``t2`` (fractional samples) the
     motor's reversal and the load's restart, ``v2`` (m/s) its velocity then."""
-    vf, xf, af, dt = sig.vf, sig.xf, sig.af, sig.dt
+    vf, xf, af, x, dt = sig.vf, sig.xf, sig.af, sig.x, sig.dt
     n = vf.size
     fs = 1.0 / dt
     w = int(math.ceil(2.0 * fs / sig.settings.cutoff(fs)))
@@ -92,22 +107,26 @@ def _dwells(sig) -> list[tuple]:
     out = []
     for i1, i2 in runs:
         ka, kb = i2 + w, i1 - w
-        if kb < 0 or ka >= n:
+        if kb < 0 or ka + 2 * w >= n:
             continue
         va, aa, vb, ab = float(vf[ka]), float(af[ka]), float(vf[kb]), float(af[kb])
         if va == 0.0 or vb == 0.0:
             continue
-        # the restart: x(ka) - x_dwell = va*h - aa*h^2/2, h the time since it
-        dx = float(xf[ka] - np.median(xf[i1:i2]))
-        disc = va * va - 2.0 * aa * dx
-        h = (va - math.copysign(math.sqrt(disc), va)) / aa if aa != 0.0 and disc > 0.0 else dx / va
-        if not h >= 0.0:
-            h = max(dx / va, 0.0)
-        t2 = min(max(ka - h / dt, float(i1)), float(ka))
-        v2 = va - aa * h
+        level = float(np.median(x[i1:i2]))  # where the load stood
+        # the restart, first from the filtered motion at ka (its acceleration held) ...
+        t2 = _restart(ka, float(xf[ka]) - level, va, aa, dt)
+        # ... then from a parabola through the raw position just after it: the filter
+        # rings after the kink (read at ka alone, v2 was 10 % off on an open-loop swing)
+        k0 = min(max(int(math.ceil(t2)) + 2, ka - w), n - w - 1)
+        hk = np.arange(w + 1) * dt
+        c2, c1, c0 = np.polyfit(hk, x[k0 : k0 + w + 1] - level, 2)
+        t2 = min(max(_restart(k0, c0, c1, 2.0 * c2, dt), float(i1)), float(ka))
+        v2 = c1 + 2.0 * c2 * (t2 - k0) * dt
+        if v2 == 0.0:
+            continue
         hb = -vb / ab if ab * vb < 0.0 else 0.0  # the deceleration before it reaches zero speed
         t1 = min(max(kb + hb / dt, float(kb)), t2)
-        out.append((i1, ka, t1, t2, math.copysign(1.0, vb), math.copysign(1.0, va), v2))
+        out.append((i1, ka, t1, t2, math.copysign(1.0, vb), math.copysign(1.0, v2), v2))
     return out
 
 
