@@ -61,6 +61,7 @@ Not cancellable by a force on the motor: see ``not_cancellable``.
 from __future__ import annotations
 
 import math
+import weakref
 
 import numpy as np
 
@@ -70,6 +71,8 @@ from servo.physics.base import Concealment, DriveMap, Effect, Term
 #: a dwell: the filtered speed within this many direction thresholds (the load's
 #: restart is a velocity step hundreds of thresholds high; the noise crosses one)
 LOOSE = 10.0
+#: the last signals object's dwells (:func:`_dwells`): a weak reference to it, and them
+_LAST: list = [None, None]
 #: the refinement's interval around the dwells' half-gap, as a factor (held: 1e-6)
 HELD = 1.0 + 1e-6
 #: reversals a training part needs for its half-gap
@@ -88,6 +91,16 @@ def _restart(k: int, dx: float, v: float, a: float, dt: float) -> float:
 
 
 def _dwells(sig) -> list[tuple]:
+    """:func:`find_dwells` of ``sig``, computed once per signals object (every round of a
+    diagnosis asks for its grid)."""
+    ref, held = _LAST
+    if ref is None or ref() is not sig:
+        held = find_dwells(sig)
+        _LAST[:] = [weakref.ref(sig), held]
+    return held
+
+
+def find_dwells(sig) -> list[tuple]:
     """The dwells of the measured motion ``sig`` (:class:`~servo.diagnose.signals.Signals`):
     ``(i1, ka, t1, t2, s_before, s_after, v2)`` each, ``i1`` the run's first sample,
     ``ka`` the sample the restart is read at, ``t1``/``t2`` (fractional samples) the
@@ -104,6 +117,8 @@ def _dwells(sig) -> list[tuple]:
             runs[-1][1] = int(b)
         else:
             runs.append([int(a), int(b)])
+    hk = np.arange(w + 1) * dt
+    fit = np.linalg.pinv(np.column_stack([hk * hk, hk, np.ones(w + 1)]))  # least-squares parabola
     out = []
     for i1, i2 in runs:
         ka, kb = i2 + w, i1 - w
@@ -118,8 +133,7 @@ def _dwells(sig) -> list[tuple]:
         # ... then from a parabola through the raw position just after it: the filter
         # rings after the kink (read at ka alone, v2 was 10 % off on an open-loop swing)
         k0 = min(max(int(math.ceil(t2)) + 2, ka - w), n - w - 1)
-        hk = np.arange(w + 1) * dt
-        c2, c1, c0 = np.polyfit(hk, x[k0 : k0 + w + 1] - level, 2)
+        c2, c1, c0 = fit @ (x[k0 : k0 + w + 1] - level)
         t2 = min(max(_restart(k0, c0, c1, 2.0 * c2, dt), float(i1)), float(ka))
         v2 = c1 + 2.0 * c2 * (t2 - k0) * dt
         if v2 == 0.0:
