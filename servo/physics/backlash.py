@@ -56,7 +56,10 @@ rows and the term is judged by the held-out rows like any other
 ``K*e``) are left out: ``K*b*s`` is a Coulomb column (a fitted ``Fc`` carries it), the
 rest is within the kept-out rows.
 
-Not cancellable by a force on the motor: see ``not_cancellable``.
+A model that holds a sensor lag builds the column on the lag-corrected motion
+(``servo.diagnose.sensor_lag.corrects``: the drive's play acts before the low-pass);
+the restart's parabola then still reads the raw, lagged position (the two together are
+untested).  Not cancellable by a force on the motor: see ``not_cancellable``.
 """
 from __future__ import annotations
 
