@@ -85,7 +85,9 @@ MIN_REVERSALS = 3
 def _restart(k: int, dx: float, v: float, a: float, dt: float) -> float:
     """The sample (fractional) at which a motion at ``dx`` (m) from where it stood, with
     velocity ``v`` and acceleration ``a`` at sample ``k``, left it:
-    ``dx = v*h - a*h^2/2``, ``h`` the time since."""
+    ``dx = v*h - a*h^2/2``, ``h`` the time since (``k`` itself when it does not move)."""
+    if v == 0.0:
+        return float(k)
     disc = v * v - 2.0 * a * dx
     h = (v - math.copysign(math.sqrt(disc), v)) / a if a != 0.0 and disc > 0.0 else dx / v
     if not h >= 0.0:
