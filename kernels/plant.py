@@ -71,6 +71,8 @@ PLANT_PARAMS = np.dtype(
         ("backlash", "f8"),  # half-gap of the play between motor and load (the sensor reads the load), m (0: none)
     ]
 )
+#: the plant's states; the measured-side positions are named ``y_*`` (they start at the
+#: measured position at rest, :func:`servo.runtime.simplant.build_plant`)
 PLANT_STATE = np.dtype(
     [
         ("x", "f8"),  # rigid-body position, m
