@@ -155,6 +155,13 @@ void plant_measure_on(plant_state *st, const plant_params *p, const double *q, c
         y += gain[i] * q[2 * i];
         yd += gain[i] * q[2 * i + 1];
     }
+    if (p->backlash > 0.0) {
+        if (y > st->y_load + p->backlash)
+            st->y_load = y - p->backlash;
+        else if (y < st->y_load - p->backlash)
+            st->y_load = y + p->backlash;
+        y = st->y_load;
+    }
     if (p->sensor_a > 0.0) {
         st->y_lp += p->sensor_a * (y - st->y_lp);
         y = st->y_lp;

@@ -119,13 +119,15 @@ typedef struct {
     double sensor_a;
     double dz_width;
     double k3;
+    double backlash;
 } plant_params;
-_Static_assert(sizeof(plant_params) == 240, "plant_params layout");
+_Static_assert(sizeof(plant_params) == 248, "plant_params layout");
 typedef struct {
     double x;
     double v;
     double H;
     double y_lp;
+    double y_load;
 } plant_state;
-_Static_assert(sizeof(plant_state) == 32, "plant_state layout");
+_Static_assert(sizeof(plant_state) == 40, "plant_state layout");
 #endif

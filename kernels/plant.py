@@ -75,14 +75,18 @@ PLANT_PARAMS = np.dtype(
         ("sensor_a", "f8"),  # first-order position sensor low-pass, a = 1 - exp(-2*pi*fc*dt) (0: none)
         ("dz_width", "f8"),  # input dead zone half-width, A (0: none)
         ("k3", "f8"),  # cubic spring k3*x^3, A/m^3 (> 0 hardening, < 0 softening; 0: none)
+        ("backlash", "f8"),  # half-gap of the play between motor and load (the sensor reads the load), m (0: none)
     ]
 )
+#: the plant's states; the measured-side positions are named ``y_*`` (they start at the
+#: measured position at rest, :func:`servo.runtime.simplant.build_plant`)
 PLANT_STATE = np.dtype(
     [
         ("x", "f8"),  # rigid-body position, m
         ("v", "f8"),  # rigid-body velocity, m/s
         ("H", "f8"),  # Dahl hysteresis force, A
         ("y_lp", "f8"),  # the position sensor low-pass's output (noiseless), m
+        ("y_load", "f8"),  # the load's position behind the backlash (noiseless), m
     ]
 )
 plant_params_t = from_dtype(PLANT_PARAMS)[::1]
@@ -256,6 +260,10 @@ def plant_measure(ps, pp, q, gain, nx, nv):
     velocity likewise with ``noise_v*nv``, or NaN when the drive measures no velocity.
     ``nx``, ``nv`` are standard-normal draws supplied by the caller (seeded upstream).
 
+    With a backlash (``backlash`` > 0, the half-gap) the sensor reads the load, which
+    follows the motor's position (rigid + modes) through a play, advanced here once per
+    call: the load ``y_load`` stands while the motor moves inside the gap and is pushed
+    along at the gap's edge, ``y_load = clip(y_load, y - backlash, y + backlash)``.
     With a sensor low-pass (``sensor_a`` > 0) the position before noise and quantisation
     is ``y_lp``, advanced here, once per call: ``y_lp += sensor_a*(rigid + modes - y_lp)``
     (call once per sample; the velocity is not filtered).  Without one nothing of the
@@ -268,6 +276,12 @@ def plant_measure(ps, pp, q, gain, nx, nv):
     for i in range(q.shape[0]):
         y += gain[i] * q[i, 0]
         yd += gain[i] * q[i, 1]
+    if p.backlash > 0.0:
+        if y > st.y_load + p.backlash:
+            st.y_load = y - p.backlash
+        elif y < st.y_load - p.backlash:
+            st.y_load = y + p.backlash
+        y = st.y_load
     if p.sensor_a > 0.0:
         st.y_lp += p.sensor_a * (y - st.y_lp)
         y = st.y_lp

@@ -25,6 +25,8 @@ EXPECT = {
     "quantization": ("step", lambda d: d["position_quantum"], 1e-6),
     "dead_zone": ("width", lambda d: d["dead_zone"], 0.05),
     "cubic_spring": ("k3", lambda d: d["k3"], 0.05),
+    # from the dwells at reversals (servo/physics/backlash.py): 0.995 and 1.075 x on 1 and 2 um
+    "backlash": ("half_gap", lambda d: d["backlash_half_gap"], 0.15),
 }
 
 

@@ -59,7 +59,7 @@ CFG = comparable(Config().replace(run={"duration_s": 0.02},
 FULL = comparable(Config().replace(
     drive={"input_delay_s": 1.3 / RATE, "cogging": 2e-3, "alpha": 0.7, "fc_asymmetry": 0.1, "b_asymmetry": 0.05, "kf_linear": 0.05, "kf_quadratic": -0.1,
            "sensor_cutoff_hz": 3000.0, "Fs": 0.004, "Fc": 0.003,
-           "dead_zone": 1e-3, "k3": 1e3}))  # fmt: skip
+           "dead_zone": 1e-3, "k3": 1e3, "backlash_half_gap": 2e-6}))  # fmt: skip
 IDLE, HELLO, READY, ACTIVE, FAULTED = range(5)
 
 
@@ -121,9 +121,9 @@ def test_cobs_and_crc_are_the_python_framings(lib):
 def test_the_simulated_drive_is_the_numba_plant_bit_for_bit(fw_dir):
     """``firmware/plant.c`` against ``kernels/plant.py`` on the same commands and forces,
     with every effect on: input delay with a fractional part, flexible modes, cogging,
-    force-constant variation, Stribeck friction, Dahl hysteresis, the sensor low-pass,
-    quantiser, an input dead zone, a cubic spring and hard stops (the commands drive the
-    arm into them)."""
+    force-constant variation, Stribeck friction, Dahl hysteresis, the backlash, the sensor
+    low-pass, quantiser, an input dead zone, a cubic spring and hard stops (the commands
+    drive the arm into them)."""
     lib = _lib(FULL, fw_dir)
     n = 4000
     rng = np.random.default_rng(11)

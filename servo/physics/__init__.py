@@ -31,6 +31,7 @@ MODULES = (
     "time_delay", "saturation", "position_gain", "cogging", "quantization", "sensor_lag", "stops", "noise",
     "dead_zone",
     "cubic_spring",
+    "backlash",
 )  # fmt: skip
 
 #: effect name -> its :class:`~servo.physics.base.Effect`

@@ -112,8 +112,10 @@ def build_plant(d: DriveConfig, dt: float) -> SimPlant:
             ubuf=np.full(whole + 2, u_hold),
             u_hold=u_hold,
         )
-        # the sensor's low-pass starts settled on the measured position at rest
-        state["y_lp"] = d.initial_position + float(np.dot(plant.gain, q[:, 0]))
+        # the measured-side positions (the sensor low-pass's output, the load behind a
+        # backlash: PLANT_STATE's ``y_*``) start settled on the measured position at rest
+        for name in (n for n in PLANT_STATE.names if n.startswith("y_")):
+            state[name] = d.initial_position + float(np.dot(plant.gain, q[:, 0]))
     bad = [name for name, a in (("parameters", plant.params.view(np.float64)), ("modes", plant.mab), ("state", q))
            if not np.all(np.isfinite(a))]  # fmt: skip
     if bad or not np.isfinite(u_hold):
