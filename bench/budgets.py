@@ -106,6 +106,10 @@ STARTUP_OVER_DEPENDENCIES_MAX = 3.0
 #: yet measured idle); the code that imported scipy.signal and matplotlib before the
 #: first tick: 5.4 at load 13, 4.8 at load 7.  The bound: ~1.45x the worst seen.
 STARTUP_OVER_IMPORT_FLOOR_MAX = 4.5
+#: ``servo diagnose``'s fixed cost, process start to its recording read
+#: (``bench/startprobe.py``), at most this multiple of ``import numpy, numba`` timed just
+#: before it: numba, the scipy modules the diagnosis uses and its cached kernels.
+DIAGNOSE_FIXED_OVER_IMPORT_FLOOR_MAX = 6.0
 #: The fast path with its run log (``servo run --fast``: windows and noise drawn a block
 #: ahead by a thread, watchdog, journal writer thread) over the same closed loop in C
 #: writing the same rows to memory, CPU time of the loop's thread, paired rounds.  The

@@ -53,3 +53,38 @@ def test_the_config_loads_no_kernel_and_no_scipy():
     r = subprocess.run([sys.executable, "-c", probe], capture_output=True, text=True, cwd=ROOT, timeout=300)
     assert r.returncode == 0, r.stderr[-3000:]
     assert json.loads(r.stdout.strip().splitlines()[-1]) == ["kernels", "kernels._cache"]
+
+
+PARSER_PROBE = r"""
+import json, sys
+from servo.cli import build_parser
+build_parser()  # every command's parser: what `servo --help` and every command pay first
+print(json.dumps(sorted(m for m in sys.modules if m.split(".")[0] in ("numba", "llvmlite", "scipy", "matplotlib", "dask",
+                                                                       "distributed", "pyarrow", "h5py", "control"))))
+"""
+
+
+def test_the_command_line_imports_no_numba_and_no_scipy():
+    """``servo --help`` (every command's parser, built by every command before it runs)
+    imports neither Numba nor scipy nor any other heavy library: each command imports
+    what it uses in its handler, so ``servo --help`` answers in a fraction of a second."""
+    r = subprocess.run([sys.executable, "-c", PARSER_PROBE], capture_output=True, text=True, cwd=ROOT, timeout=300)
+    assert r.returncode == 0, r.stderr[-3000:]
+    assert json.loads(r.stdout.strip().splitlines()[-1]) == []
+
+
+DIAGNOSE_PROBE = r"""
+import json, sys
+import servo.cli.diagnose, servo.diagnose.job, servo.io.recording
+print(json.dumps(sorted(m for m in sys.modules if m.split(".")[0] in ("matplotlib", "dask", "distributed", "pyarrow",
+                                                                       "h5py", "control"))))
+"""
+
+
+def test_a_diagnosis_starts_without_plotting_or_dask():
+    """What ``servo diagnose`` imports before it reads its recording (its job's modules)
+    holds no matplotlib (its plots are drawn after the diagnosis), no Dask, pyarrow, h5py
+    (an HDF5 recording imports it when read) or python-control."""
+    r = subprocess.run([sys.executable, "-c", DIAGNOSE_PROBE], capture_output=True, text=True, cwd=ROOT, timeout=300)
+    assert r.returncode == 0, r.stderr[-3000:]
+    assert json.loads(r.stdout.strip().splitlines()[-1]) == []
