@@ -34,7 +34,6 @@ import time
 from pathlib import Path
 
 from servo.errors import ConfigError
-from servo.fleet import plots as fleet_plots
 from servo.fleet import runner, table
 from servo.fleet.outliers import THRESHOLD, outliers, unscored
 from servo.fleet.report import format_report
@@ -135,6 +134,8 @@ def _outputs(command, adapter, rows, settings, tmp: Path, out: Path, plots: bool
     found = outliers(rows, scored)
     files = [table.NAME, "fleet.json", "fleet_report.md", PAGE] + [DASK_LOG] * (tmp / DASK_LOG).exists()
     if plots:
+        from servo.fleet import plots as fleet_plots  # matplotlib: only when plots are asked for
+
         fleet_plots.save(fleet_plots.histograms(rows, shown), tmp / "histograms.png")
         fleet_plots.save(fleet_plots.scatters(rows, pairs), tmp / "scatter.png")
         files += ["histograms.png", "scatter.png"]

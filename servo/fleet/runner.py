@@ -39,7 +39,7 @@ from typing import Callable
 
 from servo.errors import ConfigError
 from servo.io import progress
-from servo.fleet.task import Task, error_line, failed_row, run_batch
+from servo.fleet.task import ADAPTERS, Task, error_line, failed_row, run_batch
 
 #: at most this many tasks run in this process when no cluster is named
 IN_PROCESS_MAX = 4
@@ -282,7 +282,8 @@ def dask_logs(path: str | Path):
 
 def map_batches(fn: Callable[[list], list], items: list, where: Where = Where(), default_batch: int = 1,
                 on_results: Callable[[list], None] | None = None, failed: Callable[[list, str], list] | None = None,
-                client=None, on_client: Callable[[object], None] | None = None) -> list:  # fmt: skip
+                client=None, on_client: Callable[[object], None] | None = None,
+                warm: tuple[str, ...] = ()) -> list:  # fmt: skip
     """``fn(batch)`` (a list of items -> one result per item, in order) over ``items``:
     on a Dask cluster in batches (:func:`batches`) or in this process one item at a time
     (module doc); the results come back in the items' order, whatever the order of
@@ -292,7 +293,10 @@ def map_batches(fn: Callable[[list], list], items: list, where: Where = Where(),
     of a batch that could not run (its workers kept dying; default: raise).  ``client``:
     an already connected ``distributed.Client`` to run on (left open), instead of
     ``where``'s cluster.  ``on_client(client)``: called once connected to a cluster
-    (to say where to watch it: :func:`dashboard_link`)."""
+    (to say where to watch it: :func:`dashboard_link`).  ``warm``: modules the workers of
+    a local cluster started here import as they join, before their first batch
+    (:mod:`servo.fleet.warm`; a ``--scheduler`` cluster or a ``client`` given is left as it
+    is: a plug-in would stay registered on its scheduler)."""
     where.check()
     on_results = on_results or (lambda results: None)
     if not items:
@@ -308,6 +312,10 @@ def map_batches(fn: Callable[[list], list], items: list, where: Where = Where(),
     try:
         if on_client is not None:
             on_client(client)
+        if cluster is not None and warm:  # after the dashboard's line: the imports take seconds
+            from servo.fleet.warm import WarmImports
+
+            client.register_plugin(WarmImports(warm))
         n_workers = max(len(client.scheduler_info().get("workers", {})), 1)
         groups = batches(items, where.batch or default_batch, n_workers)
         futures = {client.submit(fn, g, pure=False): i for i, g in enumerate(groups)}
@@ -347,9 +355,19 @@ def run(command: str, tasks: list[Task], settings: dict, where: Where = Where(),
     in each of its rows).  ``on_rows(rows)`` is called with each batch's rows as they
     complete (progress, checkpoints)."""
     return map_batches(partial(_rows, command, settings), tasks, where, default_batch, on_rows,
-                       partial(_failed_rows, settings), client, on_client)  # fmt: skip
+                       partial(_failed_rows, settings), client, on_client, warm_modules(command))  # fmt: skip
+
+
+def warm_modules(command: str) -> tuple[str, ...]:
+    """What a worker of ``command`` imports as it joins: its adapter module and the
+    modules the adapter names in ``WARM`` (those it imports inside its functions, to
+    keep the client light)."""
+    import importlib
+
+    name = ADAPTERS[command]
+    return (name, *getattr(importlib.import_module(name), "WARM", ()))
 
 
 __all__ = ["IN_PROCESS_MAX", "Progress", "Where", "batches", "dashboard_address", "dashboard_link", "dask_logs", "describe",
            "local_workers", "map_batches",
-           "probe_scheduler", "run"]
+           "probe_scheduler", "run", "warm_modules"]
