@@ -23,6 +23,9 @@ from servo.io.atomic import strict_json
 BATCH = 1
 #: what a worker imports as it joins (the diagnosis, its scipy modules and kernels)
 WARM = ("servo.diagnose.job", "servo.diagnose.report", "servo.io.recording")
+#: the fewest recordings a default local cluster is started for (fewer run in this process):
+#: a diagnosis of a 1 s recording takes 0.4-0.9 s idle, a cluster 4-8 s to start
+CLUSTER_MIN = 16
 #: verdicts of :mod:`servo.diagnose.verdict` that flag a drive, findings or not
 FLAGGING_VERDICTS = ("unexplained", "out_of_scope")
 
@@ -107,4 +110,4 @@ def pairs(columns: list[str]) -> list[tuple[str, str]]:
     return [(a, b) for a, b in want if a in columns and b in columns]
 
 
-__all__ = ["BATCH", "FLAGGING_VERDICTS", "WARM", "flag", "options", "pairs", "row_of_report", "run", "scored", "settings"]
+__all__ = ["BATCH", "CLUSTER_MIN", "FLAGGING_VERDICTS", "WARM", "flag", "options", "pairs", "row_of_report", "run", "scored", "settings"]

@@ -102,6 +102,7 @@ def run_fleet(command: str, tasks: list[Task], settings: dict, out: str | Path, 
     done = table.done_rows(earlier) if earlier is not None else {}
     kept = {i: {**done[(t.source, t.key)], "drive": t.drive} for i, t in enumerate(tasks) if (t.source, t.key) in done}
     todo = [t for i, t in enumerate(tasks) if i not in kept]
+    where = runner.placed(where, len(todo), getattr(adapter, "CLUSTER_MIN", runner.IN_PROCESS_MAX + 1))
     adopt = earlier is not None and earlier.parent == staging_dir(out)
     hint = f"continue with --resume {out} --out {out}"
     meta = {"provenance": provenance(), "force_unit": settings.get("force_unit", "A")}  # the table's schema metadata

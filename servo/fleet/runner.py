@@ -127,6 +127,16 @@ class Progress:
                            "pip install 'servo-vcm[dashboard]')")  # fmt: skip
 
 
+def placed(where: Where, n_tasks: int, cluster_min: int) -> Where:
+    """``where`` for ``n_tasks`` tasks of a command that pays a local cluster's start
+    (~2 s, and each worker's imports, 2-6 s, idle) only from ``cluster_min`` tasks: the
+    default place (no ``--workers``, no ``--scheduler``) becomes this process below that;
+    a cluster asked for (``--workers N``, ``--scheduler``) is kept."""
+    if where.scheduler is None and where.workers is None and n_tasks < cluster_min:
+        return Where(workers=0, batch=where.batch)
+    return where
+
+
 def describe(where: Where, n_tasks: int) -> str:
     """Where ``n_tasks`` tasks will run, in words."""
     if where.scheduler is not None:
@@ -401,5 +411,5 @@ def warm_modules(command: str) -> tuple[str, ...]:
 
 
 __all__ = ["CLUSTER_CONFIG", "IN_PROCESS_MAX", "Progress", "Where", "batches", "dashboard_address", "dashboard_link", "dask_logs", "describe",
-           "local_cluster", "local_workers", "map_batches",
+           "local_cluster", "local_workers", "map_batches", "placed",
            "probe_scheduler", "run", "warm_modules"]

@@ -17,6 +17,9 @@ from servo.fleet.task import Task, canonical, code_versions, task_key
 BATCH = 16
 #: what a worker imports as it joins (the closed loop's kernels; the client needs none)
 WARM = ("servo.fleet.closedloop",)
+#: the fewest drives a default local cluster is started for (fewer run in this process):
+#: a drive takes ~35 ms idle, a cluster 4-8 s to start, so two workers save that from ~250
+CLUSTER_MIN = 256
 
 
 def settings(base: dict, vary: dict, seed: int, plugins: list[str] | None = None) -> dict:
@@ -87,4 +90,4 @@ def pairs(columns: list[str]) -> list[tuple[str, str]]:
     return out
 
 
-__all__ = ["BATCH", "WARM", "config_of", "drive_tasks", "figures", "pairs", "run", "scored", "settings"]
+__all__ = ["BATCH", "CLUSTER_MIN", "WARM", "config_of", "drive_tasks", "figures", "pairs", "run", "scored", "settings"]
