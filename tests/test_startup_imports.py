@@ -88,3 +88,16 @@ def test_a_diagnosis_starts_without_plotting_or_dask():
     r = subprocess.run([sys.executable, "-c", DIAGNOSE_PROBE], capture_output=True, text=True, cwd=ROOT, timeout=300)
     assert r.returncode == 0, r.stderr[-3000:]
     assert json.loads(r.stdout.strip().splitlines()[-1]) == []
+
+
+def test_a_mat_v5_recording_is_read_without_h5py():
+    """A MAT v5 file (EMPS's) is told from a v7.3 one (HDF5) by its signature, read
+    without importing h5py (0.1-0.3 s), which only a v7.3 file needs."""
+    mat = ROOT.parent / "shared" / "data" / "emps" / "DATA_EMPS.mat"
+    probe = ("import json, sys; from servo.io.recording import load_recording; "
+             f"rec = load_recording({str(mat)!r}, {{'u': 'vir', 'x': 'qm'}}); "
+             "print(json.dumps([len(rec.t), 'h5py' in sys.modules]))")
+    r = subprocess.run([sys.executable, "-c", probe], capture_output=True, text=True, cwd=ROOT, timeout=300)
+    assert r.returncode == 0, r.stderr[-3000:]
+    n, h5 = json.loads(r.stdout.strip().splitlines()[-1])
+    assert n > 1000 and h5 is False
