@@ -62,6 +62,12 @@ def warm(n: int = 2) -> int:
     return os.getpid()
 
 
+def process_cpu_s() -> float:
+    """CPU seconds of this whole process so far, every thread (run on each worker with
+    ``client.run``: a worker's communication and heartbeats besides its batches)."""
+    return time.process_time()
+
+
 def serial(n: int, duration_s: float = 0.6) -> tuple[float, list[dict]]:
     """The whole fleet through the runner's in-process path (``--workers 0``), in this
     process: (wall seconds, rows)."""

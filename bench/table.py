@@ -45,6 +45,10 @@ RATIOS = [
     ("python_over_numba_controller_tick", "Python / Numba, controller tick"),
     ("cold_start_over_dependencies", "cold start / import of numba+numpy+scipy+matplotlib"),
     ("fast_path_over_c_with_logging", "fast path with its run log / C logging the same rows (loop thread's CPU)"),
+    ("cold_start_over_import_floor", "`servo run` start to first tick / `import numpy, numba`"),
+    ("diagnose_fixed_over_import_floor", "`servo diagnose` start to its recording read / `import numpy, numba`"),
+    ("fleet_one_worker_over_in_process", "fleet: one Dask worker / in-process, time on an idle core (from CPU)"),
+    ("fleet_in_process_over_two_workers", "fleet: in-process / two Dask workers, time on two idle cores (from CPU)"),
 ]
 
 

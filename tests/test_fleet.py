@@ -299,6 +299,27 @@ def test_simulate_fleet_compensation_removes_the_hysteresis_tail_of_every_drawn_
     assert rows[3]["comp_error_rms_m"] == float(np.sqrt(np.mean(np.square(e))))
 
 
+
+def test_a_fleet_too_small_to_pay_a_cluster_runs_in_this_process(tmp_path, capsys):
+    """Without ``--workers`` or ``--scheduler``, a fleet smaller than its command's
+    ``CLUSTER_MIN`` (a cluster's start, 4-8 s idle, against the drives' own time) runs in
+    this process; ``--workers N`` or a scheduler keeps the cluster asked for."""
+    from servo.fleet import diagnose as d, identify as i, simulate as s
+    from servo.fleet.runner import placed
+
+    assert s.CLUSTER_MIN > 200 and i.CLUSTER_MIN > 200 and 4 < d.CLUSTER_MIN <= 40
+    assert placed(Where(batch=3), 255, 256) == Where(workers=0, batch=3)
+    assert placed(Where(), 256, 256) == Where()
+    assert placed(Where(workers=2), 10, 256) == Where(workers=2)
+    assert placed(Where(scheduler="tcp://h:1"), 10, 256) == Where(scheduler="tcp://h:1")
+    out = tmp_path / "mc"
+    argv = ["fleet", "simulate", "--drives", "6", "--duration", "0.05", "--vary", "drive.Ha=lognormal(1e-3, 20%)",
+            "--no-plots", "--quiet", "--out", str(out)]  # fmt: skip
+    assert main(argv) == 0
+    printed = capsys.readouterr().out
+    assert "6 drives, 6 ok" in printed and "ran on this process" in printed, printed
+
+
 # ---------------------------------------------------------------- bad input
 
 

@@ -194,3 +194,22 @@ def test_fleet_on_a_local_cluster_prints_only_its_own_lines(tmp_path):
     for said in ("noisy: a warning raised in a worker", "RuntimeWarning: divide by zero", "noisy: printed by a worker"):
         assert said in log, log
     assert "dask.log" in json.loads((out / "fleet.json").read_text())["files"]
+
+
+def _closed_loop_loaded(batch):
+    """In a worker: whether the simulate fleet's closed loop (its kernels) was loaded
+    before this batch ran."""
+    return ["servo.fleet.closedloop" in sys.modules for _ in batch]
+
+
+def test_the_workers_of_a_local_cluster_load_the_kernels_before_their_first_batch():
+    """A local cluster's workers import what the command's adapter names (``WARM``) as
+    they join, so their first batch finds the kernels loaded; without it they do not."""
+    from servo.fleet import simulate
+    from servo.fleet.runner import map_batches, warm_modules
+
+    assert warm_modules("simulate") == ("servo.fleet.simulate", *simulate.WARM)
+    warm = map_batches(_closed_loop_loaded, list(range(8)), Where(workers=1), warm=warm_modules("simulate"))
+    cold = map_batches(_closed_loop_loaded, list(range(8)), Where(workers=1))
+    assert warm == [True] * 8
+    assert cold[0] is False

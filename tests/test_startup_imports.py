@@ -53,3 +53,51 @@ def test_the_config_loads_no_kernel_and_no_scipy():
     r = subprocess.run([sys.executable, "-c", probe], capture_output=True, text=True, cwd=ROOT, timeout=300)
     assert r.returncode == 0, r.stderr[-3000:]
     assert json.loads(r.stdout.strip().splitlines()[-1]) == ["kernels", "kernels._cache"]
+
+
+PARSER_PROBE = r"""
+import json, sys
+from servo.cli import build_parser
+build_parser()  # every command's parser: what `servo --help` and every command pay first
+print(json.dumps(sorted(m for m in sys.modules if m.split(".")[0] in ("numba", "llvmlite", "scipy", "matplotlib", "dask",
+                                                                       "distributed", "pyarrow", "h5py", "control"))))
+"""
+
+
+def test_the_command_line_imports_no_numba_and_no_scipy():
+    """``servo --help`` (every command's parser, built by every command before it runs)
+    imports neither Numba nor scipy nor any other heavy library: each command imports
+    what it uses in its handler, so ``servo --help`` answers in a fraction of a second."""
+    r = subprocess.run([sys.executable, "-c", PARSER_PROBE], capture_output=True, text=True, cwd=ROOT, timeout=300)
+    assert r.returncode == 0, r.stderr[-3000:]
+    assert json.loads(r.stdout.strip().splitlines()[-1]) == []
+
+
+DIAGNOSE_PROBE = r"""
+import json, sys
+import servo.cli.diagnose, servo.diagnose.job, servo.io.recording
+print(json.dumps(sorted(m for m in sys.modules if m.split(".")[0] in ("matplotlib", "dask", "distributed", "pyarrow",
+                                                                       "h5py", "control"))))
+"""
+
+
+def test_a_diagnosis_starts_without_plotting_or_dask():
+    """What ``servo diagnose`` imports before it reads its recording (its job's modules)
+    holds no matplotlib (its plots are drawn after the diagnosis), no Dask, pyarrow, h5py
+    (an HDF5 recording imports it when read) or python-control."""
+    r = subprocess.run([sys.executable, "-c", DIAGNOSE_PROBE], capture_output=True, text=True, cwd=ROOT, timeout=300)
+    assert r.returncode == 0, r.stderr[-3000:]
+    assert json.loads(r.stdout.strip().splitlines()[-1]) == []
+
+
+def test_a_mat_v5_recording_is_read_without_h5py():
+    """A MAT v5 file (EMPS's) is told from a v7.3 one (HDF5) by its signature, read
+    without importing h5py (0.1-0.3 s), which only a v7.3 file needs."""
+    mat = ROOT.parent / "shared" / "data" / "emps" / "DATA_EMPS.mat"
+    probe = ("import json, sys; from servo.io.recording import load_recording; "
+             f"rec = load_recording({str(mat)!r}, {{'u': 'vir', 'x': 'qm'}}); "
+             "print(json.dumps([len(rec.t), 'h5py' in sys.modules]))")
+    r = subprocess.run([sys.executable, "-c", probe], capture_output=True, text=True, cwd=ROOT, timeout=300)
+    assert r.returncode == 0, r.stderr[-3000:]
+    n, h5 = json.loads(r.stdout.strip().splitlines()[-1])
+    assert n > 1000 and h5 is False

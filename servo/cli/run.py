@@ -103,7 +103,7 @@ def handle(args: argparse.Namespace) -> int:
     inputs = prepare(cfg, simulated=args.port is None)  # what the config can be refused for, before any folder
     from servo.io.provenance import provenance
 
-    prov = provenance(cfg, [], getattr(args, "argv", None))
+    prov = partial(provenance, cfg, [], getattr(args, "argv", None))  # made after the runs: its git calls fork
     with reporting(progress_from_args(args, "servo run")):  # closed (its line cleared) before the summary
         if args.port is None:
             with staged(out, keep_partial="log_*") as tmp:
@@ -136,7 +136,7 @@ def _gain_changes(cfg, args: argparse.Namespace) -> list:
     return gain_changes_from_files(cfg, changes)
 
 
-def _run_on_port(cfg, out: Path, args: argparse.Namespace, formats: tuple[str, ...], prov: dict, inputs,
+def _run_on_port(cfg, out: Path, args: argparse.Namespace, formats: tuple[str, ...], prov, inputs,
                  gains=()) -> dict:  # fmt: skip
     """The same job against the serial link: a fresh session (driver) per run.  The first
     driver is configured (handshake, version and rate checks) before anything is written,

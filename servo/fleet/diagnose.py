@@ -17,14 +17,15 @@ drive has no findings, yet it is the one a drive maker must look at.
 """
 from __future__ import annotations
 
-from servo.diagnose.job import Options, diagnose
-from servo.diagnose.report import build_report
-from servo.identify.regressors import RobustSettings
 from servo.io.atomic import strict_json
-from servo.io.recording import load_recording, parse_mapping
 
 #: drives per Dask task (a diagnosis takes a fraction of a second or more)
 BATCH = 1
+#: what a worker imports as it joins (the diagnosis, its scipy modules and kernels)
+WARM = ("servo.diagnose.job", "servo.diagnose.report", "servo.io.recording")
+#: the fewest recordings a default local cluster is started for (fewer run in this process):
+#: a diagnosis of a 1 s recording takes 0.4-0.9 s idle, a cluster 4-8 s to start
+CLUSTER_MIN = 16
 #: verdicts of :mod:`servo.diagnose.verdict` that flag a drive, findings or not
 FLAGGING_VERDICTS = ("unexplained", "out_of_scope")
 
@@ -41,9 +42,12 @@ def settings(baseline: str | None = None, test_fraction: float = 0.25, blocks: i
             "force_unit": force_unit}  # fmt: skip
 
 
-def options(s: dict) -> Options:
+def options(s: dict):
     """The :class:`servo.diagnose.job.Options` of fleet ``settings`` (those ``servo
     diagnose`` builds from the same options)."""
+    from servo.diagnose.job import Options  # scipy.signal, the kernels: in the worker, not the client
+    from servo.identify.regressors import RobustSettings
+
     fixed = None if s["decimate"] is None else RobustSettings(cutoff_hz=s["cutoff_hz"], decimate=s["decimate"])
     return Options(baseline=s["baseline"], test_fraction=s["test_fraction"], blocks=s["blocks"], alpha=s["alpha"],
                    horizon_s=s["horizon_s"], force_unit=s["force_unit"], settings=fixed, cutoff_hz=s["cutoff_hz"],
@@ -84,6 +88,10 @@ def row_of_report(report: dict) -> dict:
 
 def run(src, s: dict) -> dict:
     """Columns of one recording (a :class:`servo.fleet.sources.Source`)."""
+    from servo.diagnose.job import diagnose
+    from servo.diagnose.report import build_report
+    from servo.io.recording import load_recording, parse_mapping
+
     rec = load_recording(src.path, parse_mapping(src.columns, "columns"), parse_mapping(src.scale, "scale"))
     return row_of_report(build_report(diagnose(rec, options(s))))
 
@@ -102,4 +110,4 @@ def pairs(columns: list[str]) -> list[tuple[str, str]]:
     return [(a, b) for a, b in want if a in columns and b in columns]
 
 
-__all__ = ["BATCH", "FLAGGING_VERDICTS", "flag", "options", "pairs", "row_of_report", "run", "scored", "settings"]
+__all__ = ["BATCH", "CLUSTER_MIN", "FLAGGING_VERDICTS", "WARM", "flag", "options", "pairs", "row_of_report", "run", "scored", "settings"]

@@ -14,6 +14,9 @@ from servo.io.recording import load_recording, parse_mapping
 
 #: drives per Dask task (a fit takes tens of milliseconds)
 BATCH = 4
+#: the fewest recordings a default local cluster is started for (fewer run in this process):
+#: a fit takes tens of ms, a cluster 4-8 s to start
+CLUSTER_MIN = 256
 TERMS = ("J", "B", "Fc", "K", "h0")
 
 
@@ -49,4 +52,4 @@ def pairs(columns: list[str]) -> list[tuple[str, str]]:
     return [(a, b) for a, b in (("B", "Fc"), ("K", "h0"), ("J", "B"), ("Fc", "h0")) if a in columns and b in columns]
 
 
-__all__ = ["BATCH", "pairs", "run", "scored", "settings"]
+__all__ = ["BATCH", "CLUSTER_MIN", "pairs", "run", "scored", "settings"]

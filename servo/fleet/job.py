@@ -34,7 +34,6 @@ import time
 from pathlib import Path
 
 from servo.errors import ConfigError
-from servo.fleet import plots as fleet_plots
 from servo.fleet import runner, table
 from servo.fleet.outliers import THRESHOLD, outliers, unscored
 from servo.fleet.report import format_report
@@ -103,6 +102,7 @@ def run_fleet(command: str, tasks: list[Task], settings: dict, out: str | Path, 
     done = table.done_rows(earlier) if earlier is not None else {}
     kept = {i: {**done[(t.source, t.key)], "drive": t.drive} for i, t in enumerate(tasks) if (t.source, t.key) in done}
     todo = [t for i, t in enumerate(tasks) if i not in kept]
+    where = runner.placed(where, len(todo), getattr(adapter, "CLUSTER_MIN", runner.IN_PROCESS_MAX + 1))
     adopt = earlier is not None and earlier.parent == staging_dir(out)
     hint = f"continue with --resume {out} --out {out}"
     meta = {"provenance": provenance(), "force_unit": settings.get("force_unit", "A")}  # the table's schema metadata
@@ -135,6 +135,8 @@ def _outputs(command, adapter, rows, settings, tmp: Path, out: Path, plots: bool
     found = outliers(rows, scored)
     files = [table.NAME, "fleet.json", "fleet_report.md", PAGE] + [DASK_LOG] * (tmp / DASK_LOG).exists()
     if plots:
+        from servo.fleet import plots as fleet_plots  # matplotlib: only when plots are asked for
+
         fleet_plots.save(fleet_plots.histograms(rows, shown), tmp / "histograms.png")
         fleet_plots.save(fleet_plots.scatters(rows, pairs), tmp / "scatter.png")
         files += ["histograms.png", "scatter.png"]

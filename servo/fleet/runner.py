@@ -39,7 +39,7 @@ from typing import Callable
 
 from servo.errors import ConfigError
 from servo.io import progress
-from servo.fleet.task import Task, error_line, failed_row, run_batch
+from servo.fleet.task import ADAPTERS, Task, error_line, failed_row, run_batch
 
 #: at most this many tasks run in this process when no cluster is named
 IN_PROCESS_MAX = 4
@@ -127,6 +127,16 @@ class Progress:
                            "pip install 'servo-vcm[dashboard]')")  # fmt: skip
 
 
+def placed(where: Where, n_tasks: int, cluster_min: int) -> Where:
+    """``where`` for ``n_tasks`` tasks of a command that pays a local cluster's start
+    (~2 s, and each worker's imports, 2-6 s, idle) only from ``cluster_min`` tasks: the
+    default place (no ``--workers``, no ``--scheduler``) becomes this process below that;
+    a cluster asked for (``--workers N``, ``--scheduler``) is kept."""
+    if where.scheduler is None and where.workers is None and n_tasks < cluster_min:
+        return Where(workers=0, batch=where.batch)
+    return where
+
+
 def describe(where: Where, n_tasks: int) -> str:
     """Where ``n_tasks`` tasks will run, in words."""
     if where.scheduler is not None:
@@ -211,7 +221,7 @@ def probe_scheduler(address: str, timeout_s: float | None = None) -> None:
 
 def _client(where: Where, n_tasks: int):
     """A connected ``distributed.Client`` and the local cluster it owns (or None)."""
-    from distributed import Client, LocalCluster
+    from distributed import Client
 
     if where.scheduler is not None:
         probe_scheduler(where.scheduler)
@@ -220,15 +230,47 @@ def _client(where: Where, n_tasks: int):
         except (OSError, TimeoutError, ValueError) as exc:
             why = " ".join((str(exc) or type(exc).__name__).split())
             raise ConfigError(f"fleet: cannot reach the Dask scheduler at {where.scheduler}: {why}") from None
-    n = min(local_workers(where), n_tasks)
-    cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=True, dashboard_address=dashboard_address(),
-                           silence_logs=logging.ERROR)  # fmt: skip
+    cluster = local_cluster(min(local_workers(where), n_tasks), dashboard_address=dashboard_address(),
+                            silence_logs=logging.ERROR)  # fmt: skip
     client = Client(cluster)
     if _LOG.get() is not None:  # the workers' output to the log, before any task runs
         from servo.fleet.workerlog import WorkerOutput
 
         client.register_plugin(WorkerOutput(_LOG.get()))
     return client, cluster
+
+
+#: what Dask's nannies set in a worker's environment that a fleet's local workers do without:
+#: glibc's malloc given any threshold stops adapting its mmap threshold, so each run's
+#: log arrays (MBs) came from fresh pages: ~1700 page faults and 7 % more CPU per drive
+WORKER_ENVIRON_DROPPED = ("MALLOC_TRIM_THRESHOLD_",)
+
+
+#: Dask settings of a fleet's local cluster: its own CPU, which the workers' batches share
+#: the cores with, from ~0.10 to ~0.02 CPU-seconds per second of wall for two workers
+#: (each worker's profiler sampled its threads every 10 ms; the nannies read the workers'
+#: memory every 100 ms; each event loop ticked every 20 ms).  The dashboard then shows no
+#: task profiles, and a worker's memory is watched every second.
+CLUSTER_CONFIG = {
+    "distributed.worker.profile.enabled": False,
+    "distributed.worker.memory.monitor-interval": "1s",
+    "distributed.admin.system-monitor.interval": "2s",
+    "distributed.admin.tick.interval": "200ms",
+}
+
+
+def local_cluster(n_workers: int, **options):
+    """A ``distributed.LocalCluster`` of ``n_workers`` processes of one thread each, as
+    a fleet runs on: the environment Dask's nannies give their workers (one BLAS/OpenMP
+    thread each) less :data:`WORKER_ENVIRON_DROPPED`, and :data:`CLUSTER_CONFIG`.
+    ``options``: LocalCluster's."""
+    import dask
+    from distributed import LocalCluster
+
+    env = {k: v for k, v in (dask.config.get("distributed.nanny.pre-spawn-environ") or {}).items()
+           if k not in WORKER_ENVIRON_DROPPED}  # fmt: skip
+    with dask.config.set({"distributed.nanny.pre-spawn-environ": env, **CLUSTER_CONFIG}):  # read as each part is made
+        return LocalCluster(n_workers=n_workers, threads_per_worker=1, processes=True, **options)
 
 
 def dashboard_address() -> str | None:
@@ -282,7 +324,8 @@ def dask_logs(path: str | Path):
 
 def map_batches(fn: Callable[[list], list], items: list, where: Where = Where(), default_batch: int = 1,
                 on_results: Callable[[list], None] | None = None, failed: Callable[[list, str], list] | None = None,
-                client=None, on_client: Callable[[object], None] | None = None) -> list:  # fmt: skip
+                client=None, on_client: Callable[[object], None] | None = None,
+                warm: tuple[str, ...] = ()) -> list:  # fmt: skip
     """``fn(batch)`` (a list of items -> one result per item, in order) over ``items``:
     on a Dask cluster in batches (:func:`batches`) or in this process one item at a time
     (module doc); the results come back in the items' order, whatever the order of
@@ -292,7 +335,10 @@ def map_batches(fn: Callable[[list], list], items: list, where: Where = Where(),
     of a batch that could not run (its workers kept dying; default: raise).  ``client``:
     an already connected ``distributed.Client`` to run on (left open), instead of
     ``where``'s cluster.  ``on_client(client)``: called once connected to a cluster
-    (to say where to watch it: :func:`dashboard_link`)."""
+    (to say where to watch it: :func:`dashboard_link`).  ``warm``: modules the workers of
+    a local cluster started here import as they join, before their first batch
+    (:mod:`servo.fleet.warm`; a ``--scheduler`` cluster or a ``client`` given is left as it
+    is: a plug-in would stay registered on its scheduler)."""
     where.check()
     on_results = on_results or (lambda results: None)
     if not items:
@@ -308,6 +354,10 @@ def map_batches(fn: Callable[[list], list], items: list, where: Where = Where(),
     try:
         if on_client is not None:
             on_client(client)
+        if cluster is not None and warm:  # after the dashboard's line: the imports take seconds
+            from servo.fleet.warm import WarmImports
+
+            client.register_plugin(WarmImports(warm))
         n_workers = max(len(client.scheduler_info().get("workers", {})), 1)
         groups = batches(items, where.batch or default_batch, n_workers)
         futures = {client.submit(fn, g, pure=False): i for i, g in enumerate(groups)}
@@ -347,9 +397,19 @@ def run(command: str, tasks: list[Task], settings: dict, where: Where = Where(),
     in each of its rows).  ``on_rows(rows)`` is called with each batch's rows as they
     complete (progress, checkpoints)."""
     return map_batches(partial(_rows, command, settings), tasks, where, default_batch, on_rows,
-                       partial(_failed_rows, settings), client, on_client)  # fmt: skip
+                       partial(_failed_rows, settings), client, on_client, warm_modules(command))  # fmt: skip
 
 
-__all__ = ["IN_PROCESS_MAX", "Progress", "Where", "batches", "dashboard_address", "dashboard_link", "dask_logs", "describe",
-           "local_workers", "map_batches",
-           "probe_scheduler", "run"]
+def warm_modules(command: str) -> tuple[str, ...]:
+    """What a worker of ``command`` imports as it joins: its adapter module and the
+    modules the adapter names in ``WARM`` (those it imports inside its functions, to
+    keep the client light)."""
+    import importlib
+
+    name = ADAPTERS[command]
+    return (name, *getattr(importlib.import_module(name), "WARM", ()))
+
+
+__all__ = ["CLUSTER_CONFIG", "IN_PROCESS_MAX", "Progress", "Where", "batches", "dashboard_address", "dashboard_link", "dask_logs", "describe",
+           "local_cluster", "local_workers", "map_batches", "placed",
+           "probe_scheduler", "run", "warm_modules"]

@@ -11,12 +11,15 @@ from __future__ import annotations
 import hashlib
 
 from servo.config import from_dict
-from servo.controllers.plugins import load_plugins
-from servo.fleet.closedloop import compare
 from servo.fleet.task import Task, canonical, code_versions, task_key
 
 #: drives per Dask task (a drive's two runs take a few tens of milliseconds)
 BATCH = 16
+#: what a worker imports as it joins (the closed loop's kernels; the client needs none)
+WARM = ("servo.fleet.closedloop",)
+#: the fewest drives a default local cluster is started for (fewer run in this process):
+#: a drive takes ~35 ms idle, a cluster 4-8 s to start, so two workers save that from ~250
+CLUSTER_MIN = 256
 
 
 def settings(base: dict, vary: dict, seed: int, plugins: list[str] | None = None) -> dict:
@@ -45,6 +48,8 @@ def drive_tasks(drives: list[dict], s: dict) -> list[Task]:
 
 def config_of(drive: dict, s: dict):
     """The validated config of one drive: the base with its drawn fields."""
+    from servo.controllers.plugins import load_plugins  # the kinds' kernels: in the worker, not the client
+
     load_plugins(s.get("plugins"))  # a worker knows the plugin kinds the client loaded
     data = {k: dict(v) for k, v in s["base"].items()}
     data["drive"].update(drive)
@@ -53,6 +58,8 @@ def config_of(drive: dict, s: dict):
 
 def run(drive: dict, s: dict) -> dict:
     """Columns of one drive (``{field: value}``)."""
+    from servo.fleet.closedloop import compare  # the kernels: loaded by the worker, not the client
+
     out = {f"drive.{k}": float(v) for k, v in drive.items()}
     out.update(compare(config_of(drive, s)))
     return out
@@ -83,4 +90,4 @@ def pairs(columns: list[str]) -> list[tuple[str, str]]:
     return out
 
 
-__all__ = ["BATCH", "config_of", "drive_tasks", "figures", "pairs", "run", "scored", "settings"]
+__all__ = ["BATCH", "CLUSTER_MIN", "WARM", "config_of", "drive_tasks", "figures", "pairs", "run", "scored", "settings"]

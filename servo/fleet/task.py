@@ -2,7 +2,9 @@
 
 Each command registers an adapter module in :data:`ADAPTERS` (one line per command):
 ``run(payload, settings) -> dict`` turns one recording or drive into the command's
-columns by calling the single-drive job as a library.  :func:`run_task` wraps it into a
+columns by calling the single-drive job as a library (imported inside ``run``: the
+client only builds tasks; ``WARM`` lists those modules, which each worker of a local
+cluster imports as it joins, :mod:`servo.fleet.warm`).  :func:`run_task` wraps it into a
 row with the columns every fleet table has (:data:`LEADING`, :data:`TRAILING`): a
 recording or drive that fails gets its one-line error in its row (``status`` "error")
 instead of stopping the fleet.  :func:`run_batch` is what a Dask worker runs: a few

@@ -306,10 +306,28 @@ def _first_bad_line(path, enc, header_line, delim, comma, ncol, trailing=False) 
 # -- MATLAB and HDF5 -----------------------------------------------------------------
 
 
-def _read_mat(path: Path, wanted=None) -> Table:
-    import h5py
+#: the signature an HDF5 file starts with, at offset 0 or after a user block of 512 * 2**k bytes
+HDF5_SIGNATURE = b"\x89HDF\r\n\x1a\n"
 
-    if h5py.is_hdf5(str(path)):
+
+def _is_hdf5(path: Path) -> bool:
+    """Whether ``path`` is an HDF5 file (MAT v7.3 is one, after a 512-byte user block):
+    its signature at offset 0, 512, 1024, 2048...  (where ``H5Fis_hdf5`` looks), read
+    without importing h5py, which a MAT v5 file (the common case) does not need."""
+    with open(path, "rb") as fh:
+        offset = 0
+        while True:
+            fh.seek(offset)
+            head = fh.read(len(HDF5_SIGNATURE))
+            if len(head) < len(HDF5_SIGNATURE):
+                return False
+            if head == HDF5_SIGNATURE:
+                return True
+            offset = 512 if offset == 0 else 2 * offset
+
+
+def _read_mat(path: Path, wanted=None) -> Table:
+    if _is_hdf5(path):
         return _read_hdf5(path, sep=".", fmt="mat v7.3", wanted=wanted)
     from scipy.io import loadmat, whosmat
 

@@ -145,7 +145,7 @@ def output_bytes(cfg: Config, runs: int, log_formats: tuple[str, ...]) -> float:
 def run_job(cfg: Config, out_dir: Path, compensation: str | None = None, fast: bool | None = None,
             make_driver: Callable[[Config, Inputs], Driver] | None = None, where: str | None = None,
             realtime: RealtimeOptions | None = None, log_formats: tuple[str, ...] = FORMATS,
-            provenance: dict | None = None, inputs: Inputs | None = None) -> dict:  # fmt: skip
+            provenance: dict | Callable[[], dict] | None = None, inputs: Inputs | None = None) -> dict:  # fmt: skip
     """Run the ``servo run`` job into ``out_dir``; returns the summary (also written as
     ``summary.json``).  ``make_driver(cfg, inputs)``: a fresh driver per run instead of the
     simulated drive (``where`` describes it, e.g. the serial URL).  ``realtime``: pace
@@ -154,7 +154,8 @@ def run_job(cfg: Config, out_dir: Path, compensation: str | None = None, fast: b
     ``compensation``: ``on``, ``off``, ``compare`` (both), or None: what ``[compensator]
     enabled`` says (:func:`~servo.runtime.controller.compensation_runs`).
     ``log_formats``: ``npz`` and/or ``csv``; ``provenance``
-    (:func:`servo.io.provenance.provenance`) is recorded in the summary; ``inputs``: the
+    (:func:`servo.io.provenance.provenance`, or a function that makes it, called after the
+    runs) is recorded in the summary; ``inputs``: the
     run's inputs as :func:`prepare` built them (built here when None).  Memory does
     not grow with the run's length; the disk its logs need is checked first (one line if
     it is not there).  On a fault
@@ -199,7 +200,7 @@ def run_job(cfg: Config, out_dir: Path, compensation: str | None = None, fast: b
         "startup_s": startup,
         "kernels_compiled": _cache.compiled_here(),
         "runs": runs,
-        "provenance": or_default(provenance, cfg),
+        "provenance": or_default(provenance() if callable(provenance) else provenance, cfg),  # after the runs: git forks
         "files": sorted({p.name for p in out_dir.iterdir() if not p.name.startswith(".")} | {"summary.json", PAGE}),
     }
     write_json(out_dir / "summary.json", summary)
