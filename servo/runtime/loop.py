@@ -173,14 +173,16 @@ def _run_ticks(cfg, driver, controller, inputs, log, stats, pacer, durations, wa
     sched.run(0, cfg.n_ticks, start=True, timing=durations)
 
 
-#: Ticks per call of the compiled loop at most: one input block.  The state check (a
-#: non-finite position) and the watchdog's look run between calls, so this is also how
-#: far a diverging simulation runs before it is stopped.  Calls of 8192 ticks were
-#: tried (docs/studies/2026-11-28-fast-path-at-c.md): the loop thread then executed
-#: 1.1 % more instructions than the kernel alone, and its time showed no gain beyond
-#: the noise of the loaded machine, for a divergence stopped up to 8192 ticks later.
-#: A call also ends where the run log's block is full.
-CALL_TICKS = BLOCK
+#: Ticks per call of the compiled loop at most (eight input blocks, a run log block at
+#: one row a tick).  Each return from a call costs the loop's thread ~30 us of CPU on
+#: a loaded machine (taking the interpreter lock back from the input and journal
+#: threads, the state check, the watchdog's call, caches refilled after the switch):
+#: with calls of 1024 ticks the fast path measured 1.35x the C, with these 1.29x
+#: (alternated rounds, load 22: docs/studies/2026-11-28-fast-path-at-c.md).  The state
+#: check and the watchdog run between calls, so a diverging simulation is stopped at
+#: the end of the call it diverged in.  A call also ends where the run log's block is
+#: full.
+CALL_TICKS = 8 * BLOCK
 
 
 def _fast_inputs(cfg, driver: SimDriver, inputs, k: int, n: int):
