@@ -95,8 +95,10 @@ def test_fast_path_over_c_with_logging(cfg, clog, record, tmp_path):
     the CPU time of the loop's thread: what the loop itself costs (a busy neighbour does
     not inflate it as it inflates wall time); the journal's writes and the next block's
     inputs run in threads of their own, which the loop does not wait for.  Recorded
-    alongside: the other threads' CPU per sample, the ratio of process CPU times, of wall
-    times, and the compiled kernel alone over the C."""
+    alongside: the other threads' CPU per sample (the journal's writer, the input thread,
+    and OpenBLAS's worker threads, which spin for a few ms after each drive's set-up on
+    this machine: docs/studies/2026-11-28-fast-path-at-c.md), the ratio of process CPU
+    times, of wall times, and the compiled kernel alone over the C."""
     c = cfg.replace(run={"duration_s": 0.5})
     loop = Loop(c)
     logs = []

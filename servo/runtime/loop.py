@@ -173,44 +173,98 @@ def _run_ticks(cfg, driver, controller, inputs, log, stats, pacer, durations, wa
     sched.run(0, cfg.n_ticks, start=True, timing=durations)
 
 
+#: Ticks per call of the compiled loop at most (eight input blocks, a run log block at
+#: one row a tick).  Each return from a call costs the loop's thread ~30 us of CPU on
+#: a loaded machine (taking the interpreter lock back from the input and journal
+#: threads, the state check, the watchdog's call, caches refilled after the switch):
+#: with calls of 1024 ticks the fast path measured 1.35x the C, with these 1.29x
+#: (alternated rounds, load 22: docs/studies/2026-11-28-fast-path-at-c.md).  The state
+#: check and the watchdog run between calls, so a diverging simulation is stopped at
+#: the end of the call it diverged in.  A call also ends where the run log's block is
+#: full.
+CALL_TICKS = 8 * BLOCK
+
+
 def _fast_inputs(cfg, driver: SimDriver, inputs, k: int, n: int):
-    """The inputs of the fast path's blocks from tick ``k`` to ``n``: ``(k, m, r, u_exc,
-    d, noise)`` for ``m`` ticks (one input and noise block), arrays of their own."""
+    """The inputs of the fast path's calls from tick ``k`` to ``n``: ``(k, m, r, u_exc, d,
+    noise)`` for ``m`` ticks, arrays of their own, assembled from the input windows and
+    noise blocks of :data:`BLOCK` ticks.  A chunk ends at a multiple of
+    :data:`CALL_TICKS`; the first is at most one block (the loop waits for it)."""
     every = cfg.run.excitation_every
     r, u_exc = Window(inputs.reference, every), Window(inputs.excitation, every)
+    first = True
     while k < n:
-        m = min(BLOCK - k % BLOCK, n - k)
-        i = r.load(k)
-        u_exc.load(k)
-        yield (k, m, r.values[i : i + m].copy(), u_exc.values[i : i + m].copy(), driver.disturbance(k, m).copy(),
-               driver.noise(k, m).copy())  # fmt: skip
-        k += m
+        end = min(k - k % BLOCK + BLOCK if first else k - k % CALL_TICKS + CALL_TICKS, n)
+        first = False
+        m = end - k
+        out_r, out_u, out_d, out_noise = np.empty(m), np.empty(m), np.empty(m), np.empty((m, 2))
+        j = k
+        while j < end:
+            b = min(BLOCK - j % BLOCK, end - j)
+            o = j - k
+            i = r.load(j)
+            out_r[o : o + b] = r.values[i : i + b]
+            i = u_exc.load(j)
+            out_u[o : o + b] = u_exc.values[i : i + b]
+            out_d[o : o + b] = driver.disturbance(j, b)
+            out_noise[o : o + b] = driver.noise(j, b)
+            j += b
+        yield k, m, out_r, out_u, out_d, out_noise
+        k = end
+
+
+#: The compiled loop's entry point per (kernel, log layout), checked once per process.
+_ENTRY: dict = {}
+
+
+def _closed_loop_entry(cfg, driver: SimDriver, controller, stats, log, u_start):
+    """The compiled loop without Numba's per-call type dispatch (~0.3 us per record array),
+    its types checked by a call of no ticks on copies, once per process: the plant's and
+    the controller's arrays have the types of their records whatever the run, the log
+    block is checked here."""
+    data = log.data
+    key = (controller.kernels.closed_loop, data.dtype.str, data.ndim, data.flags.c_contiguous)
+    fn = _ENTRY.get(key)
+    if fn is None:
+        p = driver.plant
+        none, no_rows = np.zeros(0), np.zeros((0, 2))
+        fn = _ENTRY[key] = entry_point(
+            controller.kernels.closed_loop, p.state.copy(), p.params, p.q.copy(), p.mab, p.gain, p.ubuf.copy(),
+            driver.latency.copy(), controller.buf.copy(), none, none, none, no_rows, driver.tick, 0,
+            cfg.run.estimator_every, cfg.run.log_every, stats.copy(), data[:0].copy(), 0, 0, u_start)  # fmt: skip
+    return fn
 
 
 def _run_fast(cfg, driver: SimDriver, controller, inputs, log, stats, watchdog) -> None:
     p = driver.plant
     u_start = driver.applied_current
     first = driver.tick
-    none, no_rows = np.zeros(0), np.zeros((0, 2))
-    # the compiled loop without Numba's per-call type dispatch (~0.3 us per record array),
-    # its types checked by a call of no ticks on copies
-    closed_loop = entry_point(
-        controller.kernels.closed_loop, p.state.copy(), p.params, p.q.copy(), p.mab, p.gain, p.ubuf.copy(),
-        driver.latency.copy(), controller.buf.copy(), none, none, none, no_rows, first, 0, cfg.run.estimator_every,
-        cfg.run.log_every, stats.copy(), log.data[:0].copy(), 0, 0, u_start)  # fmt: skip
-    # the next block's inputs are computed while this one runs (the kernel releases the lock)
-    with Prefetch(_fast_inputs(cfg, driver, inputs, first, cfg.n_ticks)) as blocks:
-        for k, m, r, u_exc, d, noise in blocks:
-            log.rows = closed_loop(
-                p.state, p.params, p.q, p.mab, p.gain, p.ubuf, driver.latency,
-                controller.buf,
-                r, u_exc, d, noise,
-                k, m, cfg.run.estimator_every, cfg.run.log_every,
-                stats, log.data, log.rows, 1 if k == first else 0, u_start,
-            )  # fmt: skip
-            driver.tick = k + m
-            driver.check_state()  # after the block's log is kept
-            watchdog.flush(log)
+    closed_loop = _closed_loop_entry(cfg, driver, controller, stats, log, u_start)
+    est_every, log_every = cfg.run.estimator_every, cfg.run.log_every
+    block_rows = getattr(log, "block_rows", log.data.shape[0])
+    # the next chunk's inputs are computed while this one runs (the kernel releases the lock)
+    with Prefetch(_fast_inputs(cfg, driver, inputs, first, cfg.n_ticks)) as chunks:
+        for k, m, r, u_exc, d, noise in chunks:
+            i = 0
+            while i < m:
+                # ticks whose rows fit in what is left of the log's block: a call ends where
+                # the block is full, so that the watchdog looks before it is handed over
+                n = min(m - i, max(1, block_rows - log.rows) * log_every)
+                if n < m:
+                    r_, u_, d_, noise_ = r[i : i + n], u_exc[i : i + n], d[i : i + n], noise[i : i + n]
+                else:
+                    r_, u_, d_, noise_ = r, u_exc, d, noise
+                log.rows = closed_loop(
+                    p.state, p.params, p.q, p.mab, p.gain, p.ubuf, driver.latency,
+                    controller.buf,
+                    r_, u_, d_, noise_,
+                    k + i, n, est_every, log_every,
+                    stats, log.data, log.rows, 1 if k + i == first else 0, u_start,
+                )  # fmt: skip
+                i += n
+                driver.tick = k + i
+                driver.check_state()  # after the call's log is kept
+                watchdog.flush(log)
 
 
 __all__ = ["LOG_COLUMNS", "LoopResult", "log_rows", "run_closed_loop"]

@@ -1,10 +1,15 @@
-"""Blocks of a generator computed one ahead, in a thread of their own.
+"""Blocks of a generator computed ahead, in a thread of their own.
 
-The compiled fast path runs a block of ticks per call with the interpreter lock released;
-the inputs of the next block (the scenario's windows, the disturbance, the sensor
+The compiled fast path runs a chunk of ticks per call with the interpreter lock released;
+the inputs of the next chunk (the scenario's windows, the disturbance, the sensor
 noise: NumPy work that releases the lock too) are computed meanwhile by a
 :class:`Prefetch` thread, in the order the loop consumes them, so a run computes the
 same numbers as when it drew them itself, and its own thread does not pay them.
+
+The hand-over is two :class:`queue.SimpleQueue` (implemented in C): the items, and the
+room for them (``ahead`` tokens), so that taking an item costs the consumer's thread a
+fraction of a microsecond when it is ready, where :class:`queue.Queue` (a condition
+variable in Python) cost it several.
 """
 from __future__ import annotations
 
@@ -22,7 +27,10 @@ class Prefetch:
 
     def __init__(self, items: Iterator, ahead: int = 2):
         self._items = items
-        self._q: queue.Queue = queue.Queue(maxsize=ahead)
+        self._ready: queue.SimpleQueue = queue.SimpleQueue()
+        self._room: queue.SimpleQueue = queue.SimpleQueue()  # one token per item the producer may still queue
+        for _ in range(max(1, int(ahead))):
+            self._room.put(None)
         self._stop = threading.Event()
         self._thread = threading.Thread(target=self._run, name="fast-path-inputs", daemon=True)
         self._thread.start()
@@ -30,10 +38,11 @@ class Prefetch:
     def _put(self, item) -> bool:
         while not self._stop.is_set():
             try:
-                self._q.put(item, timeout=0.05)
-                return True
-            except queue.Full:
+                self._room.get(timeout=0.05)
+            except queue.Empty:
                 continue
+            self._ready.put(item)
+            return True
         return False
 
     def _run(self) -> None:
@@ -50,7 +59,8 @@ class Prefetch:
         return self
 
     def __next__(self):
-        item, exc = self._q.get()
+        item, exc = self._ready.get()
+        self._room.put(None)
         if exc is not None:
             raise exc
         if item is self._END:
