@@ -98,19 +98,25 @@ REL_MARGIN = 0.1
 BIAS_FACTOR = 2.0
 #: fewer usable bins than this in the FRF band: no input power above the rows' band
 MIN_BINS = 8
+#: bins of the running median that smooths the estimator's incoherent part into a noise
+#: level (:func:`noise_level`)
+NOISE_BINS = 9
 #: a Welch segment is used when at most this share of its samples is where the arm may
 #: stick (speed within its noise): a stuck arm does not follow the input, and segments
 #: that hold one read a response too small by the share of time stuck (0.83 x the rigid
 #: body on null seek strokes with dwells, before this rule)
 STUCK_MAX = 0.02
-#: modes this path adds at most
-MAX_MODES = 2
+#: modes this path adds at most (the ``resonance`` term's own limit counts the model's too)
+MAX_MODES = 4
 #: the test part gets at least this many Welch segments (the segment length follows)
 MIN_SEGMENTS = 8
 NPERSEG_MAX = 8192
 NPERSEG_MIN = 64
-#: the FRF band's upper edge, a share of the sample rate
-TOP = 0.45
+#: the FRF band's upper edge, a share of the sample rate (the Nyquist frequency is 0.5)
+TOP = 0.49
+#: the FRF band's lower edge, in bins of the Welch grid: the common high-pass sits at
+#: half of it (module doc, step 1)
+LOW_BINS = 4
 #: the bounds of the damping of a mode (the ``resonance`` term's)
 ZETA_BOUNDS = (0.001, VOCABULARY["resonance"].ZETA_MAX)
 #: equivalent noise bandwidth of the Hann window, bins: neighbouring bins are correlated
@@ -138,6 +144,10 @@ class Response:
     samples: int
     segments_all: int = 0
     method: str = "H1"
+    #: (k,) the position's power per Hz the response does not explain (the estimator's
+    #: incoherent part, ``P_xx*(1 - g2)`` for ``H1``): the sensor noise where the input is
+    #: the excitation alone, less in a loop where the input carries fed-back noise
+    Pnn: np.ndarray | None = None
 
 
 @dataclass
@@ -161,6 +171,8 @@ class Result:
 
     band_hz: list
     note: str = ""
+    #: the rows' band edge (Hz): the rows resolve nothing above it
+    rows_edge_hz: float = 0.0
     ran: bool = False
     #: ``"H1"``, or ``"instrumental"`` with the recording's ``r`` as instrument
     method: str = "H1"
@@ -177,6 +189,9 @@ class Result:
     model_before: np.ndarray | None = None
     model_after: np.ndarray | None = None
     usable_test: np.ndarray | None = None
+    usable_train: np.ndarray | None = None
+    #: the white sensor-noise level the bias bound starts from (one-sided, per Hz)
+    noise_psd: float = 0.0
 
     def summary(self) -> dict:
         """JSON-ready description (``report.json``'s ``frf``)."""
@@ -256,13 +271,16 @@ def measure(u: np.ndarray, x: np.ndarray, moving: np.ndarray, dt: float, nperseg
         nf = f.size
         nan = np.full(nf, np.nan)
         return Response(f, nan.astype(complex), np.zeros(nf), np.full(nf, np.inf), np.zeros(nf), 0, 0.0, u.size,
-                        method=method)
+                        method=method, Pnn=np.full(nf, np.inf))
     est = estimate(spectra(sig, dt, settings, pairs, sel), "u", "x", None if z is None else "z")
     # usable where the input's share of the output is, and (instrument) where the
     # instrument explains the input (the ratio's denominator): the smaller of the two
     coh = np.minimum(est.coherence, est.g2_ru)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        Pnn = np.abs(est.H) ** 2 * est.g2_ru * est.Puu * (1.0 - est.coherence) / est.coherence
     return Response(est.f, est.H, np.nan_to_num(coh), np.nan_to_num(est.rel_std, nan=np.inf),
-                    np.nan_to_num(est.g2_ru * est.Puu), est.K, float(est.K_eq), u.size, int(starts.size), method)
+                    np.nan_to_num(est.g2_ru * est.Puu), est.K, float(est.K_eq), u.size, int(starts.size), method,
+                    np.nan_to_num(Pnn, nan=np.inf, posinf=np.inf))
 
 
 #: the terms whose force the response's linear part holds (every other column term's
@@ -371,24 +389,65 @@ def model_response(pl: Plant, f: np.ndarray, dt: float, df: float, ker) -> np.nd
 
 
 # ------------------------------------------------------------------ the departure test
+def noise_level(resp: Response, noise_psd: float) -> np.ndarray:
+    """Per bin, the sensor noise's power per Hz in the position (k,): the larger of the
+    white level ``noise_psd`` (the rows' ``sigma_x``) and the estimator's incoherent part
+    (``resp.Pnn``, a running median over :data:`NOISE_BINS` bins).  Coloured noise
+    shows in the second where the first, white, is below it; an input partly made of
+    fed-back noise lowers the second, never the first."""
+    p = np.asarray(resp.Pnn if resp.Pnn is not None else np.zeros(resp.f.size), dtype=float)
+    p = np.where(np.isfinite(p), p, 0.0)
+    h = NOISE_BINS // 2
+    padded = np.pad(p, h, mode="edge")
+    med = np.median(np.lib.stride_tricks.sliding_window_view(padded, NOISE_BINS), axis=1)
+    return np.maximum(med, noise_psd)
+
+
 def snr(resp: Response, Hm: np.ndarray, noise_psd: float) -> np.ndarray:
     """Per bin, the position power the model predicts from the measured input over the
-    sensor noise's."""
-    return np.abs(Hm) ** 2 * resp.Puu / max(noise_psd, 1e-300)
+    sensor noise's (:func:`noise_level`)."""
+    return np.abs(Hm) ** 2 * resp.Puu / np.maximum(noise_level(resp, noise_psd), 1e-300)
 
 
 def usable(resp: Response, Hm: np.ndarray, band: np.ndarray, noise_psd: float) -> np.ndarray:
-    """Bins of ``band`` where the estimate is usable (module doc, step 3)."""
-    return band & (resp.coh >= COH_MIN) & (snr(resp, Hm, noise_psd) >= SNR_MIN) & np.isfinite(resp.H)
+    """Bins of ``band`` where the estimate is usable (module doc, step 3): the coherence
+    is at least :data:`COH_MIN`, whatever the model predicts there (a mode the model
+    lacks raises the measured response far above the model's: the bins that show it
+    best are those where the model predicts least)."""
+    return band & (resp.coh >= COH_MIN) & np.isfinite(resp.H)
+
+
+def bias(resp: Response, Hm: np.ndarray, noise_psd: float) -> np.ndarray:
+    """Per bin, the bound of the closed-loop bias of ``H1`` relative to the model's
+    response (module doc, step 3; 0 for an instrument's estimate, step 6): the bias is
+    ``conj(d)*P_nn/P_uu`` (``d`` the loop's path from the sensor noise to the input),
+    at most ``|T|/SNR`` of ``|H|`` (``T`` the complementary sensitivity, at most
+    :data:`BIAS_FACTOR`) and at most ``sqrt(P_nn/P_uu)`` in absolute value (the fed-back
+    noise is at most the whole input), ``1/sqrt(SNR)`` of the model's response: the
+    smaller of the two.  An open loop has no such bias; the recording does not say
+    which it is."""
+    if resp.method == "instrumental":
+        return np.zeros(resp.f.size)
+    s = np.maximum(snr(resp, Hm, noise_psd), 1e-300)
+    return np.minimum(BIAS_FACTOR / s, 1.0 / np.sqrt(s))
 
 
 def margin(resp: Response, Hm: np.ndarray, noise_psd: float) -> np.ndarray:
-    """Per bin, the relative departure that counts (module doc, step 3): at least
+    """Per bin, the relative departure below which nothing counts: at least
     :data:`REL_MARGIN`, and for ``H1`` at least the closed-loop bias bound
-    ``BIAS_FACTOR/SNR`` (an instrument's estimate has no such bias, step 6)."""
-    if resp.method == "instrumental":
-        return np.full(resp.f.size, REL_MARGIN)
-    return np.maximum(REL_MARGIN, BIAS_FACTOR / np.maximum(snr(resp, Hm, noise_psd), 1e-300))
+    (:func:`bias`)."""
+    return np.maximum(REL_MARGIN, bias(resp, Hm, noise_psd))
+
+
+def deviation(resp: Response, Hm: np.ndarray, noise_psd: float | None) -> np.ndarray:
+    """Per bin, the uncertainty of the measured response against the model's (k,):
+    the estimator's random error ``|H|*rel_std`` plus the closed-loop bias bound
+    ``bias*|Hm|`` (:func:`bias`; ``noise_psd`` None: the random error alone).  Added,
+    not in quadrature: the bias is systematic and does not average out."""
+    sd = np.abs(resp.H) * resp.rel_std
+    if noise_psd is None:
+        return sd
+    return sd + bias(resp, Hm, noise_psd) * np.abs(Hm)
 
 
 def _columns(H: np.ndarray) -> list:
@@ -397,14 +456,17 @@ def _columns(H: np.ndarray) -> list:
     return [np.concatenate([H.real, H.imag]), np.concatenate([-H.imag, H.real])]
 
 
-def detrended(resp: Response, Hm: np.ndarray, use: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def detrended(resp: Response, Hm: np.ndarray, use: np.ndarray,
+              noise_psd: float | None = None) -> tuple[np.ndarray, np.ndarray]:
     """The measured response less the model's times the smooth factor ``c0 + c1*log f``
     (complex ``c``, weighted least squares over ``use``): residual (k,) complex, zero
     outside ``use``, and its standard deviations (k,).  The factor takes a level or a
     slowly turning phase off the comparison (an inertia a percent off, the closed loop's
     bias of ``H1`` where the input is partly fed-back noise, which turns ``H1``
-    smoothly towards ``-1/C``); a mode's peak is narrow and stays."""
-    sd = np.abs(resp.H) * resp.rel_std
+    smoothly towards ``-1/C``); a mode's peak is narrow and stays.  The weights and the
+    standard deviations are :func:`deviation`'s (with ``noise_psd``, the bias bound
+    counts)."""
+    sd = deviation(resp, Hm, noise_psd)
     e = np.zeros(resp.f.size, complex)
     idx = np.flatnonzero(use)
     if idx.size == 0:
@@ -431,20 +493,38 @@ def departure(resp: Response, Hm: np.ndarray, use: np.ndarray, alpha: float, noi
     n = int(use.sum())
     if n == 0:
         return {"bins": 0, "bound": None, "departs": False, "sse": 0.0, "flagged_hz": [], "worst_hz": None}
-    e, sd = detrended(resp, Hm, use)
+    e, sd = detrended(resp, Hm, use, noise_psd)
     z2 = np.where(use, np.abs(e) ** 2 / np.maximum(sd, 1e-300) ** 2, 0.0)
     rel = np.where(use, np.abs(e) / np.maximum(np.abs(Hm), 1e-300), 0.0)
     bound = float(stats.chi2.isf(alpha / n, 2))
-    hot = use & (z2 > bound) & (rel > margin(resp, Hm, noise_psd))
+    hot = use & (z2 > bound) & (rel > REL_MARGIN)
     pair = hot[1:] & hot[:-1]
     flag = np.zeros_like(hot)
     flag[1:] |= pair
     flag[:-1] |= pair
     cand = flag if flag.any() else use
-    worst = int(np.argmax(np.where(cand, z2, -1.0)))
+    worst = int(np.argmax(np.where(cand, rel, -1.0)))  # a mode's peak departs most (its antiresonance may test larger)
     return {"bins": n, "bound": bound, "departs": bool(flag.any()), "sse": float(z2[use].sum()),
             "flagged_hz": [float(v) for v in resp.f[flag]], "worst_hz": float(resp.f[worst]),
-            "worst_z2": float(z2[worst]), "worst_rel": float(rel[worst]), "flag": flag, "z2": z2}  # fmt: skip
+            "worst_z2": float(z2[worst]), "worst_rel": float(rel[worst]),
+            "departures": located(resp, flag, rel, z2), "flag": flag, "z2": z2}  # fmt: skip
+
+
+def located(resp: Response, flag: np.ndarray, rel: np.ndarray, z2: np.ndarray) -> list:
+    """Each coherent departure of a test (:func:`departure`): the runs of flagged bins
+    (a gap of one bin joins two), each ``{band_hz: [lo, hi], peak_hz, size, coherence,
+    bins}``, ``size`` the largest departure relative to the model's response there,
+    ``coherence`` the lowest coherence in the run."""
+    idx = np.flatnonzero(flag)
+    out = []
+    if idx.size == 0:
+        return out
+    runs = np.split(idx, np.flatnonzero(np.diff(idx) > 2) + 1)
+    for r in runs:
+        k = r[np.argmax(rel[r])]
+        out.append({"band_hz": [float(resp.f[r[0]]), float(resp.f[r[-1]])], "peak_hz": float(resp.f[k]),
+                    "size": float(rel[k]), "coherence": float(np.min(resp.coh[r])), "bins": int(r.size)})
+    return out
 
 
 def public(dep: dict | None) -> dict | None:
@@ -460,7 +540,7 @@ def public(dep: dict | None) -> dict | None:
 
 # ------------------------------------------------------------------ the fit
 def fit_mode(resp: Response, pl: Plant, use: np.ndarray, dep: dict, dt: float, df: float, ker, band_lo: float,
-             f_top: float):  # fmt: skip
+             f_top: float, noise_psd: float | None = None):  # fmt: skip
     """A mode fitted to the departure at its worst bin (module doc, step 4): ``(hz,
     zeta, gain, std, chi2)`` or None.  The model ``(Hm + gain*M(hz, zeta))*(c0 + c1*log
     f)`` over the usable bins, the smooth factor solved linearly inside (as in
@@ -473,7 +553,7 @@ def fit_mode(resp: Response, pl: Plant, use: np.ndarray, dep: dict, dt: float, d
         return None
     f = resp.f[idx]
     L = np.log(f / np.exp(np.mean(np.log(f))))
-    w = 1.0 / np.maximum(np.abs(resp.H[idx]) * resp.rel_std[idx], 1e-300)
+    w = 1.0 / np.maximum(deviation(resp, Hm, noise_psd)[idx], 1e-300)
     y = np.concatenate([(resp.H[idx] * w).real, (resp.H[idx] * w).imag])
     hm = Hm[idx] * w
 
@@ -521,12 +601,13 @@ def plant_with(pl: Plant, modes) -> Plant:
                                                                    m.params["gain"]) for m in modes])  # fmt: skip
 
 
-def run(design, fit, alpha: float, instrument: np.ndarray | None = None) -> Result:
+def run(design, fit, alpha: float, instrument: np.ndarray | None = None, fit_modes: bool = True) -> Result:
     """The path on ``design``'s recording against the fitted model ``fit`` (module doc):
     the modes it proposes, each judged on the test part's own response (the caller adds
     the output check and the model's refit).  ``instrument`` (n,): the recording's ``r``,
     if it has one (step 6); used where both parts have :data:`MIN_BINS` usable bins with
-    it, ``H1`` otherwise (``Result.method`` and ``note`` say which)."""
+    it, ``H1`` otherwise (``Result.method`` and ``note`` say which).  ``fit_modes``
+    False: the measured responses and the model's departure only (:func:`support`)."""
     t0 = time.perf_counter()
     sig = design.sig
     fs = 1.0 / sig.dt
@@ -537,9 +618,6 @@ def run(design, fit, alpha: float, instrument: np.ndarray | None = None) -> Resu
     if not pl.J > 0:
         res.note = "the model has no positive inertia J: no response to compare above the rows' band"
         return res
-    if sig.settings.decimate <= 1 or edge >= 0.9 * top:
-        res.note = "the rows cover the whole band: nothing above it"
-        return res
     n_train = int(design.train_samples.sum())
     moving = np.abs(sig.vf) > sig.v_threshold
     shortest = max(NPERSEG_MIN, 1 << int(math.ceil(math.log2(4.0 * fs / edge))))  # 4 bins over the rows' band
@@ -549,12 +627,15 @@ def run(design, fit, alpha: float, instrument: np.ndarray | None = None) -> Resu
                     f"noise): fewer than {MIN_SEGMENTS} in the test part or the training part")  # fmt: skip
         return res
     res.nperseg = nper
-    hp = 0.5 * edge
-    u = linear_input(design, fit)
     f = frequencies(nper, sig.dt)
     df = float(f[1] - f[0])
+    low = LOW_BINS * df
+    res.band_hz = [float(low), float(top)]
+    res.rows_edge_hz = float(edge)
+    hp = 0.5 * low
+    u = linear_input(design, fit)
     ker = kernel(nper)
-    band = (f > edge) & (f <= top)
+    band = (f >= low) & (f <= top)
     noise_psd = 2.0 * sig.noise_x**2 * sig.dt  # one-sided, white
     Hm_tr = model_response(pl, f, sig.dt, df, ker)
     Hm_te = Hm_tr
@@ -568,7 +649,7 @@ def run(design, fit, alpha: float, instrument: np.ndarray | None = None) -> Resu
     if instrument is not None:
         tr, te, use_tr, use_te = parts(np.asarray(instrument, dtype=float))
         if min(use_tr.sum(), use_te.sum()) < MIN_BINS:
-            res.note = (f"the recording's r has no power above the rows' band ({int(use_tr.sum())} training and "
+            res.note = (f"the recording's r has no power in the band ({int(use_tr.sum())} training and "
                         f"{int(use_te.sum())} test bins usable with it as instrument): H1 from the input instead")
             instrument = None
     if instrument is None:
@@ -576,15 +657,17 @@ def run(design, fit, alpha: float, instrument: np.ndarray | None = None) -> Resu
     res.train, res.test, res.method = tr, te, tr.method
     res.before = public(departure(te, Hm_te, use_te, alpha, noise_psd))
     if use_tr.sum() < MIN_BINS or use_te.sum() < MIN_BINS:
-        res.note = ((res.note + "; ") if res.note else "") + (f"the input has no power above the rows' band: {int(use_tr.sum())} training and "
-                    f"{int(use_te.sum())} test bins of {edge:.4g}-{top:.4g} Hz are usable (coherence >= {COH_MIN:g} "
-                    f"and the model's position there >= {SNR_MIN:g} x the sensor noise's power)")  # fmt: skip
+        res.note = ((res.note + "; ") if res.note else "") + (f"the input has no power in the band of the frequency response: {int(use_tr.sum())} training "
+                    f"and {int(use_te.sum())} test bins of {low:.4g}-{top:.4g} Hz are usable (coherence >= {COH_MIN:g}, "
+                    f"fewer than {MIN_BINS})")  # fmt: skip
         res.after = res.before
         res.seconds = time.perf_counter() - t0
         return res
     res.ran = True
+    res.noise_psd, res.usable_train = noise_psd, use_tr
+    res.model_before, res.usable_test = Hm_te, use_te
     kept: list = []
-    for _ in range(MAX_MODES):
+    for _ in range(MAX_MODES if fit_modes else 0):
         if len(pl.modes) + len(kept) >= VOCABULARY["resonance"].MAX_MODES:
             break
         cur = plant_with(pl, kept)
@@ -592,7 +675,7 @@ def run(design, fit, alpha: float, instrument: np.ndarray | None = None) -> Resu
         dep = departure(tr, Hm, use_tr, alpha, noise_psd)
         if not dep["departs"]:
             break
-        got = fit_mode(tr, cur, use_tr, dep, sig.dt, df, ker, edge, top)
+        got = fit_mode(tr, cur, use_tr, dep, sig.dt, df, ker, low, top, noise_psd)
         if got is None:
             break
         hz, z, g, std, chi2 = got
@@ -623,5 +706,46 @@ def run(design, fit, alpha: float, instrument: np.ndarray | None = None) -> Resu
     return res
 
 
+def support(design, fit, alpha: float, instrument: np.ndarray | None = None) -> list:
+    """Whether the recording's own frequency response shows each mode of ``fit`` (the
+    ``resonance`` terms the rows named): per mode ``(term_index, supported, evidence)``.
+    A mode is supported where the held-out part's response departs less from the model
+    with it than without it, by more than the chi-square bound of its three parameters
+    at ``alpha`` (the sum of ``z2`` over the usable bins, the smooth factor refitted for
+    each); a mode where the response has no usable bin, or which the response does not
+    show, is not (the rows alone cannot resolve a mode near or above their band edge,
+    nor tell it from a delay or a filter).  Empty when the path cannot compare
+    (``run``'s note says why) or ``fit`` has no mode."""
+    idx = [i for i, t in enumerate(fit.model.terms) if t.physics == "resonance"]
+    if not idx:
+        return []
+    res = run(design, fit, alpha, instrument, fit_modes=False)
+    if not res.ran:
+        return [(i, False, {"reason": f"the frequency response could not test it: {res.note}"}) for i in idx]
+    sig = design.sig
+    te = res.test
+    df = float(te.f[1] - te.f[0])
+    ker = kernel(res.nperseg)
+    full = Plant.of(fit)
+    bound = float(stats.chi2.isf(alpha, 3))
+    out = []
+    for j, i in enumerate(idx):
+        without = Plant(full.J, full.B, full.K, full.delay_s, [m for k, m in enumerate(full.modes) if k != j])
+        d1 = departure(te, model_response(full, te.f, sig.dt, df, ker), res.usable_test, alpha, res.noise_psd)
+        d0 = departure(te, model_response(without, te.f, sig.dt, df, ker), res.usable_test, alpha, res.noise_psd)
+        hz = full.modes[j][0]
+        near = res.usable_test & (np.abs(te.f - hz) <= 2 * df)
+        ev = {"test": "held-out frequency response with and without the mode (sum of z2, chi-square bound of 3 "
+                      "parameters)", "test_sse_without": d0["sse"], "test_sse_with": d1["sse"], "bound": bound,
+              "usable_bins_near": int(near.sum()), "band_hz": res.band_hz}  # fmt: skip
+        ok = bool(near.any() and d0["sse"] - d1["sse"] > bound)
+        if not ok:
+            ev["reason"] = (f"the recording's own frequency response does not show it: {int(near.sum())} usable bins "
+                            f"within 2 bins of {hz:.4g} Hz, held-out departure {d0['sse']:.4g} without it and "
+                            f"{d1['sse']:.4g} with it (it must fall by more than {bound:.3g})")  # fmt: skip
+        out.append((i, ok, ev))
+    return out
+
+
 __all__ = ["COH_MIN", "MAX_MODES", "MIN_BINS", "Mode", "Plant", "REL_MARGIN", "Response", "Result", "SNR_MIN",
-           "choose_nperseg", "departure", "measure", "model_response", "run", "sliding_segments"]
+           "choose_nperseg", "departure", "measure", "model_response", "run", "sliding_segments", "support"]
