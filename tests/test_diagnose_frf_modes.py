@@ -165,8 +165,8 @@ def test_a_mode_above_the_rows_band_is_found_fitted_and_carried_to_the_final_mod
 
 def test_a_closed_loop_recording_with_its_excitation_uses_it_as_instrument():
     """The same loop as above, its injected excitation recorded as ``r``: the mode is
-    found on ``P_rx/P_ru`` and the summary says so; a loop whose excitation has no power
-    above the band falls back to H1 and says that."""
+    found on ``P_rx/P_ru`` and the summary says so; a recording whose ``r`` has no power
+    in the band falls back to H1 and says that."""
     rec, _ = recording(Case("mode_above_band", 0.03, "leadlag", "prbs", 5000.0), seed=11, excitation=True)
     assert rec.r is not None
     D = diagnose(rec)
@@ -178,8 +178,10 @@ def test_a_closed_loop_recording_with_its_excitation_uses_it_as_instrument():
     assert D.verdict["verdict"] == "explained", D.verdict["text"]
     text = format_summary(build_report(D, []), "out")
     assert "(P_rx/P_ru, the recording's r as instrument, " in text
-    rec, _ = recording(Case("null", 0.0, "pdi", "multisine", 5000.0), seed=12, excitation=True)
-    D = diagnose(rec)
+    from servo.io.recording import Recording
+
+    rec, _ = recording(Case("null", 0.0, "pdi", "multisine", 5000.0), seed=12)
+    D = diagnose(Recording(rec.t, rec.u, rec.x, None, source="an r with no power", r=np.zeros(rec.n)))
     assert D.frf.method == "H1" and "the recording's r has no power in the band" in D.frf.note
     assert recording(Case("null", 0.0, "open", "chirp", 1000.0), seed=12, excitation=True)[0].r is None
 

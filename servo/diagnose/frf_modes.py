@@ -96,8 +96,19 @@ REL_MARGIN = 0.1
 #: of 2); on null recordings of the lead-lag loop the response read 5-9 % high where the
 #: SNR was 10-17
 BIAS_FACTOR = 2.0
+#: where the input is all fed-back noise (a loop driven below the band, read far above
+#: its crossover) ``H1`` reads ``-1/C`` and the second bound, ``sqrt(P_nn/P_uu)``, is
+#: met with equality: it is taken this many times over, for a white noise level from
+#: the rows' ``sigma_x`` that may be off by as much (a closed-loop multisine null's
+#: response departed from the model by 80-380 x at 1.9-2.3 kHz with coherence 0.99,
+#: 1.0-1.2 x that bound, its ``sigma_x`` 17 % below the generator's noise)
+NOISE_FACTOR = 2.0
 #: fewer usable bins than this in the FRF band: no input power above the rows' band
 MIN_BINS = 8
+#: a bin's input power must be at least this many times what the window's side lobes
+#: can carry into it from bins at least :data:`LEAK_FROM` away (:func:`excited`)
+LEAK_MARGIN = 10.0
+LEAK_FROM = 3
 #: bins of the running median that smooths the estimator's incoherent part into a noise
 #: level (:func:`noise_level`)
 NOISE_BINS = 9
@@ -148,6 +159,8 @@ class Response:
     #: incoherent part, ``P_xx*(1 - g2)`` for ``H1``): the sensor noise where the input is
     #: the excitation alone, less in a loop where the input carries fed-back noise
     Pnn: np.ndarray | None = None
+    #: (k,) bins where the input has power of its own (:func:`excited`, computed once)
+    own: np.ndarray | None = None
 
 
 @dataclass
@@ -409,12 +422,49 @@ def snr(resp: Response, Hm: np.ndarray, noise_psd: float) -> np.ndarray:
     return np.abs(Hm) ** 2 * resp.Puu / np.maximum(noise_level(resp, noise_psd), 1e-300)
 
 
+def leakage(P: np.ndarray) -> np.ndarray:
+    """Per bin, the most that leakage can carry into it from the bins at least
+    :data:`LEAK_FROM` away, ``max_d max(P[k-d], P[k+d])*W(d)`` (k,), with ``W(d) =
+    (pi*m)^-2`` at ``m = d - 1/2``: the envelope of a window with a jump (a
+    rectangular one's), far above the Hann window's own side lobes (``(pi*m*(m^2 -
+    1))^-2``), because what a segment holds of a slow drive is not a line but its
+    filtered, detrended piece (the three slow sines of the tests leak into the bins at
+    4-10 x their frequency 15-60 x more than the Hann envelope says).  A drive's
+    leakage is coherent between the input and the position (the same piece in both): a
+    bin that holds little else reads the response at the drive's frequency, not its
+    own."""
+    P = np.nan_to_num(np.asarray(P, dtype=float))
+    n = P.size
+    out = np.zeros(n)
+    for d in range(LEAK_FROM, n):
+        m = d - 0.5
+        w = 1.0 / (math.pi * m) ** 2
+        if w * P.max() <= 0.0:
+            break
+        out[d:] = np.maximum(out[d:], P[:-d] * w)
+        out[:-d] = np.maximum(out[:-d], P[d:] * w)
+        if w < 1e-16:
+            break
+    return out
+
+
+def excited(resp: Response) -> np.ndarray:
+    """Bins where the input has power of its own (k,): at least :data:`LEAK_MARGIN`
+    times what leakage from other bins can put there (:func:`leakage`).  A multisine's
+    or a slow drive's bins between its lines are not."""
+    if resp.own is None:
+        P = np.nan_to_num(resp.Puu)
+        resp.own = P > LEAK_MARGIN * leakage(P)
+    return resp.own
+
+
 def usable(resp: Response, Hm: np.ndarray, band: np.ndarray, noise_psd: float) -> np.ndarray:
-    """Bins of ``band`` where the estimate is usable (module doc, step 3): the coherence
-    is at least :data:`COH_MIN`, whatever the model predicts there (a mode the model
-    lacks raises the measured response far above the model's: the bins that show it
-    best are those where the model predicts least)."""
-    return band & (resp.coh >= COH_MIN) & np.isfinite(resp.H)
+    """Bins of ``band`` where the estimate is usable (module doc, step 3): the input has
+    power of its own there (:func:`excited`) and the coherence is at least
+    :data:`COH_MIN`, whatever the model predicts there (a mode the model lacks raises
+    the measured response far above the model's: the bins that show it best are those
+    where the model predicts least)."""
+    return band & (resp.coh >= COH_MIN) & np.isfinite(resp.H) & excited(resp)
 
 
 def bias(resp: Response, Hm: np.ndarray, noise_psd: float) -> np.ndarray:
@@ -423,13 +473,13 @@ def bias(resp: Response, Hm: np.ndarray, noise_psd: float) -> np.ndarray:
     ``conj(d)*P_nn/P_uu`` (``d`` the loop's path from the sensor noise to the input),
     at most ``|T|/SNR`` of ``|H|`` (``T`` the complementary sensitivity, at most
     :data:`BIAS_FACTOR`) and at most ``sqrt(P_nn/P_uu)`` in absolute value (the fed-back
-    noise is at most the whole input), ``1/sqrt(SNR)`` of the model's response: the
-    smaller of the two.  An open loop has no such bias; the recording does not say
-    which it is."""
+    noise is at most the whole input), ``1/sqrt(SNR)`` of the model's response, times
+    :data:`NOISE_FACTOR`: the smaller of the two.  An open loop has no such bias; the
+    recording does not say which it is."""
     if resp.method == "instrumental":
         return np.zeros(resp.f.size)
     s = np.maximum(snr(resp, Hm, noise_psd), 1e-300)
-    return np.minimum(BIAS_FACTOR / s, 1.0 / np.sqrt(s))
+    return np.minimum(BIAS_FACTOR / s, NOISE_FACTOR / np.sqrt(s))
 
 
 def margin(resp: Response, Hm: np.ndarray, noise_psd: float) -> np.ndarray:
@@ -443,7 +493,10 @@ def deviation(resp: Response, Hm: np.ndarray, noise_psd: float | None) -> np.nda
     """Per bin, the uncertainty of the measured response against the model's (k,):
     the estimator's random error ``|H|*rel_std`` plus the closed-loop bias bound
     ``bias*|Hm|`` (:func:`bias`; ``noise_psd`` None: the random error alone).  Added,
-    not in quadrature: the bias is systematic and does not average out."""
+    not in quadrature: the bias is systematic and does not average out.  The weights of
+    the smooth factor and of the fit (a bin the loop's noise may bias counts less);
+    the test itself reads the departure beyond the bias over the random error
+    (:func:`departure`)."""
     sd = np.abs(resp.H) * resp.rel_std
     if noise_psd is None:
         return sd
@@ -485,16 +538,21 @@ def detrended(resp: Response, Hm: np.ndarray, use: np.ndarray,
 
 def departure(resp: Response, Hm: np.ndarray, use: np.ndarray, alpha: float, noise_psd: float) -> dict:
     """The departure test of the model's response ``Hm`` on the usable bins ``use``
-    (module doc, step 3): per bin ``z2`` (chi-square, 2 dof) of the detrended departure
-    (:func:`detrended`); a bin departs beyond the Bonferroni bound and the margin; the
+    (module doc, step 3): per bin ``z2`` (at most chi-square, 2 dof) of the detrended
+    departure (:func:`detrended`) beyond the closed-loop bias bound (:func:`bias`;
+    ``noise_psd`` None: no bias, a loop known open) over the estimator's random error;
+    a bin departs beyond the Bonferroni bound and the margin; the
     response departs where two neighbouring bins do (the Hann window spreads any
     feature, however narrow, over its main lobe of 4 bins: a departure in one bin alone
     is the heavy tail of a ratio of noisy spectra); ``sse`` the sum of ``z2``."""
     n = int(use.sum())
     if n == 0:
         return {"bins": 0, "bound": None, "departs": False, "sse": 0.0, "flagged_hz": [], "worst_hz": None}
-    e, sd = detrended(resp, Hm, use, noise_psd)
-    z2 = np.where(use, np.abs(e) ** 2 / np.maximum(sd, 1e-300) ** 2, 0.0)
+    e, _ = detrended(resp, Hm, use, noise_psd)
+    sd = deviation(resp, Hm, None)  # the random error alone
+    b = bias(resp, Hm, noise_psd) * np.abs(Hm) if noise_psd is not None else np.zeros(resp.f.size)
+    excess = np.maximum(np.abs(e) - b, 0.0)  # what the closed-loop bias bound cannot account for
+    z2 = np.where(use, excess**2 / np.maximum(sd, 1e-300) ** 2, 0.0)
     rel = np.where(use, np.abs(e) / np.maximum(np.abs(Hm), 1e-300), 0.0)
     bound = float(stats.chi2.isf(alpha / n, 2))
     hot = use & (z2 > bound) & (rel > REL_MARGIN)
@@ -512,14 +570,14 @@ def departure(resp: Response, Hm: np.ndarray, use: np.ndarray, alpha: float, noi
 
 def located(resp: Response, flag: np.ndarray, rel: np.ndarray, z2: np.ndarray) -> list:
     """Each coherent departure of a test (:func:`departure`): the runs of flagged bins
-    (a gap of one bin joins two), each ``{band_hz: [lo, hi], peak_hz, size, coherence,
+    (gaps of up to 3 bins, within the Hann main lobe, join two), each ``{band_hz: [lo, hi], peak_hz, size, coherence,
     bins}``, ``size`` the largest departure relative to the model's response there,
     ``coherence`` the lowest coherence in the run."""
     idx = np.flatnonzero(flag)
     out = []
     if idx.size == 0:
         return out
-    runs = np.split(idx, np.flatnonzero(np.diff(idx) > 2) + 1)
+    runs = np.split(idx, np.flatnonzero(np.diff(idx) > 4) + 1)  # a main lobe of 4 bins
     for r in runs:
         k = r[np.argmax(rel[r])]
         out.append({"band_hz": [float(resp.f[r[0]]), float(resp.f[r[-1]])], "peak_hz": float(resp.f[k]),
