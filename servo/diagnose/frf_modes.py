@@ -103,6 +103,9 @@ BIAS_FACTOR = 2.0
 #: response departed from the model by 80-380 x at 1.9-2.3 kHz with coherence 0.99,
 #: 1.0-1.2 x that bound, its ``sigma_x`` 17 % below the generator's noise)
 NOISE_FACTOR = 2.0
+#: the white noise level is at most this quantile of the incoherent part over the
+#: usable bins (:func:`white_level`)
+NOISE_QUANTILE = 0.9
 #: fewer usable bins than this in the FRF band: no input power above the rows' band
 MIN_BINS = 8
 #: a bin's input power must be at least this many times what the window's side lobes
@@ -416,6 +419,24 @@ def noise_level(resp: Response, noise_psd: float) -> np.ndarray:
     return np.maximum(med, noise_psd)
 
 
+def white_level(noise_psd: float, resp: Response, use: np.ndarray) -> float:
+    """The white sensor-noise level the bias bound starts from: the rows' (``noise_psd``
+    from ``sigma_x``), but at most the :data:`NOISE_QUANTILE` quantile of the training
+    part's incoherent part over its usable bins (:func:`noise_level`'s running median).
+    The incoherent part is the sensor noise where the input is the excitation, less
+    where it is fed-back noise, never more (for a white noise); a ``sigma_x`` that read
+    driven motion as noise (a broadband input drives the arm above the rows' filter:
+    100 x the true noise on an open-loop PRBS at 20 kHz) would otherwise hide every
+    departure behind the bias bound."""
+    if resp.Pnn is None or not use.any():
+        return noise_psd
+    med = noise_level(resp, 0.0)[use]
+    med = med[np.isfinite(med)]
+    if med.size == 0:
+        return noise_psd
+    return float(min(noise_psd, np.quantile(med, NOISE_QUANTILE)))
+
+
 def snr(resp: Response, Hm: np.ndarray, noise_psd: float) -> np.ndarray:
     """Per bin, the position power the model predicts from the measured input over the
     sensor noise's (:func:`noise_level`)."""
@@ -561,11 +582,15 @@ def departure(resp: Response, Hm: np.ndarray, use: np.ndarray, alpha: float, noi
     flag[1:] |= pair
     flag[:-1] |= pair
     cand = flag if flag.any() else use
+    deps = located(resp, flag, rel, z2)
+    if deps:  # the departure that weighs most (its sum of z2); its peak, where it departs most
+        top = max(deps, key=lambda d: d["sse"])
+        cand = cand & (resp.f >= top["band_hz"][0]) & (resp.f <= top["band_hz"][1])
     worst = int(np.argmax(np.where(cand, rel, -1.0)))  # a mode's peak departs most (its antiresonance may test larger)
     return {"bins": n, "bound": bound, "departs": bool(flag.any()), "sse": float(z2[use].sum()),
             "flagged_hz": [float(v) for v in resp.f[flag]], "worst_hz": float(resp.f[worst]),
             "worst_z2": float(z2[worst]), "worst_rel": float(rel[worst]),
-            "departures": located(resp, flag, rel, z2), "flag": flag, "z2": z2}  # fmt: skip
+            "departures": deps, "flag": flag, "z2": z2}  # fmt: skip
 
 
 def located(resp: Response, flag: np.ndarray, rel: np.ndarray, z2: np.ndarray) -> list:
@@ -581,7 +606,8 @@ def located(resp: Response, flag: np.ndarray, rel: np.ndarray, z2: np.ndarray) -
     for r in runs:
         k = r[np.argmax(rel[r])]
         out.append({"band_hz": [float(resp.f[r[0]]), float(resp.f[r[-1]])], "peak_hz": float(resp.f[k]),
-                    "size": float(rel[k]), "coherence": float(np.min(resp.coh[r])), "bins": int(r.size)})
+                    "size": float(rel[k]), "coherence": float(np.min(resp.coh[r])), "bins": int(r.size),
+                    "sse": float(z2[r].sum())})
     return out
 
 
@@ -599,14 +625,18 @@ def public(dep: dict | None) -> dict | None:
 # ------------------------------------------------------------------ the fit
 def fit_mode(resp: Response, pl: Plant, use: np.ndarray, dep: dict, dt: float, df: float, ker, band_lo: float,
              f_top: float, noise_psd: float | None = None):  # fmt: skip
-    """A mode fitted to the departure at its worst bin (module doc, step 4): ``(hz,
-    zeta, gain, std, chi2)`` or None.  The model ``(Hm + gain*M(hz, zeta))*(c0 + c1*log
-    f)`` over the usable bins, the smooth factor solved linearly inside (as in
+    """A mode fitted to the departure at its worst bin ``f0`` (module doc, step 4):
+    ``(hz, zeta, gain, std, chi2)`` or None.  The model ``(Hm + gain*M(hz, zeta))*(c0 +
+    c1*log f)`` over the usable bins from ``f0/1.5`` to ``1.5*f0`` (where the mode may
+    lie), the smooth factor solved linearly inside (as in
     :func:`detrended`), ``hz``, ``zeta`` and ``gain`` by ``least_squares`` from the best
     of a grid around the worst bin."""
     Hm = model_response(pl, resp.f, dt, df, ker)
     f0 = dep["worst_hz"]
-    idx = np.flatnonzero(use)
+    lo_f, hi_f = max(band_lo, f0 / 1.5), min(f_top, f0 * 1.5)
+    # fitted where it may lie: a larger departure elsewhere (another mode the model lacks)
+    # would pull a mode fitted over the whole band away from this one
+    idx = np.flatnonzero(use & (resp.f >= lo_f) & (resp.f <= hi_f))
     if idx.size < 4:
         return None
     f = resp.f[idx]
@@ -636,8 +666,8 @@ def fit_mode(resp: Response, pl: Plant, use: np.ndarray, dep: dict, dt: float, d
             if best is None or cost < best[0]:
                 best = (cost, hz, z, float(c[-1]))
     _, hz0, z0, g0 = best
-    lo = [max(band_lo, f0 / 1.5), math.log(ZETA_BOUNDS[0]), -np.inf]
-    hi = [min(f_top, f0 * 1.5), math.log(ZETA_BOUNDS[1]), np.inf]
+    lo = [lo_f, math.log(ZETA_BOUNDS[0]), -np.inf]
+    hi = [hi_f, math.log(ZETA_BOUNDS[1]), np.inf]
     x0 = [min(max(hz0, lo[0] + 1e-9 * df), hi[0] - 1e-9 * df), min(max(math.log(z0), lo[1] + 1e-9), hi[1] - 1e-9), g0]
     sol = optimize.least_squares(resid, x0, bounds=(lo, hi), x_scale=[df, 0.1, abs(g0) or 1.0], max_nfev=80)
     hz, lz, g = sol.x
@@ -712,6 +742,7 @@ def run(design, fit, alpha: float, instrument: np.ndarray | None = None, fit_mod
             instrument = None
     if instrument is None:
         tr, te, use_tr, use_te = parts(None)
+    noise_psd = white_level(noise_psd, tr, use_tr)
     res.train, res.test, res.method = tr, te, tr.method
     res.before = public(departure(te, Hm_te, use_te, alpha, noise_psd))
     if use_tr.sum() < MIN_BINS or use_te.sum() < MIN_BINS:
