@@ -1,8 +1,10 @@
-"""The frequency-domain path: flexible modes above the force-balance rows' band.
+"""The frequency-domain path: the recording's own frequency response against the model's.
 
 The force-balance rows are decimated (:mod:`servo.diagnose.band`): they cover ``0 ..
 0.4*fs/q`` Hz, and a mode above that edge never shows in them.  This path works at the
-full sample rate on the input-to-position frequency response instead:
+full sample rate on the input-to-position frequency response instead, over the whole
+band with excitation (the **FRF band**, from :data:`LOW_BINS` bins of the Welch grid to
+``TOP*fs``, ``TOP`` = 0.49):
 
 1. **Measured response.**  ``H1 = P_ux/P_uu`` over Welch segments (Hann, 50 % overlap)
    with the coherence ``g2``, by the project's one estimator (:mod:`servo.frf.estimate`,
@@ -11,11 +13,10 @@ full sample rate on the input-to-position frequency response instead:
    linear part sees (:func:`linear_input`: the friction's force, which a loop feeds
    back into the input, taken off) to the measured position, over the segments in
    which the arm slides (a stuck arm does not follow the input).  Both signals first
-   go through the same zero-phase high-pass (Butterworth, order 4, at half the band
-   edge): a filter common to ``u`` and ``x`` cancels in the ratio, and it keeps the
-   position's large low-frequency motion from leaking through the window's side lobes
-   into the bins above the band, where the response is nanometres.  Each complex
-   component of ``H1`` has the estimator's standard deviation
+   go through the same zero-phase high-pass (Butterworth, order 4, at half the FRF
+   band's lower edge): a filter common to ``u`` and ``x`` cancels in the ratio, and it
+   keeps the position's large low-frequency motion from leaking through the window's
+   side lobes.  Each complex component of ``H1`` has the estimator's standard deviation
    ``|H1|*sqrt((1 - g2)/(2*K_eq*g2))`` (Bendat & Piersol, *Random Data*, eq. 9.90;
    ``K_eq`` the equivalent independent averages of the overlapping segments used).
 2. **The model's response** over the same bins: the rigid body ``1/(J s^2 + B s + K)``
@@ -24,26 +25,26 @@ full sample rate on the input-to-position frequency response instead:
    exactly for the recorded zero-order-hold input, and averaged over the Welch window's
    spectral kernel (what a Welch estimate of the same response would read, for a
    locally flat input spectrum).
-3. **Departure test** (level fixed before any scoring): in every usable bin of the
-   **FRF band** (from the rows' band edge to ``0.45*fs``), the squared complex
-   departure over its variance, after a smooth factor ``c0 + c1*log f`` is taken off
-   (:func:`detrended`), is chi-square with 2 degrees of freedom under the model; a bin
-   departs beyond the ``alpha/N_bins`` quantile (Bonferroni over the bins) *and* by at
-   least :func:`margin` of the model's response; the response departs where two
-   neighbouring bins do.  A bin is usable when the coherence is at least
-   :data:`COH_MIN` and the position power the model predicts from the measured input
-   is at least :data:`SNR_MIN` times the sensor noise's (white, ``sigma_x`` of
-   :mod:`servo.diagnose.signals`).  Closed loops: where the input is partly sensor
-   noise fed back through the controller, ``H1`` turns towards ``-1/C`` (the
-   controller's inverse), by ``|L/(1 + L)|/SNR`` of ``|H|`` (``L`` the loop gain); the
-   margin ``BIAS_FACTOR/SNR`` and the smooth factor keep that bias from counting.
-   Fewer than :data:`MIN_BINS` usable bins: the recording has no input power above the
+3. **Departure test** (level fixed before any scoring): a bin of the FRF band is
+   usable where the coherence is at least :data:`COH_MIN` and the input has power of
+   its own there (:func:`excited`: not a slow drive's coherent leakage), whatever the
+   model predicts (:func:`usable`).  In a loop ``H1`` is biased by the sensor noise the
+   controller feeds back into the input (towards ``-1/C``); :func:`bias` bounds it per
+   bin from the noise level (:func:`noise_level`, :func:`white_level`).  Per usable
+   bin, the complex departure after a smooth factor ``c0 + c1*log f`` is taken off
+   (:func:`detrended`), less the bias bound, over the random error, squared, is at
+   most chi-square with 2 degrees of freedom under the model; a bin departs beyond the
+   ``alpha/N_bins`` quantile (Bonferroni over the bins) *and* by at least
+   :data:`REL_MARGIN` of the model's response; the response departs where two
+   neighbouring bins do, and each run of departing bins is located (:func:`located`).
+   Fewer than :data:`MIN_BINS` usable bins: the recording has no input power in the
    band, and the path says so and stops.
 4. **Fit.**  Where the training part departs, a mode (``frequency_hz``, ``zeta``,
    ``gain``: the ``resonance`` term's parameters, so that ``final_model.toml`` and
    :func:`servo.diagnose.simulate.drive_params` carry it) is fitted to the measured
    response by weighted complex least squares (``scipy.optimize.least_squares``,
-   started from a grid of damping values around the worst bin, the smooth factor
+   started from a grid of damping values around the peak of the departure that weighs
+   most, over the usable bins from a third below to half above it, the smooth factor
    solved linearly inside), with standard deviations from the Jacobian (inflated by the
    Hann window's noise bandwidth, 1.5 bins, for the correlation of neighbouring bins).
    A mode at the damping bound of the vocabulary is not a mode (the ``resonance``
@@ -60,12 +61,15 @@ full sample rate on the input-to-position frequency response instead:
    instrumental-variable estimate of :func:`servo.frf.estimate.instrumental`, here on
    the sliding segments and the high-passed signals of step 1) has no closed-loop
    bias, so the margin is :data:`REL_MARGIN` alone; its variance and usable bins are in
-   :func:`measure`.  Where ``r`` has too little power above the band for
-   :data:`MIN_BINS` usable bins in either part (a seek reference, an excitation below
-   the band), the path falls back to ``H1`` and says so.  An open loop needs none.
+   :func:`measure`.  Where ``r`` has too little power in the band for
+   :data:`MIN_BINS` usable bins in either part, the path falls back to ``H1`` and says
+   so.  An open loop needs none.
+7. **A mode the rows named** is held against the response (:func:`support`): kept
+   where the response shows it, dropped where it contradicts it, and where the
+   response cannot resolve it, kept only below the rows' band edge.
 
 Cost: 0.4 s of a 1 000 000-sample diagnosis (two high-pass filters, the friction's
-force at full rate, the spectra of both parts).  ``docs/diagnosis.md`` section 6b.
+force at full rate, the spectra of both parts).  ``docs/verdict.md`` section 6b.
 """
 from __future__ import annotations
 
@@ -84,10 +88,6 @@ from servo.diagnose.terms import VOCABULARY
 #: a bin is usable where the coherence is at least this (the variance formula is first
 #: order; below ~0.5 the ratio of noisy spectra has heavier tails than it says)
 COH_MIN = 0.5
-#: ... and where the model's position power from the measured input is at least this
-#: many times the sensor noise's (below, the closed-loop bias margin, ``BIAS_FACTOR/SNR``,
-#: exceeds 67 %: nothing short of a large peak could count)
-SNR_MIN = 3.0
 #: a departure must be at least this share of the model's response, whatever the test
 #: says (an inertia 1 % off, or the closed-loop bias above, is not a mode)
 REL_MARGIN = 0.1
@@ -112,6 +112,10 @@ MIN_BINS = 8
 #: can carry into it from bins at least :data:`LEAK_FROM` away (:func:`excited`)
 LEAK_MARGIN = 10.0
 LEAK_FROM = 3
+#: the leakage of a slow drive's piece over a line's Hann side lobes, and its cap near
+#: the main lobe (a line's own side lobe 3 bins away is 6e-4 of it) (:func:`leakage`)
+LEAK_EXCESS = 1000.0
+LEAK_CAP = 1e-3
 #: bins of the running median that smooths the estimator's incoherent part into a noise
 #: level (:func:`noise_level`)
 NOISE_BINS = 9
@@ -219,7 +223,9 @@ class Result:
                 "nperseg": self.nperseg,
                 "resolution_hz": (float(self.train.f[1] - self.train.f[0]) if self.train is not None else None),
                 "train": part(self.train), "test": part(self.test),
-                "level": {"coherence_min": COH_MIN, "snr_min": SNR_MIN, "rel_margin": REL_MARGIN},
+                "rows_edge_hz": self.rows_edge_hz, "white_noise_psd": self.noise_psd,
+                "level": {"coherence_min": COH_MIN, "rel_margin": REL_MARGIN, "bias_factor": BIAS_FACTOR,
+                          "noise_factor": NOISE_FACTOR, "leak_margin": LEAK_MARGIN},
                 "test_departure_before": self.before, "test_departure_after": self.after,
                 "modes": [{"params": m.params, "std": m.std, "evidence": m.evidence} for m in self.modes],
                 "dropped": [{"params": m.params, "std": m.std, "evidence": m.evidence, "reason": m.reason}
@@ -443,29 +449,36 @@ def snr(resp: Response, Hm: np.ndarray, noise_psd: float) -> np.ndarray:
     return np.abs(Hm) ** 2 * resp.Puu / np.maximum(noise_level(resp, noise_psd), 1e-300)
 
 
-def leakage(P: np.ndarray) -> np.ndarray:
+def leakage(P: np.ndarray, need: np.ndarray | None = None) -> np.ndarray:
     """Per bin, the most that leakage can carry into it from the bins at least
-    :data:`LEAK_FROM` away, ``max_d max(P[k-d], P[k+d])*W(d)`` (k,), with ``W(d) =
-    (pi*m)^-2`` at ``m = d - 1/2``: the envelope of a window with a jump (a
-    rectangular one's), far above the Hann window's own side lobes (``(pi*m*(m^2 -
-    1))^-2``), because what a segment holds of a slow drive is not a line but its
-    filtered, detrended piece (the three slow sines of the tests leak into the bins at
-    4-10 x their frequency 15-60 x more than the Hann envelope says).  A drive's
-    leakage is coherent between the input and the position (the same piece in both): a
-    bin that holds little else reads the response at the drive's frequency, not its
-    own."""
+    :data:`LEAK_FROM` away, ``max_d max(P[k-d], P[k+d])*W(d)`` (k,), with ``W(d)`` the
+    Hann window's side-lobe envelope ``(pi*m*(m^2 - 1))^-2`` at ``m = d - 1/2`` (the
+    worst offset of a line within its bin) times :data:`LEAK_EXCESS`, at most
+    :data:`LEAK_CAP`: what a segment
+    holds of a slow drive is not a line but its filtered, detrended piece, which leaks
+    more (three slow sines leaked into the bins 4-10 away 15-60 x more than the
+    envelope, with its slope).  A drive's leakage is coherent between the input and the
+    position (the same piece in both): a bin that holds little else reads the response
+    at the drive's frequency, not its own (the slow sines: 50 coherent bins at 20-230 Hz
+    reading up to 1400 x the model's response).  A step's broadband content, real
+    excitation, falls as ``1/f^2``, far slower than this.
+
+    ``need`` (k,): stop once no bin's leakage can still reach its ``need`` (the caller
+    compares with it; the result is then exact only where it matters, at or beyond
+    ``need``, or where it was reached before the stop)."""
     P = np.nan_to_num(np.asarray(P, dtype=float))
     n = P.size
     out = np.zeros(n)
+    top = float(P.max()) if n else 0.0
     for d in range(LEAK_FROM, n):
         m = d - 0.5
-        w = 1.0 / (math.pi * m) ** 2
-        if w * P.max() <= 0.0:
-            break
+        w = min(LEAK_EXCESS / (math.pi * m * (m * m - 1.0)) ** 2, LEAK_CAP)
         out[d:] = np.maximum(out[d:], P[:-d] * w)
         out[:-d] = np.maximum(out[:-d], P[d:] * w)
-        if w < 1e-16:
-            break
+        if need is not None and d % 16 == 0:
+            open_ = out < need
+            if not open_.any() or w * top < need[open_].min():
+                break
     return out
 
 
@@ -475,7 +488,7 @@ def excited(resp: Response) -> np.ndarray:
     or a slow drive's bins between its lines are not."""
     if resp.own is None:
         P = np.nan_to_num(resp.Puu)
-        resp.own = P > LEAK_MARGIN * leakage(P)
+        resp.own = P > LEAK_MARGIN * leakage(P, P / LEAK_MARGIN)
     return resp.own
 
 
@@ -796,45 +809,75 @@ def run(design, fit, alpha: float, instrument: np.ndarray | None = None, fit_mod
 
 
 def support(design, fit, alpha: float, instrument: np.ndarray | None = None) -> list:
-    """Whether the recording's own frequency response shows each mode of ``fit`` (the
-    ``resonance`` terms the rows named): per mode ``(term_index, supported, evidence)``.
-    A mode is supported where the held-out part's response departs less from the model
-    with it than without it, by more than the chi-square bound of its three parameters
-    at ``alpha`` (the sum of ``z2`` over the usable bins, the smooth factor refitted for
-    each); a mode where the response has no usable bin, or which the response does not
-    show, is not (the rows alone cannot resolve a mode near or above their band edge,
-    nor tell it from a delay or a filter).  Empty when the path cannot compare
-    (``run``'s note says why) or ``fit`` has no mode."""
+    """Whether the recording's own frequency response supports each mode of ``fit``
+    (the ``resonance`` terms the rows named): per mode ``(term_index, kept, evidence)``.
+
+    * **shown**: the held-out part's departure (the sum of ``z2`` over the usable bins,
+      :func:`departure`) falls with the mode by more than the chi-square bound of its
+      three parameters at ``alpha``: kept;
+    * **contradicted**: the mode would stand out of the response in a usable bin within
+      2 bins of its frequency (its own response beyond the bias bound by the departure
+      test's bound) and the response does not show it: dropped;
+    * neither (the response cannot resolve it there): kept where the rows resolve it
+      (below their band edge), dropped above it, where the rows alone cannot tell a
+      mode from a delay or a filter.
+
+    Every mode gets the second and third rule's verdict when the path cannot compare
+    (``run``'s note says why).  Empty when ``fit`` has no mode."""
     idx = [i for i, t in enumerate(fit.model.terms) if t.physics == "resonance"]
     if not idx:
         return []
-    res = run(design, fit, alpha, instrument, fit_modes=False)
-    if not res.ran:
-        return [(i, False, {"reason": f"the frequency response could not test it: {res.note}"}) for i in idx]
     sig = design.sig
+    edge = band_hz(sig.settings, 1.0 / sig.dt)
+    full = Plant.of(fit)
+    res = run(design, fit, alpha, instrument, fit_modes=False)
+    out = []
+    if not res.ran:
+        for j, i in enumerate(idx):
+            hz = full.modes[j][0]
+            ev = {"rule": "not resolved", "band_hz": res.band_hz, "rows_edge_hz": float(edge)}
+            if hz >= edge:
+                ev["reason"] = (f"neither the rows (band edge {edge:.4g} Hz) nor the frequency response ({res.note}) "
+                                f"resolve a mode at {hz:.4g} Hz")  # fmt: skip
+            out.append((i, hz < edge, ev))
+        return out
     te = res.test
     df = float(te.f[1] - te.f[0])
     ker = kernel(res.nperseg)
-    full = Plant.of(fit)
     bound = float(stats.chi2.isf(alpha, 3))
-    out = []
+    H1 = model_response(full, te.f, sig.dt, df, ker)
+    d1 = departure(te, H1, res.usable_test, alpha, res.noise_psd)
     for j, i in enumerate(idx):
-        without = Plant(full.J, full.B, full.K, full.delay_s, [m for k, m in enumerate(full.modes) if k != j])
-        d1 = departure(te, model_response(full, te.f, sig.dt, df, ker), res.usable_test, alpha, res.noise_psd)
-        d0 = departure(te, model_response(without, te.f, sig.dt, df, ker), res.usable_test, alpha, res.noise_psd)
         hz = full.modes[j][0]
+        without = Plant(full.J, full.B, full.K, full.delay_s, [m for k, m in enumerate(full.modes) if k != j])
+        H0 = model_response(without, te.f, sig.dt, df, ker)
+        d0 = departure(te, H0, res.usable_test, alpha, res.noise_psd)
         near = res.usable_test & (np.abs(te.f - hz) <= 2 * df)
+        sd = deviation(te, H0, None)
+        own = np.maximum(np.abs(H1 - H0) - bias(te, H0, res.noise_psd) * np.abs(H0), 0.0) / np.maximum(sd, 1e-300)
+        visible = bool(np.any(near & (own**2 > d0["bound"]))) if d0["bound"] else False
+        gain = d0["sse"] - d1["sse"]
         ev = {"test": "held-out frequency response with and without the mode (sum of z2, chi-square bound of 3 "
                       "parameters)", "test_sse_without": d0["sse"], "test_sse_with": d1["sse"], "bound": bound,
-              "usable_bins_near": int(near.sum()), "band_hz": res.band_hz}  # fmt: skip
-        ok = bool(near.any() and d0["sse"] - d1["sse"] > bound)
-        if not ok:
-            ev["reason"] = (f"the recording's own frequency response does not show it: {int(near.sum())} usable bins "
-                            f"within 2 bins of {hz:.4g} Hz, held-out departure {d0['sse']:.4g} without it and "
-                            f"{d1['sse']:.4g} with it (it must fall by more than {bound:.3g})")  # fmt: skip
+              "usable_bins_near": int(near.sum()), "visible": visible, "band_hz": res.band_hz,
+              "rows_edge_hz": float(edge)}  # fmt: skip
+        if near.any() and gain > bound:
+            ev["rule"], ok = "shown", True
+        elif visible:
+            ev["rule"], ok = "contradicted", False
+            ev["reason"] = (f"the recording's own frequency response does not show it: it would stand out in "
+                            f"{int(near.sum())} usable bins within 2 bins of {hz:.4g} Hz, and the held-out departure "
+                            f"is {d0['sse']:.4g} without it, {d1['sse']:.4g} with it (it must fall by more than "
+                            f"{bound:.3g})")  # fmt: skip
+        else:
+            ev["rule"], ok = "not resolved", hz < edge
+            if not ok:
+                ev["reason"] = (f"neither the rows (band edge {edge:.4g} Hz) nor the frequency response ({int(near.sum())} "
+                                f"usable bins within 2 bins of {hz:.4g} Hz, departure {d0['sse']:.4g} without it and "
+                                f"{d1['sse']:.4g} with it) resolve it")  # fmt: skip
         out.append((i, ok, ev))
     return out
 
 
-__all__ = ["COH_MIN", "MAX_MODES", "MIN_BINS", "Mode", "Plant", "REL_MARGIN", "Response", "Result", "SNR_MIN",
+__all__ = ["COH_MIN", "MAX_MODES", "MIN_BINS", "Mode", "Plant", "REL_MARGIN", "Response", "Result",
            "choose_nperseg", "departure", "measure", "model_response", "run", "sliding_segments", "support"]
