@@ -64,7 +64,9 @@ def test_two_modes_the_second_at_3_khz_are_both_named_and_explained():
     modes = _named_modes(D)
     assert len(modes) == 2 and modes == [pytest.approx(1200.0, rel=0.005), pytest.approx(3000.0, rel=0.005)]
     deps = D.verdict["baseline_checks"]["frf"]["departures"]
-    assert [round(d["peak_hz"] / 100) for d in deps] == [12, 30]  # each departure located
+    peaks = [d["peak_hz"] for d in deps]  # each departure located, at a mode (a mode's flanks may split in two)
+    assert {round(p / 100) for p in peaks} >= {12, 30}
+    assert all(min(abs(p / 1200 - 1), abs(p / 3000 - 1)) < 0.15 for p in peaks), peaks
     assert not D.verdict["final_checks"]["frf"]["failed"]
     assert D.verdict["verdict"] == "explained", D.verdict["text"]
 

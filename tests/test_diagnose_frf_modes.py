@@ -155,11 +155,11 @@ def test_a_mode_above_the_rows_band_is_found_fitted_and_carried_to_the_final_mod
     rep = build_report(D, ["report.json"])
     json.dumps(rep, allow_nan=False)
     assert rep["final_model"]["drive"]["mode_hz"] == [pytest.approx(p["frequency_hz"])]
-    # the whole band with excitation: from 4 bins of the Welch grid to 0.49 fs, the rows' band within it
+    # the whole band with excitation: from an eighth of the rows' band edge to 0.49 fs
     assert rep["frf"]["band_hz"][0] < rep["rows"]["band_hz"][1] and rep["frf"]["band_hz"][1] == pytest.approx(2450.0)
     assert rep["findings"][-1]["evidence"]["test_sse_after"] < rep["findings"][-1]["evidence"]["test_sse_before"]
     text = format_summary(rep, "out")
-    assert "frequency response: at full rate, covers 19.53-2450 Hz" in text
+    assert "frequency response: at full rate, covers 25-2450 Hz" in text
     assert "(fitted on the frequency response)" in text
 
 
@@ -211,7 +211,7 @@ def test_no_input_power_above_the_band_is_said_not_guessed():
     assert not D.frf.ran and "the input has no power in the band of the frequency response" in D.frf.note, D.frf.note
     assert not D.verdict["final_checks"]["frf"]["failed"]
     text = format_summary(build_report(D, []), "out")
-    assert "frequency response: at full rate, covers 19.53-2450 Hz (the input has no power in the band" in text
+    assert "frequency response: at full rate, covers 25-2450 Hz (the input has no power in the band" in text
 
 
 @pytest.mark.slow
