@@ -106,6 +106,8 @@ NOISE_FACTOR = 2.0
 #: the white noise level is at most this quantile of the incoherent part over the
 #: usable bins (:func:`white_level`)
 NOISE_QUANTILE = 0.9
+#: ... over the bins where the measured response is within this share of the model's
+AGREE = 0.5
 #: fewer usable bins than this in the FRF band: no input power above the rows' band
 MIN_BINS = 8
 #: a bin's input power must be at least this many times what the window's side lobes
@@ -430,20 +432,27 @@ def noise_level(resp: Response, noise_psd: float) -> np.ndarray:
     return np.maximum(med, noise_psd)
 
 
-def white_level(noise_psd: float, resp: Response, use: np.ndarray) -> float:
+def white_level(noise_psd: float, resp: Response, use: np.ndarray, Hm: np.ndarray) -> float:
     """The white sensor-noise level the bias bound starts from: the rows' (``noise_psd``
     from ``sigma_x``), but at most the :data:`NOISE_QUANTILE` quantile of the training
-    part's incoherent part over its usable bins (:func:`noise_level`'s running median).
-    The incoherent part is the sensor noise where the input is the excitation, less
-    where it is fed-back noise, never more (for a white noise); a ``sigma_x`` that read
-    driven motion as noise (a broadband input drives the arm above the rows' filter:
-    100 x the true noise on an open-loop PRBS at 20 kHz) would otherwise hide every
-    departure behind the bias bound."""
-    if resp.Pnn is None or not use.any():
+    part's incoherent part (:func:`noise_level`'s running median) over its usable bins
+    where the measured response agrees with the model's within :data:`AGREE` (at least
+    :data:`MIN_BINS` of them).  There the input is the excitation and the incoherent
+    part is the sensor noise; where a loop's input is fed-back noise ``H1`` reads
+    ``-1/C``, far from the model, and the incoherent part falls below the noise (a
+    seek loop's and a quantised loop's high bins: without that rule the level fell and
+    they departed by 25-2000 x).  A ``sigma_x`` that read driven motion as noise (a
+    broadband input drives the arm above the rows' filter: 100 x the true noise on an
+    open-loop PRBS at 20 kHz) would otherwise hide every departure behind the bound."""
+    if resp.Pnn is None:
         return noise_psd
-    med = noise_level(resp, 0.0)[use]
+    with np.errstate(divide="ignore", invalid="ignore"):
+        agree = use & (np.abs(resp.H / Hm - 1.0) < AGREE)
+    if agree.sum() < MIN_BINS:
+        return noise_psd
+    med = noise_level(resp, 0.0)[agree]
     med = med[np.isfinite(med)]
-    if med.size == 0:
+    if med.size < MIN_BINS:
         return noise_psd
     return float(min(noise_psd, np.quantile(med, NOISE_QUANTILE)))
 
@@ -766,7 +775,7 @@ def run(design, fit, alpha: float, instrument: np.ndarray | None = None, fit_mod
             instrument = None
     if instrument is None:
         tr, te, use_tr, use_te = parts(None)
-    noise_psd = white_level(noise_psd, tr, use_tr)
+    noise_psd = white_level(noise_psd, tr, use_tr, Hm_tr)
     res.train, res.test, res.method = tr, te, tr.method
     res.before = public(departure(te, Hm_te, use_te, alpha, noise_psd))
     if use_tr.sum() < MIN_BINS or use_te.sum() < MIN_BINS:
