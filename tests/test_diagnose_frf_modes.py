@@ -58,9 +58,11 @@ def test_h1_of_an_exact_plant_matches_the_model_within_its_interval():
     band = (r.f > 800) & (r.f < 0.45 * FS)
     use = band & (r.coh > 0.5)
     assert use.sum() > 300
-    dep = fm.departure(r, Hm, use, 0.05, 2 * 2e-8**2 / FS)
+    dep = fm.departure(r, Hm, use, 0.05, None)  # the random error alone: a loop known open
     assert not dep["departs"]
     assert 1.5 < dep["sse"] / use.sum() < 2.6
+    # with the closed-loop bias bound (the recording does not say it is open) nothing departs either
+    assert not fm.departure(r, Hm, use, 0.05, 2 * 2e-8**2 / FS)["departs"]
 
 
 def test_a_mode_departs_and_is_fitted_to_its_parameters():
@@ -147,23 +149,24 @@ def test_a_mode_above_the_rows_band_is_found_fitted_and_carried_to_the_final_mod
     assert frf[0].after["frf_sse"] < frf[0].before["frf_sse"]
     assert D.verdict["verdict"] == "explained", D.verdict["text"]
     assert D.verdict["baseline_checks"]["frf"]["failed"] and not D.verdict["final_checks"]["frf"]["failed"]
-    assert "frequency response above the rows' band within its interval" in D.verdict["text"]
+    assert "the held-out frequency response within its interval" in D.verdict["text"]
     _, modes = drive_params(D.final_fit, D.design)  # the simulated drive steps the mode
     assert modes["hz"] == [pytest.approx(p["frequency_hz"])] and modes["gain"] == [pytest.approx(p["gain"])]
     rep = build_report(D, ["report.json"])
     json.dumps(rep, allow_nan=False)
     assert rep["final_model"]["drive"]["mode_hz"] == [pytest.approx(p["frequency_hz"])]
-    assert rep["frf"]["band_hz"][0] == pytest.approx(rep["rows"]["band_hz"][1])
+    # the whole band with excitation: from an eighth of the rows' band edge to 0.49 fs
+    assert rep["frf"]["band_hz"][0] < rep["rows"]["band_hz"][1] and rep["frf"]["band_hz"][1] == pytest.approx(2450.0)
     assert rep["findings"][-1]["evidence"]["test_sse_after"] < rep["findings"][-1]["evidence"]["test_sse_before"]
     text = format_summary(rep, "out")
-    assert "band above: the frequency response at full rate covers 200-2250 Hz" in text
+    assert "frequency response: at full rate, covers 25-2450 Hz" in text
     assert "(fitted on the frequency response)" in text
 
 
 def test_a_closed_loop_recording_with_its_excitation_uses_it_as_instrument():
     """The same loop as above, its injected excitation recorded as ``r``: the mode is
-    found on ``P_rx/P_ru`` and the summary says so; a loop whose excitation has no power
-    above the band falls back to H1 and says that."""
+    found on ``P_rx/P_ru`` and the summary says so; a recording whose ``r`` has no power
+    in the band falls back to H1 and says that."""
     rec, _ = recording(Case("mode_above_band", 0.03, "leadlag", "prbs", 5000.0), seed=11, excitation=True)
     assert rec.r is not None
     D = diagnose(rec)
@@ -175,9 +178,11 @@ def test_a_closed_loop_recording_with_its_excitation_uses_it_as_instrument():
     assert D.verdict["verdict"] == "explained", D.verdict["text"]
     text = format_summary(build_report(D, []), "out")
     assert "(P_rx/P_ru, the recording's r as instrument, " in text
-    rec, _ = recording(Case("null", 0.0, "pdi", "multisine", 5000.0), seed=12, excitation=True)
-    D = diagnose(rec)
-    assert D.frf.method == "H1" and "the recording's r has no power above the rows' band" in D.frf.note
+    from servo.io.recording import Recording
+
+    rec, _ = recording(Case("null", 0.0, "pdi", "multisine", 5000.0), seed=12)
+    D = diagnose(Recording(rec.t, rec.u, rec.x, None, source="an r with no power", r=np.zeros(rec.n)))
+    assert D.frf.method == "H1" and "the recording's r has no power in the band" in D.frf.note
     assert recording(Case("null", 0.0, "open", "chirp", 1000.0), seed=12, excitation=True)[0].r is None
 
 
@@ -193,7 +198,7 @@ def test_a_null_recording_gets_no_frequency_response_finding(controller, excitat
 
 def test_no_input_power_above_the_band_is_said_not_guessed():
     """An open-loop arm driven by three slow sines (exactly simulated, sensor noise): the
-    input has no power above the rows' band; the path says so, and its check does not
+    input has no power in the band of the frequency response; the path says so, and its check does not
     count."""
     from servo.io.recording import Recording
 
@@ -203,10 +208,10 @@ def test_no_input_power_above_the_band_is_said_not_guessed():
     bd, ad, _ = signal.cont2discrete(([1.0], [J, B, K]), 1 / fs, method="zoh")
     x = signal.lfilter(np.ravel(bd), ad, u) + 1e-7 * np.random.default_rng(0).standard_normal(n)
     D = diagnose(Recording(t, u, x, None, source="slow sines"))
-    assert not D.frf.ran and "no power above the rows' band" in D.frf.note, D.frf.note
+    assert not D.frf.ran and "the input has no power in the band of the frequency response" in D.frf.note, D.frf.note
     assert not D.verdict["final_checks"]["frf"]["failed"]
     text = format_summary(build_report(D, []), "out")
-    assert "band above: the frequency response at full rate covers 200-2250 Hz (the input has no power" in text
+    assert "frequency response: at full rate, covers 25-2450 Hz (the input has no power in the band" in text
 
 
 @pytest.mark.slow

@@ -118,6 +118,7 @@ class Finding:
     std: dict = field(default_factory=dict)
     prediction: Prediction | None = None  # quantisation: the baseline's output on the default path
     frf: dict | None = None  # a mode of the frequency-domain path: its evidence (:mod:`servo.diagnose.frf_modes`)
+    frf_support: dict | None = None  # a mode the rows named, held against the frequency response (_mode_support)
     breakaway: dict | None = None  # a breakaway from the intervals at rest: its evidence (:mod:`servo.diagnose.breakaway`)
 
     @property
@@ -505,6 +506,33 @@ def _breakaway(design: Design, fit: Fit, rounds: list, errs: list, nr: list, opt
     return None, (f, before, after)
 
 
+def _mode_support(design, base, findings, fits, errs, nr, preds, unconfirmed, note, test_rows, starts, H, alpha,
+                  instrument):  # fmt: skip
+    """The modes the rows named (``resonance`` findings of the selection), each held
+    against the recording's own frequency response (:func:`servo.diagnose.frf_modes.support`):
+    a mode the response does not show is dropped, listed under ``unconfirmed`` with the
+    reason, and the rest proven again without it.  Returns the proof's lists as
+    :func:`_prove` does, with the findings kept first."""
+    verdicts = {i: (ok, ev) for i, ok, ev in frf_modes.support(design, fits[-1], alpha, instrument)}
+    drop = []
+    for k, f in enumerate(findings):
+        i = len(fits[k + 1].model.terms) - 1
+        if f.physics == FRF and i in verdicts:
+            ok, ev = verdicts[i]
+            f.frf_support = ev
+            if not ok:
+                drop.append((f, ev, {"force_rel_pct": errs[k], "output_nrmse": nr[k]},
+                             {"force_rel_pct": errs[k + 1], "output_nrmse": nr[k + 1]}))  # fmt: skip
+    if not drop:
+        return findings, fits, errs, nr, preds, unconfirmed, note
+    kept = [f for f in findings if all(f is not d[0] for d in drop)]
+    fits, errs, nr, preds, more, note = _prove(design, base, kept, test_rows, starts, H)
+    for f, ev, before, after in drop:
+        f.frf = ev  # its evidence and the reason (the report's unconfirmed entry reads it)
+        unconfirmed.append((f, before, after))
+    return kept, fits, errs, nr, preds, unconfirmed + more, note
+
+
 def _frf_modes(design: Design, fits: list, errs: list, nr: list, preds: list, starts: np.ndarray, H: int,
                alpha: float, instrument: np.ndarray | None = None):  # fmt: skip
     """The frequency-domain path (:mod:`servo.diagnose.frf_modes`) on the final model of
@@ -543,8 +571,9 @@ def _frf_modes(design: Design, fits: list, errs: list, nr: list, preds: list, st
         f = Finding(term, None, alpha, fit.theta_std[k], before=before, after=after, params=fit.term_params(k),
                     std=fit.term_std(k), frf=ev)  # fmt: skip
         bw = res.band_hz
+        side = "above" if p["frequency_hz"] > res.rows_edge_hz else "within"
         f.where = {"frequency": {"peak_hz": p["frequency_hz"], "band_hz": bw},
-                   "text": f"a mode at {p['frequency_hz']:.4g} Hz, above the rows' band (found on the frequency response "
+                   "text": f"a mode at {p['frequency_hz']:.4g} Hz, {side} the rows' band (found on the frequency response "
                            f"at full rate, {bw[0]:.4g}-{bw[1]:.4g} Hz)"}  # fmt: skip
         fits.append(fit)
         errs.append(err)
@@ -616,6 +645,10 @@ def _diagnose(rec: Recording, opt: Options | None) -> Diagnosis:
         implausible.update({f.physics: f"the recording is out of scope: {why}" for f in findings})
         findings = []
         fits, errs, nr, preds, unconfirmed, note = _prove(design, base, findings, test_rows, starts_test, H)
+    if any(f.physics == FRF for f in findings):  # a mode the rows named needs the frequency response's support
+        findings, fits, errs, nr, preds, unconfirmed, note = _mode_support(design, base, findings, fits, errs, nr, preds,
+                                                                           unconfirmed, note, test_rows, starts_test,
+                                                                           H, opt.alpha, rec.r)  # fmt: skip
     if qfind is not None and not qfind.after.get("rows_differ"):  # named on these rows: errors unchanged by it
         qfind.before = {"force_rel_pct": errs[0], "output_nrmse": nr[0]}
         qfind.after = {**qfind.before, "rows_differ": False}

@@ -197,9 +197,11 @@ def plot_fits(D: Diagnosis, path: Path | None = None) -> Figure:
 
 
 def plot_frf(D: Diagnosis, path: Path | None = None) -> Figure | None:
-    """Above the rows' band (the frequency-domain path): the measured response of the
-    training and test parts against the model's without and with the modes it found,
-    and the coherence; None when that path did not compare."""
+    """The frequency evidence (the frequency-domain path, over the whole band with
+    excitation): the measured response of the training and test parts against the
+    model's without and with the modes it found, the bins the test used, the
+    departures it located (shaded) and the rows' band edge, and the coherence; None
+    when that path did not compare."""
     r = D.frf
     if r is None or not r.ran:
         return None
@@ -216,15 +218,20 @@ def plot_frf(D: Diagnosis, path: Path | None = None) -> Figure | None:
         ax[0].loglog(te.f[sel], np.abs(r.model_after[sel]), color="k", ls="--", label="model with the modes found")
     use = r.usable_test & sel
     ax[0].plot(te.f[use], np.abs(te.H[use]), ".", color="tab:green", ms=4, zorder=3, label="test bins used")
+    deps = (r.before or {}).get("departures") or []
     for a in ax:
-        a.axvspan(0.5 * lo, lo, color="0.9", label="rows' band" if a is ax[0] else None)
+        if r.rows_edge_hz:
+            a.axvline(r.rows_edge_hz, color="0.5", ls=":", label="rows' band edge" if a is ax[0] else None)
+        for k, d in enumerate(deps):
+            a.axvspan(d["band_hz"][0], d["band_hz"][1], color="tab:orange", alpha=0.25,
+                      label="departs (test part, model before)" if a is ax[0] and k == 0 else None)  # fmt: skip
         a.grid(alpha=0.3, which="both")
         a.legend(fontsize=8)
     ax[0].set_ylabel(f"|x/u| (m/{D.opt.force_unit})")
     ax[1].set_ylabel("coherence")
     ax[1].set_ylim(0, 1)
     ax[1].set_xlabel("frequency (Hz)")
-    ax[0].set_title(f"{_title(D)}\nabove the rows' band: the frequency response at full rate ({lo:.4g}-{hi:.4g} Hz)")
+    ax[0].set_title(f"{_title(D)}\nthe frequency response at full rate ({lo:.4g}-{hi:.4g} Hz) against the model's")
     return finish(fig, path)
 
 

@@ -249,10 +249,10 @@ def format_summary(report: dict, out: Path) -> str:
         what = (f"{how}, {fr['nperseg']}-sample Welch segments in which the arm slides, {fr['train']['segments']} "
                 f"training and {fr['test']['segments']} held out" + (f"; {fr['note']}" if fr["note"] else "")
                 if fr["ran"] else fr["note"])  # fmt: skip
-        lines.append(f"  band above: the frequency response at full rate covers {fr['band_hz'][0]:.4g}-"
+        lines.append(f"  frequency response: at full rate, covers {fr['band_hz'][0]:.4g}-"
                      f"{fr['band_hz'][1]:.4g} Hz ({what})")  # fmt: skip
     elif fr:
-        lines.append(f"  band above: the frequency response was not compared ({fr['note']})")
+        lines.append(f"  frequency response: not compared ({fr['note']})")
     s = report["settings"]
     what = f"terms {s['baseline']}" if s["baseline"] else f"model file {s['model']}"
     be = b["error"]

@@ -257,7 +257,7 @@ def add_frf(checks: dict, departure: dict | None, result) -> None:
     checks["frf"] = {"ran": ran, "band_hz": list(result.band_hz) if result is not None else [],
                      "bins": d.get("bins", 0), "flagged_hz": d.get("flagged_hz", []),
                      "flagged_bins": d.get("flagged_bins", 0), "worst_hz": d.get("worst_hz"),
-                     "worst_rel": d.get("worst_rel"), "failed": failed,
+                     "worst_rel": d.get("worst_rel"), "departures": d.get("departures", []), "failed": failed,
                      "note": "" if ran else (result.note if result is not None else "")}  # fmt: skip
     if failed:
         checks["failed"] = list(checks["failed"]) + ["frf"]
@@ -306,11 +306,23 @@ def where_text(checks: dict, force_unit: str = "F") -> str:
         parts.append(f"the simulated output is worse than coasting (NRMSE {checks['output']['nrmse']:.3g})")
     fr = checks.get("frf", {})
     if fr.get("failed"):
-        lo, hi = fr["flagged_hz"][0], fr["flagged_hz"][-1]
-        parts.append(f"above the rows' band: the held-out frequency response departs from the model's in "
-                     f"{fr['flagged_bins']} of {fr['bins']} bins at {lo:.4g}-{hi:.4g} Hz (by up to "
-                     f"{100 * fr['worst_rel']:.0f} % at {fr['worst_hz']:.4g} Hz)")  # fmt: skip
+        parts.append(frf_text(fr))
     return "; ".join(parts)
+
+
+def frf_text(fr: dict) -> str:
+    """The ``frf`` check's departures in words: each band where the held-out frequency
+    response departs from the model's where its coherence is high, and by how much."""
+    deps = fr.get("departures") or []
+    if not deps:
+        lo, hi = fr["flagged_hz"][0], fr["flagged_hz"][-1]
+        deps = [{"band_hz": [lo, hi], "peak_hz": fr["worst_hz"], "size": fr["worst_rel"], "coherence": None}]
+    where = "; ".join(f"{d['band_hz'][0]:.4g}-{d['band_hz'][1]:.4g} Hz by up to {100 * d['size']:.0f} % at "
+                      f"{d['peak_hz']:.4g} Hz" + (f" (coherence >= {d['coherence']:.2f})" if d.get("coherence") else "")
+                      for d in deps[:6])  # fmt: skip
+    more = f" and {len(deps) - 6} more" if len(deps) > 6 else ""
+    return (f"the held-out frequency response departs from the model's where its coherence is high, in "
+            f"{fr['flagged_bins']} of {fr['bins']} bins: {where}{more}")  # fmt: skip
 
 
 def _merge_spans(spans):
@@ -365,7 +377,7 @@ def decide(base: dict, final: dict, n_findings: int, scope: str, force_unit: str
                     "text": f"the rows were at their noise with the baseline ({b['ratio']:.3g} x the floor); what it "
                             f"left out shows at rest: the {', '.join(outside_rows)} named from the intervals at rest "
                             "and confirmed on intervals its fit did not use"}  # fmt: skip
-        above = (" and the held-out frequency response above the rows' band within its interval"
+        above = (" and the held-out frequency response within its interval"
                  if base.get("frf", {}).get("failed") else "")  # fmt: skip
         return {"verdict": "explained",
                 "text": f"the findings bring the held-out residual from {b['ratio']:.3g} to {lv['ratio']:.3g} x the noise "
