@@ -202,8 +202,10 @@ def decimate(z: np.ndarray, q: int, order: int = 8, ripple_db: float = 0.05) -> 
     if z.ndim == 1 and 0 < pad < z.size:
         from kernels.decimate import filtfilt_decimate
 
-        return filtfilt_decimate(cheby_sos(order, ripple_db, q), cheby_zi(order, ripple_db, q),
-                                 np.ascontiguousarray(z), pad, q)  # fmt: skip
+        out = np.empty(-(-z.size // q))
+        filtfilt_decimate(cheby_sos(order, ripple_db, q), cheby_zi(order, ripple_db, q), np.ascontiguousarray(z), pad,
+                          q, np.empty(z.size + 2 * pad), out)  # fmt: skip
+        return out
     zf = signal.sosfiltfilt(cheby_sos(order, ripple_db, q), z, padlen=pad)
     return np.array(zf[slice((z.size - 1) % q, z.size, q)], copy=True, order="C")
 
