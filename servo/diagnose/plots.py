@@ -99,14 +99,21 @@ def plot_state(D: Diagnosis, path: Path | None = None) -> Figure:
         ax.plot(x[every], rb[every], ".", ms=1.5, color="tab:red", alpha=0.25, rasterized=True)
         ax.plot(x[every], ra[every], ".", ms=1.5, color="k", alpha=0.15, rasterized=True)
         info = st[name]
+        red, black, xv = [], [], vals[v]  # the bins' means as two collections of segments, not a line each
         for b in info["bins"]:
             lo, hi = b["lo"], b["hi"]
             if name == "distance_since_reversal":
                 lo = max(lo, 1e-12)
-            sel = (vals[v] >= b["lo"]) & (vals[v] <= b["hi"])
-            ax.plot([lo, hi], [b["mean"] * k] * 2, color="tab:red", lw=2.5 if b["flagged"] else 1.2)
+            sel = (xv >= b["lo"]) & (xv <= b["hi"])
+            red.append((lo, hi, b["mean"] * k, 2.5 if b["flagged"] else 1.2))
             if sel.any():
-                ax.plot([lo, hi], [ra[sel].mean()] * 2, color="k", lw=1.2)
+                black.append((lo, hi, ra[sel].mean()))
+        if red:
+            lo, hi, y, lw = np.array(red).T
+            ax.hlines(y, lo, hi, color="tab:red", lw=lw, capstyle="projecting")
+        if black:
+            lo, hi, y = np.array(black).T
+            ax.hlines(y, lo, hi, color="k", lw=1.2, capstyle="projecting")
         lab = "residual x direction" if sign is not None else "residual"
         ax.set_xlabel(f"{name.replace('_', ' ')} ({u})")
         ax.set_ylabel(f"{lab} ({unit})")
