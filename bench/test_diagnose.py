@@ -36,13 +36,14 @@ s); the bound is 1.5x the worst.  (The code before the compiled screens and the 
 screen of 2026-11-23 measured 147.7-192.8 in the same sessions.)"""
 
 
-RATIO_COMMAND_MAX = 150.0
+RATIO_COMMAND_MAX = 160.0
 """Command (files and figures written) / reference: the issue's goal, 6 s on the idle
-2-core VM, is a ratio of 80-100 there (the reference took 0.060-0.076 s idle); measured
-72-99 on the machine shared with seven other sessions (load 9-30), where the figures'
-second process competes for a core.  The bound is 1.5x the worst measured, a little
-above the diagnosis's own bound: it fails when the figures cost as much again as the
-diagnosis (drawn serially from every sample, they took 26 % of the command before)."""
+2-core VM, is a ratio of 80-100 there (the reference took 60-76 ms idle).  Measured 73.5
+and 107.2 on the machine shared with seven other sessions (load 24-31, 2026-11-28),
+where the figures' second process competes for a core; the diagnosis alone read 66.9 and
+85.4 in the same runs.  The bound is 1.5x the worst: it fails when the figures cost as
+much again as the diagnosis (drawn one after the other from every sample, they took 26 %
+of the command before)."""
 
 
 @pytest.fixture(scope="module")
