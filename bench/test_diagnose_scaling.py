@@ -15,7 +15,9 @@ diagnosis holds BLAS to one thread, so its process time is one core's work; in w
 time, at load 21-33 on the 2 cores, a diagnosis of minutes against a reference of
 seconds read 1.12 with the code before and 1.19 after on 2026-11-28, against 0.95 at
 load 12-18; in CPU time 1.11 at load 16-24, where the diagnosis's system time a sample
-grew with the length and its user time did not); the exponent is
+grew with the length and its user time did not: glibc's fresh pages for every array
+above 32 MB, which the command's allocator setting, applied here too, avoids); the
+exponent is
 ``1 +`` the least-squares slope of ``log(seconds/reference)`` against ``log(samples)``.
 It must not exceed :data:`EXPONENT_MAX`.  Run with ``python -m pytest
 bench/test_diagnose_scaling.py -s``.  It took 3.5 min at load 12-18 on the 2 cores (the
@@ -34,6 +36,7 @@ from scipy import signal
 
 from servo.diagnose.concealed import Scenario, concealed_recording
 from servo.diagnose.job import diagnose
+from servo.io.allocator import keep_freed_memory
 from servo.io.recording import Recording
 
 SIZES = (100_000, 1_000_000, 3_000_000)
@@ -80,6 +83,7 @@ def test_exponent_of_a_linear_and_a_quadratic_cost():
 
 @pytest.mark.slow
 def test_diagnosis_is_linear_in_the_samples(recording, record):
+    keep_freed_memory()  # as servo diagnose does: large arrays reused, not faulted in afresh
     diagnose(_prefix(recording, 20_000))  # the first call's one-time costs (filter designs, kernels) out of the way
     seconds, reference = [], []
     for n in SIZES:
