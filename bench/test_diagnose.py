@@ -36,14 +36,13 @@ s); the bound is 1.5x the worst.  (The code before the compiled screens and the 
 screen of 2026-11-23 measured 147.7-192.8 in the same sessions.)"""
 
 
-RATIO_COMMAND_MAX = 160.0
+RATIO_COMMAND_MAX = 175.0
 """Command (files and figures written) / reference: the issue's goal, 6 s on the idle
-2-core VM, is a ratio of 80-100 there (the reference took 60-76 ms idle).  Measured 73.5
-and 107.2 on the machine shared with seven other sessions (load 24-31, 2026-11-28),
-where the figures' second process competes for a core; the diagnosis alone read 66.9 and
-85.4 in the same runs.  The bound is 1.5x the worst: it fails when the figures cost as
-much again as the diagnosis (drawn one after the other from every sample, they took 26 %
-of the command before)."""
+2-core VM, is a ratio of 80-100 there (the reference took 60-76 ms idle).  Measured on
+2026-11-28: 116.3 near idle (load 2, 8.1 s, the diagnosis alone 5.6 s at ratio 82.3 in
+the same run), 112.0 at load 5-8, 73.5 and 107.2 at load 24-31: the goal is not met.  The
+bound is 1.5x the worst: it fails when the figures cost as much again as the diagnosis
+(drawn one after the other from every sample, they took 26 % of the command before)."""
 
 
 @pytest.fixture(scope="module")
