@@ -10,13 +10,18 @@ allocation from its heap and keep up to ``keep_bytes`` of freed memory for reuse
 3e6 samples a diagnosis's system time fell from 4.4 s to 1.1 s with the same peak
 memory.
 
-It changes the whole process, so only a command calls it (``servo diagnose``), never an
-import or a library function.
+It changes the whole process, so only a command calls it (``servo diagnose``, for a
+recording of :data:`LARGE_SAMPLES` or more), never an import or a library function.
 """
 from __future__ import annotations
 
 import ctypes
 import sys
+
+#: recordings from this many samples up have ``servo diagnose`` call :func:`keep_freed_memory`
+#: (8 MB a full-rate column: below it glibc's own threshold already reuses the arrays, and a
+#: test process diagnosing small recordings in-process keeps its allocator as it was)
+LARGE_SAMPLES = 1_000_000
 
 #: glibc's ``mallopt`` parameters (``malloc.h``)
 M_TRIM_THRESHOLD = -1
@@ -38,4 +43,4 @@ def keep_freed_memory(keep_bytes: int = 1 << 30) -> bool:
     return mallopt(M_MMAP_MAX, 0) == 1 and mallopt(M_TRIM_THRESHOLD, int(min(keep_bytes, 2**31 - 1))) == 1
 
 
-__all__ = ["M_MMAP_MAX", "M_TRIM_THRESHOLD", "keep_freed_memory"]
+__all__ = ["LARGE_SAMPLES", "M_MMAP_MAX", "M_TRIM_THRESHOLD", "keep_freed_memory"]
