@@ -11,6 +11,11 @@ the same kind timed just before and just after it in the same run (zero-phase fi
 and decimation of the recording's columns, where the diagnosis spends most of its time).  A neighbour that slows the machine slows both.  The
 seconds are recorded (``bench/results/latest.json``) and, measured on a quiet machine,
 in ``bench/README.md``.  Run with ``python -m pytest bench/test_diagnose.py -s``.
+
+A second benchmark times what a user waits for after the interpreter has started: the
+command's own work, ``servo diagnose REC.npz --out DIR`` run in-process (the recording
+read, the diagnosis, the report, the four or five figures drawn beside it by a second
+process, the page), against the same reference.
 """
 import time
 
@@ -29,6 +34,15 @@ RATIO_MAX = 148.0
 work (load up to 9) and with one or two more busy cores (the diagnosis took 4.4-23.8
 s); the bound is 1.5x the worst.  (The code before the compiled screens and the delay
 screen of 2026-11-23 measured 147.7-192.8 in the same sessions.)"""
+
+
+RATIO_COMMAND_MAX = 175.0
+"""Command (files and figures written) / reference: the issue's goal, 6 s on the idle
+2-core VM, is a ratio of 80-100 there (the reference took 60-76 ms idle).  Measured on
+2026-11-28: 116.3 near idle (load 2, 8.1 s, the diagnosis alone 5.6 s at ratio 82.3 in
+the same run), 112.0 at load 5-8, 73.5 and 107.2 at load 24-31: the goal is not met.  The
+bound is 1.5x the worst: it fails when the figures cost as much again as the diagnosis
+(drawn one after the other from every sample, they took 26 % of the command before)."""
 
 
 @pytest.fixture(scope="module")
@@ -64,3 +78,31 @@ def test_diagnose_one_million_samples(benchmark, million, record):
     assert ratio < RATIO_MAX
     assert [f.physics for f in D.findings] == ["hysteresis"]
     assert np.isfinite(D.errors["test_output_nrmse"]["after"])
+
+
+def test_diagnose_command_with_plots(million, record, tmp_path):
+    """``servo diagnose REC.npz --out DIR`` in-process, every file written, over the reference."""
+    from servo.cli import build_parser
+
+    path = tmp_path / "million.npz"
+    np.savez(path, t=million.t, u=million.u, x=million.x)
+    out = tmp_path / "out"
+    argv = ["diagnose", str(path), "--out", str(out)]
+    args = build_parser().parse_args(argv)
+    args.argv = ["servo", *argv]
+    reference_s(million)  # warm
+    before = [reference_s(million) for _ in range(REPEATS)]
+    t0 = time.perf_counter()
+    assert args.handler(args) in (None, 0)
+    seconds = time.perf_counter() - t0
+    after = [reference_s(million) for _ in range(REPEATS)]
+    ref = float(np.median(before + after))
+    ratio = seconds / ref
+    figures = sorted(p.name for p in out.glob("*.png"))
+    record.check("diagnose_command_1M_samples", seconds=seconds, reference_s=ref, ratio=ratio,
+                 ratio_max=RATIO_COMMAND_MAX, samples=SAMPLES, figures=figures)  # fmt: skip
+    print(f"\nservo diagnose (in-process, {len(figures)} figures): {SAMPLES} samples in {seconds:.1f} s; reference "
+          f"{ref:.3f} s; ratio {ratio:.1f} (bound {RATIO_COMMAND_MAX:g})")  # fmt: skip
+    assert ratio < RATIO_COMMAND_MAX
+    assert {"residual_time.png", "residual_state.png", "residual_spectrum.png", "fits.png"} <= set(figures)
+    assert (out / "report.html").stat().st_size > 0 and (out / "report.json").is_file()

@@ -80,8 +80,14 @@ def recording_file(n: int, folder: Path) -> Path:
         import numpy as np
 
         from servo.diagnose.concealed import Scenario, concealed_recording
+        from servo.runtime import closedloop
 
-        rec, _ = concealed_recording("hysteresis", 2e-4, seed=1, scenario=Scenario(duration_s=n / 50_000))
+        cap = closedloop.MAX_MEMORY_ROWS  # an in-memory run's guard (8.4e6 ticks); 1e7 samples fit in memory here
+        closedloop.MAX_MEMORY_ROWS = max(cap, n)
+        try:
+            rec, _ = concealed_recording("hysteresis", 2e-4, seed=1, scenario=Scenario(duration_s=n / 50_000))
+        finally:
+            closedloop.MAX_MEMORY_ROWS = cap
         np.savez(path, t=rec.t, u=rec.u, x=rec.x)
     return path
 

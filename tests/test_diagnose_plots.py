@@ -48,3 +48,62 @@ def test_a_long_series_is_drawn_as_its_envelope():
     assert hi[7] == 9.0 and np.isnan(lo[50]) and np.isnan(hi[50])
     short_t, short_y = envelope(t[:1500], y[:1500], buckets=1000)
     assert np.array_equal(short_t, t[:1500]) and np.array_equal(short_y, y[:1500])  # short: every sample
+
+
+def _small_diagnosis():
+    rng = np.random.default_rng(4)
+    t = np.arange(6000) * 1e-3
+    x = 1e-3 * np.sin(2 * np.pi * 1.3 * t) + 3e-4 * np.sin(2 * np.pi * 4.1 * t)
+    v, a = np.gradient(x, t), np.gradient(np.gradient(x, t), t)
+    u = 0.5 * a + 2.0 * v + 0.3 * np.sign(v) + 1e-3 * rng.standard_normal(t.size)
+    return diagnose(Recording(t, u, x, source="synthetic"), Options(baseline="J,B"))
+
+
+def test_plots_are_drawn_by_two_processes_and_all_written(tmp_path):
+    """:class:`PlotWriter` forks a process that draws a share of the figures while the
+    caller goes on; after :meth:`finish` every figure is a complete PNG, the same files
+    as a serial run, and the other process has exited."""
+    from servo.diagnose.plots import PlotWriter, figure_files, write_plots
+
+    D = _small_diagnosis()
+    names = figure_files(D)
+    (tmp_path / "serial").mkdir()
+    (tmp_path / "par").mkdir()
+    serial = write_plots(D, tmp_path / "serial", parallel=False)
+    w = PlotWriter(D, tmp_path / "par")
+    proc = w.proc
+    assert proc is not None and proc.pid is not None  # Linux: a forked process draws its share
+    assert set(w.mine) < set(names)
+    assert w.finish() == names == serial
+    assert proc.exitcode == 0 and w.proc is None
+    for n in names:
+        for d in ("serial", "par"):
+            assert (tmp_path / d / n).read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    assert sorted(p.name for p in (tmp_path / "par").iterdir()) == sorted(names)  # no staging file left
+
+
+def test_a_figure_the_other_process_did_not_write_is_drawn_here(tmp_path, monkeypatch):
+    """If the forked process fails (here: it exits at once), the caller draws its
+    figures: the folder is complete either way."""
+    import os
+
+    from servo.diagnose import plots
+
+    D = _small_diagnosis()
+    monkeypatch.setattr(plots, "_child", lambda D, out, names: os._exit(1))
+    w = plots.PlotWriter(D, tmp_path)
+    proc = w.proc
+    assert w.finish() == plots.figure_files(D)
+    assert proc.exitcode == 1
+    assert all((tmp_path / n).stat().st_size > 0 for n in plots.figure_files(D))
+
+
+def test_the_share_balances_the_cost():
+    from servo.diagnose.plots import FIGURES, _share
+
+    names = [n for n, _, _ in FIGURES]
+    theirs, mine = _share(names)
+    cost = {n: c for n, _, c in FIGURES}
+    assert sorted(theirs + mine) == sorted(names) and theirs and mine
+    total = sum(cost.values())
+    assert abs(sum(cost[n] for n in theirs) - sum(cost[n] for n in mine)) <= max(cost.values()) < total / 2

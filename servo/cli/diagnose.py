@@ -84,8 +84,12 @@ def _diagnose(args: argparse.Namespace, stage) -> tuple[dict, Path]:
         raise ConfigError(f"--alpha {args.alpha!r}: expected a level between 0 and 0.5")
     if args.horizon is not None and not args.horizon > 0:
         raise ConfigError(f"--horizon {args.horizon!r}: expected a positive number of seconds")
+    from servo.io.allocator import LARGE_SAMPLES, keep_freed_memory
+
     stage("loading the recording")
     rec = recording_from_args(args)
+    if rec.n >= LARGE_SAMPLES:  # large arrays reused, not faulted in afresh: 3/4 of the system time at 3e6 samples
+        keep_freed_memory()
     rule, q = parse_decimate(args.decimate)
     settings = None if q is None else RobustSettings(cutoff_hz=args.cutoff_hz, decimate=q)
     opt = Options(baseline=args.baseline, model=args.model, test_fraction=args.test_fraction, blocks=args.blocks,
