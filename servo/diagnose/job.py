@@ -43,6 +43,7 @@ from servo.diagnose import partial
 from servo.diagnose import verdict as verdict_mod
 from servo.diagnose.fit import Fit, fit_model, force_error_pct
 from servo.diagnose.model import Design, Model, Term
+from servo.diagnose.scope import OutOfDomain, Unscoped
 from servo.diagnose.quantization import (MIN_FRACTION, SHARE_MIN, Lattice, candidate_paths, error_share,
                                          heldout_on_lattice, improvement_test, lattice_test, quantum_floor)
 from servo.diagnose.select import ALPHA, N_BLOCKS, Grams, Score, Selector, integrated_time, make_blocks
@@ -223,9 +224,9 @@ def check_memory(n: int, opt: Options) -> None:
 def check_recording(rec: Recording) -> None:
     """Refuse what no diagnosis can use, in one line."""
     if np.ptp(rec.x) == 0:
-        raise IdentificationError("nothing excited: the position x is constant, there is no motion to diagnose")
+        raise OutOfDomain("nothing excited: the position x is constant, there is no motion to diagnose")
     if np.ptp(rec.u) == 0:
-        raise IdentificationError("nothing excited: the input u is constant, there is no input to relate the motion to")
+        raise OutOfDomain("nothing excited: the input u is constant, there is no input to relate the motion to")
 
 
 def state_variables(sig: Signals, pu: str = "m") -> dict:
@@ -326,12 +327,12 @@ def prepare(rec: Recording, settings: RobustSettings, opt: Options) -> Design:
     n_test = int((~train & sig.valid).sum())
     short = n_train < MIN_ROWS_PER_BLOCK * opt.blocks or n_test < MIN_ROWS_PER_BLOCK
     if short and sig.valid.mean() >= 0.5:  # the rows are usable, there are just too few of them
-        raise IdentificationError(
+        raise OutOfDomain(
             f"recording too short to diagnose: {n_train} training and {n_test} test rows (decimation by "
             f"{settings.decimate}); need at least {MIN_ROWS_PER_BLOCK * opt.blocks} and {MIN_ROWS_PER_BLOCK}"
         )
     if sig.valid.mean() < 0.2 or short:
-        raise IdentificationError(
+        raise OutOfDomain(
             f"too few usable rows: {n_train} training and {n_test} test rows where the direction of motion is "
             f"known ({100 * sig.valid.mean():.0f} % of {m} rows; elsewhere the speed is within its noise, "
             f"{sig.v_threshold:.3g} m/s); record more motion or a longer recording"
@@ -569,14 +570,20 @@ def _frf_modes(design: Design, fits: list, errs: list, nr: list, preds: list, st
 BLAS_THREADS = 1
 
 
-def diagnose(rec: Recording, opt: Options | None = None) -> Diagnosis:
-    """Diagnose ``rec`` (see module doc).  Raises a one-line
-    :class:`~servo.errors.ServoError` for data that cannot be diagnosed.  BLAS runs on
-    :data:`BLAS_THREADS` threads meanwhile, as it did before once it returns.  The limit
-    is the process's: diagnoses run side by side in threads of one process would reset
-    each other's; the study and the fleet run them in worker processes."""
+def diagnose(rec: Recording, opt: Options | None = None) -> Diagnosis | Unscoped:
+    """Diagnose ``rec`` (see module doc).  A recording outside the domain (an output
+    that does not move, too few usable rows: :mod:`servo.diagnose.scope`) gets an
+    :class:`~servo.diagnose.scope.Unscoped` diagnosis, verdict ``out_of_scope`` with the
+    measured reason.  Raises a one-line :class:`~servo.errors.ServoError` for options or
+    a model that cannot be used.  BLAS runs on :data:`BLAS_THREADS` threads meanwhile, as
+    it did before once it returns.  The limit is the process's: diagnoses run side by
+    side in threads of one process would reset each other's; the study and the fleet run
+    them in worker processes."""
     with threadpool_limits(limits=BLAS_THREADS, user_api="blas"):
-        return _diagnose(rec, opt)
+        try:
+            return _diagnose(rec, opt)
+        except OutOfDomain as exc:
+            return Unscoped(rec, opt or Options(), str(exc))
 
 
 def _diagnose(rec: Recording, opt: Options | None) -> Diagnosis:
@@ -585,13 +592,13 @@ def _diagnose(rec: Recording, opt: Options | None) -> Diagnosis:
         raise IdentificationError(f"test fraction {opt.test_fraction:g} must lie between 0.05 and 0.5")
     if opt.blocks < 4:
         raise IdentificationError(f"at least 4 cross-validation blocks are needed, got {opt.blocks}")
-    check_recording(rec)
     held_out_s = rec.n * rec.dt * opt.test_fraction
     if opt.horizon_s is not None and not opt.horizon_s < held_out_s:  # (its samples are allocated per start)
         raise IdentificationError(f"horizon {opt.horizon_s:g} s is not shorter than the held-out part of the recording "
                                   f"({held_out_s:.3g} s): no simulated output of that length fits in it")  # fmt: skip
     check_memory(rec.n, opt)
     base = baseline_mod.from_file(opt.model) if opt.model else baseline_mod.from_terms(opt.baseline)
+    check_recording(rec)  # after the options and the model: those are refused whatever the data
     progress.stage("signals and the baseline fit")
     design0, band_note = choose_band(rec, opt, prepare)
     check_memory(rec.n, replace(opt, settings=design0.sig.settings))

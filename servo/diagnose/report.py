@@ -13,6 +13,7 @@ from servo.diagnose.band import band_hz
 from servo.diagnose.fit import Fit
 from servo.diagnose.job import Diagnosis, Finding
 from servo.diagnose.model import GATE
+from servo.diagnose.scope import Unscoped
 from servo.diagnose.terms import VOCABULARY
 from servo.errors import ConfigError
 from servo.physics import EFFECTS
@@ -109,7 +110,39 @@ def partial_note(fit: Fit) -> str:
             "switch); it describes the recording from that time on, the part the proof covers")  # fmt: skip
 
 
-def build_report(D: Diagnosis, files: list | None = None) -> dict:
+#: the held-out errors of a report, None where no model was fitted
+_NO_ERROR = {"train_force_rel_pct": None, "test_force_rel_pct": None, "test_output_nrmse": None}
+
+
+def unscoped_report(D: Unscoped, files: list | None = None) -> dict:
+    """``report.json`` of a recording outside the domain (:mod:`servo.diagnose.scope`):
+    the verdict ``out_of_scope`` and its reason, the recording and the settings, every
+    section of a diagnosis's report present and empty (no rows, no model)."""
+    rec, opt = D.rec, D.opt
+    report = {
+        "schema": SCHEMA, "verdict": D.verdict["verdict"], "verdict_text": D.reason,
+        "checks": {"baseline": None, "final_model": None},
+        "recording": {"source": rec.source, "samples": rec.n, "sample_rate_hz": rec.sample_rate_hz,
+                      "duration_s": float(rec.t[-1] - rec.t[0]), "force_unit": opt.force_unit,
+                      "position_unit": opt.position_unit, "position_max_m": float(np.max(np.abs(rec.x))),
+                      "position_span_m": float(np.ptp(rec.x)), "input_span": float(np.ptp(rec.u))},
+        "settings": {"baseline": None if opt.model else (opt.baseline or "J,B,Fc,K,h0"), "model": opt.model,
+                     "test_fraction": opt.test_fraction, "blocks": opt.blocks, "alpha": opt.alpha,
+                     "horizon_s": opt.horizon_s, "robust": asdict(opt.settings) if opt.settings is not None else None},
+        "rows": None,
+        "baseline": {"source": "model file" if opt.model else "terms", "terms": [], "error": dict(_NO_ERROR)},
+        "findings": [],
+        "final_model": {"terms": [], "drive": None, "drive_note": "no model was fitted: the recording is out of scope",
+                        "partial": "", "error": dict(_NO_ERROR)},
+        "unconfirmed": [], "frf": None, "not_testable": {}, "implausible": {}, "candidates": [], "locate": None,
+        "simulation_note": "", "files": sorted(files or []),
+    }  # fmt: skip
+    return _num(report)
+
+
+def build_report(D: Diagnosis | Unscoped, files: list | None = None) -> dict:
+    if isinstance(D, Unscoped):
+        return unscoped_report(D, files)
     fu, pu = D.opt.force_unit, D.opt.position_unit
     sig = D.sig
     rec = D.rec
@@ -235,6 +268,11 @@ def _change(f: dict) -> str:
 def format_summary(report: dict, out: Path) -> str:
     """The human summary: recording, baseline, one line per finding, final model."""
     rc, rows, b, fm = report["recording"], report["rows"], report["baseline"], report["final_model"]
+    if rows is None:  # out of scope before any row was made (:mod:`servo.diagnose.scope`)
+        return "\n".join([f"verdict: {report['verdict']}: {report['verdict_text']}",
+                          f"servo diagnose: {rc['source']} ({rc['samples']} samples at {rc['sample_rate_hz']:.6g} Hz, "
+                          f"{rc['duration_s']:.3g} s)", "  no rows and no model: nothing was fitted or named",
+                          f"  wrote {out}/: " + ", ".join(report["files"])])  # fmt: skip
     lines = [
         f"verdict: {report['verdict']}: {report['verdict_text']}",
         f"servo diagnose: {rc['source']} ({rc['samples']} samples at {rc['sample_rate_hz']:.6g} Hz, {rc['duration_s']:.3g} s"
@@ -298,4 +336,4 @@ def format_summary(report: dict, out: Path) -> str:
     return "\n".join(lines)
 
 
-__all__ = ["build_report", "drive_section", "format_summary", "partial_note", "write_drive_toml", "write_report"]
+__all__ = ["build_report", "unscoped_report", "drive_section", "format_summary", "partial_note", "write_drive_toml", "write_report"]
