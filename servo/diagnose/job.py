@@ -46,7 +46,8 @@ from servo.diagnose.model import Design, Model, Term
 from servo.diagnose.scope import OutOfDomain, Unscoped
 from servo.diagnose.quantization import (MIN_FRACTION, SHARE_MIN, Lattice, candidate_paths, error_share,
                                          heldout_on_lattice, improvement_test, lattice_test, quantum_floor)
-from servo.diagnose.select import ALPHA, N_BLOCKS, Grams, Score, Selector, integrated_time, make_blocks
+from servo.diagnose.select import (ALPHA, N_BLOCKS, Grams, Score, Selector, heldout_signflip, integrated_time,
+                                   make_blocks)
 from servo.diagnose.signals import Signals, distance_since_reversal, make_signals
 from servo.diagnose.simulate import Prediction, Unsimulable, horizon_samples, predict, starts_in
 from servo.diagnose.terms import VOCABULARY
@@ -120,6 +121,11 @@ class Finding:
     prediction: Prediction | None = None  # quantisation: the baseline's output on the default path
     frf: dict | None = None  # a mode of the frequency-domain path: its evidence (:mod:`servo.diagnose.frf_modes`)
     breakaway: dict | None = None  # a breakaway from the intervals at rest: its evidence (:mod:`servo.diagnose.breakaway`)
+    #: the held-out sign-flip test against the model without it (:func:`servo.diagnose.select.heldout_signflip`):
+    #: ``p`` its chance of being spurious, ``level`` the one it had to pass (None: the first finding)
+    heldout: dict | None = None
+    #: why the proof dropped it ("": it did not lower the held-out error)
+    why: str = ""
 
     @property
     def physics(self) -> str:
@@ -419,11 +425,17 @@ def _quantum_on_default_rows(design: Design, fit0: Fit, lat: Lattice, level: flo
     return q, design, lat, ""
 
 
-def _prove(design: Design, base: Model, findings: list, test_rows: np.ndarray, starts: np.ndarray, H: int):
+def _prove(design: Design, base: Model, findings: list, test_rows: np.ndarray, starts: np.ndarray, H: int,
+           alpha: float = ALPHA):  # fmt: skip
     """Sequential fits and held-out errors; drops findings that do not lower the test
     part's force error or that raise its simulated-output NRMSE by more than
-    :data:`OUTPUT_TOLERANCE`.  Returns fits, force errors, NRMSEs, predictions, the
-    unconfirmed findings and a note if the model cannot be simulated."""
+    :data:`OUTPUT_TOLERANCE`; a finding beside the first must also earn its place on
+    the test part with the earlier ones in the model (:func:`heldout_signflip` at
+    ``alpha`` over the findings beyond the first: one name per effect), and no finding
+    keeps parameters its physics refuses in the final model (``implausible``).  Each
+    kept finding carries its held-out ``p`` (``Finding.heldout``).  Returns fits, force
+    errors, NRMSEs, predictions, the unconfirmed findings and a note if the model cannot
+    be simulated."""
     unconfirmed = []
     while True:
         fits = _sequence(design, base, findings)
@@ -436,15 +448,31 @@ def _prove(design: Design, base: Model, findings: list, test_rows: np.ndarray, s
                 preds.append(None)
                 note = str(exc)
         nr = [p.nrmse() if p is not None else None for p in preds]
-        bad = None
+        cols = [f for f in findings if not f.sensor]  # fits[i + 1] adds cols[i]
+        level = alpha / max(len(cols) - 1, 1)
+        final = fits[-1]
+        bad, why = None, ""
         for i in range(1, len(fits)):
             worse_out = nr[i] is not None and nr[i - 1] is not None and nr[i] > nr[i - 1] * (1 + OUTPUT_TOLERANCE)
+            t, p, nb = heldout_signflip(fits[i - 1].residual, fits[i].residual, test_rows)
+            cols[i - 1].heldout = {"p": p, "t": t, "blocks": nb, "level": level if i > 1 else None}
+            unphysical = VOCABULARY[cols[i - 1].physics].implausible(final.term_params(len(base.terms) + i - 1))
             if not errs[i] < errs[i - 1] or worse_out:
                 bad = i
                 break
+            if i > 1 and not p <= level:
+                bad, why = i, (f"a further finding that did not earn its place on the held-out part with the earlier "
+                               f"ones in the model: its gain there has a {100 * p:.2g} % chance of being spurious "
+                               f"(sign-flip test over {nb} blocks, level {100 * level:.2g} %)")  # fmt: skip
+                break
+            if unphysical:
+                bad, why = i, f"unphysical in the final model: {unphysical}"
+                break
         if bad is None:
             return fits, errs, nr, preds, unconfirmed, note
-        f = findings.pop(bad - 1)
+        f = cols[bad - 1]
+        findings.remove(f)
+        f.why = why
         k = len(fits[bad].model.terms) - 1  # the dropped term, as fitted when it was tried
         f.params, f.std = fits[bad].term_params(k), fits[bad].term_std(k)
         unconfirmed.append((f, {"force_rel_pct": errs[bad - 1], "output_nrmse": nr[bad - 1]},
@@ -615,14 +643,14 @@ def _diagnose(rec: Recording, opt: Options | None) -> Diagnosis:
 
     progress.stage("held-out proof")
     starts_test = starts_in(design, ~design.train_rows, H)
-    fits, errs, nr, preds, unconfirmed, note = _prove(design, base, findings, test_rows, starts_test, H)
+    fits, errs, nr, preds, unconfirmed, note = _prove(design, base, findings, test_rows, starts_test, H, opt.alpha)
     if findings and _scope_of(design, fits[-1]):
         # a recording the force balance does not describe: its findings fit noise (an
         # unrelated position got several); none is named
         why = _scope_of(design, fits[-1])
         implausible.update({f.physics: f"the recording is out of scope: {why}" for f in findings})
         findings = []
-        fits, errs, nr, preds, unconfirmed, note = _prove(design, base, findings, test_rows, starts_test, H)
+        fits, errs, nr, preds, unconfirmed, note = _prove(design, base, findings, test_rows, starts_test, H, opt.alpha)
     if qfind is not None and not qfind.after.get("rows_differ"):  # named on these rows: errors unchanged by it
         qfind.before = {"force_rel_pct": errs[0], "output_nrmse": nr[0]}
         qfind.after = {**qfind.before, "rows_differ": False}
@@ -644,6 +672,12 @@ def _diagnose(rec: Recording, opt: Options | None) -> Diagnosis:
     progress.stage("locate tests and the verdict")  # on the baseline's held-out residual
     r_before = heldout_residual(design, base, blocks, test_rows)
     r_after = heldout_residual(design, final.model, blocks, test_rows)
+    follows = []  # terms whose course through the test part the verdict's residual fits there (a drift)
+    for t in final.model.terms:
+        phys = VOCABULARY[t.physics]
+        if phys.follows:
+            r_after = phys.followed(design, t.params, r_after, test_rows)
+            follows.append(f"{t.physics}: {phys.follows}")
     sel.set_noise(base)
     tau = sel.tau
     variables = state_variables(sig, opt.position_unit)
@@ -694,6 +728,8 @@ def _diagnose(rec: Recording, opt: Options | None) -> Diagnosis:
     verdict = verdict_mod.decide(base_checks, final_checks, len(findings), scope, opt.force_unit,
                                  tuple(f"breakaway ({f.physics}, proven on the {f.breakaway['proof']})" for f in findings
                                        if f.breakaway is not None), sensor)  # fmt: skip
+    if follows and verdict["verdict"] != "out_of_scope":
+        verdict["text"] += f" (the final model's held-out residual with {'; '.join(follows)})"
     verdict.update(baseline_checks=base_checks, final_checks=final_checks)
 
     base_err = {"force_rel_pct": errs[0], "output_nrmse": nr[0]}

@@ -78,10 +78,14 @@ def _evidence(f: Finding) -> dict:
 
 
 def finding_dict(f: Finding, fu: str, pu: str = "m") -> dict:
+    """A finding's entry; ``heldout`` its sign-flip test on the test part against the
+    model without it (``p``: its chance of being spurious; ``level`` the one a finding
+    beside the first had to pass, None for the first), None where the rows' proof does
+    not make it (a sensor's lattice, a breakaway, a mode of the frequency response)."""
     return {
         "physics": f.physics, "params": f.params, "std": f.std, "units": _units(f.physics, f.params, fu, pu),
         "where": f.where, "evidence": _evidence(f), "error_before": f.before, "error_after": f.after,
-        "note": VOCABULARY[f.physics].note(f.params),
+        "heldout": f.heldout, "note": VOCABULARY[f.physics].note(f.params),
     }  # fmt: skip
 
 
@@ -195,7 +199,7 @@ def build_report(D: Diagnosis | Unscoped, files: list | None = None) -> dict:
                         "error": {"train_force_rel_pct": D.errors["train_force_rel_pct"]["after"],
                                   "test_force_rel_pct": D.errors["test_force_rel_pct"]["after"],
                                   "test_output_nrmse": D.errors["test_output_nrmse"]["after"]}},
-        "unconfirmed": [{**finding_dict(f, fu, pu), "reason": (f.frf or f.breakaway or {}).get("reason") or
+        "unconfirmed": [{**finding_dict(f, fu, pu), "reason": (f.frf or f.breakaway or {}).get("reason") or f.why or
                          "did not lower the held-out error of the test part",
                          "test_error_before": a, "test_error_after": b} for f, a, b in D.unconfirmed],
         "frf": D.frf.summary() if D.frf is not None else None,
@@ -265,6 +269,15 @@ def _change(f: dict) -> str:
     return f"{_err(b)} -> {_err(a)}"
 
 
+def _spurious(f: dict) -> str:
+    """A finding's chance of being spurious on the held-out part, for its summary line."""
+    h = f.get("heldout")
+    if not h or not h.get("blocks"):
+        return ""
+    lv = f", level {100 * h['level']:.2g} %" if h.get("level") is not None else ""
+    return f"; chance of being spurious {100 * h['p']:.2g} % (held-out sign-flip test, {h['blocks']} blocks{lv})"
+
+
 def format_summary(report: dict, out: Path) -> str:
     """The human summary: recording, baseline, one line per finding, final model."""
     rc, rows, b, fm = report["recording"], report["rows"], report["baseline"], report["final_model"]
@@ -302,7 +315,7 @@ def format_summary(report: dict, out: Path) -> str:
         for i, f in enumerate(report["findings"], 1):
             note = f" [{f['note']}]" if f.get("note") else ""
             lines.append(f"    {i}. {f['physics']}: {_fmt_params(f['params'], f['units'], f['std'])}{note}; "
-                         f"where: {f['where'].get('text', '')}; {_change(f)}")  # fmt: skip
+                         f"where: {f['where'].get('text', '')}; {_change(f)}{_spurious(f)}")  # fmt: skip
     elif report["verdict"] == "consistent":
         lines.append(f"  no finding: the baseline explains these data to their noise "
                      f"(family-wise false-alarm level {100 * s['alpha']:.0f} %)")  # fmt: skip
@@ -317,7 +330,7 @@ def format_summary(report: dict, out: Path) -> str:
             continue
         lines.append(f"  not confirmed on the held-out part (dropped): {u['physics']}: "
                      f"{_fmt_params(u['params'], u['units'], u['std'])} ({_err(u['test_error_before'])} -> "
-                     f"{_err(u['test_error_after'])})")  # fmt: skip
+                     f"{_err(u['test_error_after'])}; {u['reason']})")  # fmt: skip
     for name, why in report["implausible"].items():
         lines.append(f"  not named: {name}: {why}")
     fe = fm["error"]

@@ -29,6 +29,7 @@ from servo.physics.base import Cancelling, Concealment, Effect, Term
 MODULES = (
     "inertia", "viscous", "coulomb", "stiffness", "offset", "asymmetric", "stribeck", "hysteresis", "resonance",
     "time_delay", "saturation", "position_gain", "cogging", "quantization", "sensor_lag", "stops", "noise",
+    "drift",
 )  # fmt: skip
 
 #: effect name -> its :class:`~servo.physics.base.Effect`
@@ -46,6 +47,7 @@ NAMES = (
     "inertia", "viscous_friction", "coulomb_friction", "stiffness", "offset", "asymmetric_friction",
     "stribeck_friction", "hysteresis", "resonance", "time_delay", "sensor_lag", "input_saturation",
     "position_dependent_gain", "cogging", "quantization",
+    "drift",
 )  # fmt: skip
 
 #: the baseline terms of eq. (3) and the vocabulary term each is
