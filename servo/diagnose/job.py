@@ -1,5 +1,8 @@
 """One diagnosis, from a recording to findings: baseline, locate, name, model and prove.
 
+A recording outside the domain (:mod:`servo.diagnose.scope`) stops at the first stage
+that measures it, with the verdict ``out_of_scope`` and its reason.
+
 1. **Baseline** (:mod:`servo.diagnose.baseline`): a term set fitted on the training
    part (the first ``1 - test_fraction`` of the rows) or a fixed model file.
 2. **Locate** (:mod:`servo.diagnose.locate`): the baseline's held-out residual, tested
@@ -15,6 +18,11 @@
    (:mod:`servo.diagnose.simulate`), before -> after.  A finding that does not lower the
    test part's force error, or raises its output NRMSE by more than 5 %, is not
    confirmed: it is dropped from the findings and the model and reported as such.
+   One name per effect: a finding beside the first must also pass the sign-flip test
+   of its gain on the test part (:func:`~servo.diagnose.select.heldout_signflip`, its
+   ``p`` reported as its chance of being spurious), no finding keeps unphysical
+   parameters in the final model, and where the baseline already passes every check
+   of the verdict a finding must remove :data:`MATERIAL` of the held-out residual.
    A quantised sensor is tested first, since its finding changes the rows everything
    else is computed on.
    A breakaway above the sliding friction (:mod:`servo.diagnose.breakaway`) is tested
