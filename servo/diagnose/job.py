@@ -725,7 +725,7 @@ def _diagnose(rec: Recording, opt: Options | None) -> Diagnosis:
         phys = VOCABULARY[t.physics]
         if phys.follows:
             r_after = phys.followed(design, t.params, r_after, test_rows)
-            follows.append(f"{t.physics}: {phys.follows}")
+            follows.append(phys.follows)
     sel.set_noise(base)
     tau = sel.tau
     y0 = design.target_raw(Model())
@@ -764,7 +764,7 @@ def _diagnose(rec: Recording, opt: Options | None) -> Diagnosis:
                                  tuple(f"breakaway ({f.physics}, proven on the {f.breakaway['proof']})" for f in findings
                                        if f.breakaway is not None), sensor)  # fmt: skip
     if follows and verdict["verdict"] != "out_of_scope":
-        verdict["text"] += f" (the final model's held-out residual with {'; '.join(follows)})"
+        verdict["text"] += f" (in the final model's held-out residual, {'; '.join(follows)})"
     verdict.update(baseline_checks=base_checks, final_checks=final_checks)
 
     base_err = {"force_rel_pct": errs[0], "output_nrmse": nr[0]}

@@ -95,7 +95,7 @@ class Drift(Term):
         hi = (t_end - t0) / (KNOTS + 1)
         return {"time_scale": (hi / SPAN_RANGE, hi, True)}
 
-    follows = "the drift's course through the test part fitted there (it cannot be forecast)"
+    follows = "the drift's course through the test part is fitted there, since a wander cannot be forecast"
 
     def followed(self, d, theta, r, rows):
         """The held-out residual ``r`` (m,) with the drift's course through the test
