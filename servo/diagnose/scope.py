@@ -58,5 +58,11 @@ class Unscoped:
     def __repr__(self) -> str:
         return "<Diagnosis " + "; ".join(self._lines()) + ">"
 
+    def _repr_html_(self) -> str:
+        """The summary lines as a report page's content (:mod:`servo.io.page`)."""
+        from servo.io.page import Page
+
+        return Page("Diagnosis", self._lines(), "bad").fragment()
+
 
 __all__ = ["OutOfDomain", "Unscoped", "VERDICT"]
