@@ -69,8 +69,21 @@ def hats(t: np.ndarray, t_end: float, time_scale: float) -> np.ndarray:
     ``t_end - time_scale`` (module doc)."""
     last = t_end - time_scale
     s = (np.minimum(t, last) - last) / time_scale + KNOTS  # knots at 1 .. KNOTS, 0 the drift's zero
-    k = np.arange(1, KNOTS + 1)
-    return np.clip(1.0 - np.abs(s[:, None] - k[None, :]), 0.0, None)
+    return _tents(s, np.arange(1, KNOTS + 1))
+
+
+def _tents(s: np.ndarray, knots: np.ndarray) -> np.ndarray:
+    """``max(0, 1 - |s - k|)`` for each knot ``k``, (n, len(knots)), built column by
+    column in place (a full-rate recording's temporaries of the whole block cost a
+    diagnosis its memory budget)."""
+    H = np.empty((s.size, knots.size))
+    for j, k in enumerate(knots):
+        col = H[:, j]
+        np.subtract(s, k, out=col)
+        np.abs(col, out=col)
+        np.subtract(1.0, col, out=col)
+        np.maximum(col, 0.0, out=col)
+    return H
 
 
 class Drift(Term):
@@ -84,6 +97,15 @@ class Drift(Term):
     def full(self, d, theta, u_eff):
         _, t_end = _span(d)
         return hats(d.sig.t, t_end, theta["time_scale"])
+
+    def rows(self, d, theta, u_eff):
+        """The exact rows (m, :data:`KNOTS`), one full-rate column at a time (the
+        default builds the (n, KNOTS) block first: 48 bytes a sample beyond the
+        diagnosis's memory estimate)."""
+        _, t_end = _span(d)
+        last = t_end - theta["time_scale"]
+        s = (np.minimum(d.sig.t, last) - last) / theta["time_scale"] + KNOTS
+        return np.column_stack([d.sig.rows(_tents(s, np.array([k]))[:, 0]) for k in range(1, KNOTS + 1)])
 
     def grid(self, d, model):
         t0, t_end = _span(d)
@@ -110,7 +132,7 @@ class Drift(Term):
         if not k.size or not rows.any():
             return r
         s = (np.maximum(t, last) - last) / tau
-        F = np.clip(1.0 - np.abs(s[:, None] - k[None, :]), 0.0, None)
+        F = _tents(s, k)
         F[:, -1] = np.clip(s - (k[-1] - 1), 0.0, 1.0)  # the last knot holds its level to the end
         Z = np.column_stack([d.sig.rows(np.ascontiguousarray(F[:, j])) for j in range(k.size)])
         c, *_ = np.linalg.lstsq(Z[rows], r[rows], rcond=None)
