@@ -1,10 +1,13 @@
 """The rows' band chosen from the recording: a decimation the reversals allow, the band
-stated, and a refusal that names its cause (issue 11.3)."""
+stated, and an out-of-scope verdict that names its cause (issue 11.3, issue 24.6)."""
+import re
+
 import numpy as np
 import pytest
 
-from servo.diagnose.band import band_hz
-from servo.diagnose.job import Options, diagnose
+from servo.diagnose.band import band_hz, choose
+from servo.diagnose.job import Options, diagnose, prepare
+from servo.diagnose.scope import OutOfDomain
 import studies.proving.integrate as ig
 from servo.identify.regressors import IdentificationError, RobustSettings
 from servo.io.recording import Recording
@@ -45,11 +48,19 @@ def test_reversals_close_in_samples_get_a_smaller_decimation_and_the_band_is_sta
     assert slow.band_note.startswith("decimation by 10: the motion reverses every 151 samples (median), 89 % of the rows")
 
 
-def test_a_refusal_names_its_cause():
-    with pytest.raises(IdentificationError, match=r"reverses \d+ times, every \d+ samples"):
-        diagnose(_recording(40.0), Options())  # a reversal every ~9 samples: no decimation helps
+def test_out_of_scope_names_its_cause():
+    """No decimation leaves rows to fit: the verdict ``out_of_scope`` says what was
+    measured (not a refusal: the data were read)."""
+    D = diagnose(_recording(40.0), Options())  # a reversal every ~9 samples: no decimation helps
+    assert D.verdict["verdict"] == "out_of_scope" and not D.findings
+    assert re.search(r"reverses \d+ times, every \d+ samples", D.verdict["text"]), D.verdict["text"]
     rng = np.random.default_rng(2)
     t = np.arange(20000) / FS
     at_rest = Recording(t, rng.standard_normal(t.size), 1e-9 * rng.standard_normal(t.size), None, source="at rest")
-    with pytest.raises(IdentificationError, match="barely moves"):
-        diagnose(at_rest, Options())
+    D = diagnose(at_rest, Options())
+    assert D.verdict["verdict"] == "out_of_scope" and "barely moves" in D.verdict["text"]
+    # the band's choice raises it as an error of the identification (a library caller
+    # that refuses still refuses in one line), which the diagnosis turns into the verdict
+    with pytest.raises(OutOfDomain, match="barely moves") as info:
+        choose(at_rest, Options(), prepare)
+    assert isinstance(info.value, IdentificationError)

@@ -91,12 +91,8 @@ def _csv(path, t, u, x):
         ("gap", [], "irregular sampling"),
         ("backwards", [], "time is not increasing"),
         ("missing", [], "has no column 'x'"),
-        ("constant_x", [], "the position x is constant"),
-        ("constant_u", [], "the input u is constant"),
-        ("short", [], "too short to diagnose"),
         ("tiny", [], "at least 20 needed"),
         ("one_way", [], "Fc is not identifiable: the velocity hardly ever reverses"),
-        ("stuck", [], "too few usable rows"),
         ("good", ["--baseline", "J,Q"], "unknown term 'Q'"),
         ("good", ["--model", "NOFILE.toml"], "no such file"),
         ("good", ["--model", "BADJSON"], "neither a servo config"),
@@ -144,6 +140,40 @@ def test_bad_input_is_one_line_and_writes_nothing(tmp_path, capsys, case, extra,
     assert err.count("\n") == 1 and err.startswith("servo: error:"), err
     assert needle in err, err
     assert not out.exists()
+
+
+@pytest.mark.parametrize(
+    "case,needle",
+    [
+        ("constant_x", "the position x is constant"),
+        ("constant_u", "the input u is constant"),
+        ("short", "too short to diagnose"),
+        ("stuck", "too few usable rows"),
+    ],
+)
+def test_readable_data_outside_the_domain_gets_out_of_scope_in_a_report(tmp_path, capsys, case, needle):
+    """Data that loads but that the force balance cannot be fitted to is a verdict with
+    its reason, in report.json and report.html, exit 0: not a refusal."""
+    t = np.arange(6000) * 1e-3
+    u = np.sin(2 * np.pi * 0.7 * t) + 0.1 * np.sin(2 * np.pi * 13 * t)
+    x = 1e-3 * np.sin(2 * np.pi * 0.7 * t - 1) + 1e-6 * np.sin(2 * np.pi * 13 * t)
+    if case == "constant_x":
+        x = np.full_like(t, 1e-3)
+    elif case == "constant_u":
+        u = np.zeros_like(t)
+    elif case == "short":
+        t, u, x = t[:800], u[:800], x[:800]
+    elif case == "stuck":
+        x = np.round(x * 1e3) * 1e-3  # 1 mm steps: the arm sits still almost everywhere
+    out = tmp_path / "o"
+    assert main(["diagnose", _csv(tmp_path / "rec.csv", t, u, x), "--out", str(out)]) == 0
+    text = capsys.readouterr().out
+    r = json.loads((out / "report.json").read_text())
+    assert r["verdict"] == "out_of_scope" and needle in r["verdict_text"], r["verdict_text"]
+    assert r["findings"] == [] and r["final_model"]["drive"] is None and r["rows"] is None
+    assert sorted(p.name for p in out.iterdir()) == ["report.html", "report.json"] == r["files"]
+    assert text.startswith(f"verdict: out_of_scope: {r['verdict_text']}")
+    assert "out_of_scope" in (out / "report.html").read_text()
 
 
 @pytest.mark.slow

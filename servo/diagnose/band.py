@@ -35,6 +35,7 @@ from dataclasses import replace
 import numpy as np
 
 from servo.diagnose import power_band
+from servo.diagnose.scope import OutOfDomain
 from servo.identify.regressors import IdentificationError, RobustSettings
 from servo.io.recording import Recording
 
@@ -191,7 +192,7 @@ def _refusal(rec: Recording, tried: list, last_exc, settings: RobustSettings | N
     fs = 1.0 / rec.dt
     msg = str(last_exc) if last_exc is not None else ""
     if "too few usable rows" not in msg:
-        return IdentificationError(msg)
+        return last_exc if isinstance(last_exc, IdentificationError) else IdentificationError(msg)
     try:
         sig = make_signals(rec, settings or settings_for(q, fs))
     except IdentificationError as exc:
@@ -199,13 +200,13 @@ def _refusal(rec: Recording, tried: list, last_exc, settings: RobustSettings | N
     slow = float(np.mean(np.abs(sig.vf) <= sig.v_threshold))
     n_rev, gap = reversals(sig)
     if slow >= 0.5:
-        return IdentificationError(
+        return OutOfDomain(
             f"too few usable rows: the speed is within its noise ({sig.v_threshold:.3g} m/s) in {100 * slow:.0f} % of "
             "the samples, where the direction of motion is unknown; the arm barely moves: record more motion")
     from servo.diagnose.signals import filter_reach
 
     reach = filter_reach(sig.settings)
-    return IdentificationError(
+    return OutOfDomain(
         f"too few usable rows: the motion reverses {n_rev} times, every {gap:.0f} samples (median), and the rows "
         f"within the decimation filter's reach of a reversal (+-{reach} samples at decimation by {q}, the least tried) "
         f"are unusable ({100 * sig.valid.mean():.0f} % of rows left); record at a higher sample rate (or with fewer "

@@ -1,5 +1,8 @@
 """One diagnosis, from a recording to findings: baseline, locate, name, model and prove.
 
+A recording outside the domain (:mod:`servo.diagnose.scope`) stops at the first stage
+that measures it, with the verdict ``out_of_scope`` and its reason.
+
 1. **Baseline** (:mod:`servo.diagnose.baseline`): a term set fitted on the training
    part (the first ``1 - test_fraction`` of the rows) or a fixed model file.
 2. **Locate** (:mod:`servo.diagnose.locate`): the baseline's held-out residual, tested
@@ -15,6 +18,11 @@
    (:mod:`servo.diagnose.simulate`), before -> after.  A finding that does not lower the
    test part's force error, or raises its output NRMSE by more than 5 %, is not
    confirmed: it is dropped from the findings and the model and reported as such.
+   One name per effect: a finding beside the first must also pass the sign-flip test
+   of its gain on the test part (:func:`~servo.diagnose.select.heldout_signflip`, its
+   ``p`` reported as its chance of being spurious), no finding keeps unphysical
+   parameters in the final model, and where the baseline already passes every check
+   of the verdict a finding must remove :data:`MATERIAL` of the held-out residual.
    A quantised sensor is tested first, since its finding changes the rows everything
    else is computed on.
    A breakaway above the sliding friction (:mod:`servo.diagnose.breakaway`) is tested
@@ -43,9 +51,11 @@ from servo.diagnose import partial
 from servo.diagnose import verdict as verdict_mod
 from servo.diagnose.fit import Fit, fit_model, force_error_pct
 from servo.diagnose.model import Design, Model, Term
+from servo.diagnose.scope import OutOfDomain, Unscoped
 from servo.diagnose.quantization import (MIN_FRACTION, SHARE_MIN, Lattice, candidate_paths, error_share,
                                          heldout_on_lattice, improvement_test, lattice_test, quantum_floor)
-from servo.diagnose.select import ALPHA, N_BLOCKS, Grams, Score, Selector, integrated_time, make_blocks
+from servo.diagnose.select import (ALPHA, N_BLOCKS, Grams, Score, Selector, heldout_signflip, integrated_time,
+                                   make_blocks)
 from servo.diagnose.signals import Signals, distance_since_reversal, make_signals
 from servo.diagnose.simulate import Prediction, Unsimulable, horizon_samples, predict, starts_in
 from servo.diagnose.terms import VOCABULARY
@@ -61,11 +71,16 @@ MIN_ROWS_PER_BLOCK = 20
 #: filtered motion, two effective inputs, the filters' temporaries, a second path's
 #: signals after a quantisation finding) and per row (the cached candidate columns and
 #: a chunk of screened variants); measured 310-340 B per sample in all at decimation by 10
-#: (``python -m studies.memprobe``), estimated with a margin
-BYTES_PER_SAMPLE = 160
+#: (``python -m studies.memprobe``), estimated with a margin; 176 since the drift term and
+#: the one-name checks came in (a 200 000-sample diagnosis peaked at 78.4 MB beside the
+#: recording, 2 MB over the former 160's estimate; which step adds it is not profiled)
+BYTES_PER_SAMPLE = 176
 BYTES_PER_ROW = 2400
 #: a finding may not raise the held-out output NRMSE by more than this fraction
 OUTPUT_TOLERANCE = 0.05
+#: on a baseline that passes every check of the verdict, a finding must remove at least
+#: this share of the held-out residual RMS (the proving ground's effect threshold)
+MATERIAL = 0.2
 #: the terms the stages beside the selection rounds name, each the effect's that
 #: registers the stage (:attr:`servo.physics.base.Effect.diagnosed_by`): the sensor's
 #: lattice test, the breakaway test at rest, the frequency response above the rows' band
@@ -120,6 +135,11 @@ class Finding:
     frf: dict | None = None  # a mode of the frequency-domain path: its evidence (:mod:`servo.diagnose.frf_modes`)
     frf_support: dict | None = None  # a mode the rows named, held against the frequency response (_mode_support)
     breakaway: dict | None = None  # a breakaway from the intervals at rest: its evidence (:mod:`servo.diagnose.breakaway`)
+    #: the held-out sign-flip test against the model without it (:func:`servo.diagnose.select.heldout_signflip`):
+    #: ``p`` its chance of being spurious, ``level`` the one it had to pass (None: the first finding)
+    heldout: dict | None = None
+    #: why the proof dropped it ("": it did not lower the held-out error)
+    why: str = ""
 
     @property
     def physics(self) -> str:
@@ -224,9 +244,9 @@ def check_memory(n: int, opt: Options) -> None:
 def check_recording(rec: Recording) -> None:
     """Refuse what no diagnosis can use, in one line."""
     if np.ptp(rec.x) == 0:
-        raise IdentificationError("nothing excited: the position x is constant, there is no motion to diagnose")
+        raise OutOfDomain("nothing excited: the position x is constant, there is no motion to diagnose")
     if np.ptp(rec.u) == 0:
-        raise IdentificationError("nothing excited: the input u is constant, there is no input to relate the motion to")
+        raise OutOfDomain("nothing excited: the input u is constant, there is no input to relate the motion to")
 
 
 def state_variables(sig: Signals, pu: str = "m") -> dict:
@@ -327,12 +347,12 @@ def prepare(rec: Recording, settings: RobustSettings, opt: Options) -> Design:
     n_test = int((~train & sig.valid).sum())
     short = n_train < MIN_ROWS_PER_BLOCK * opt.blocks or n_test < MIN_ROWS_PER_BLOCK
     if short and sig.valid.mean() >= 0.5:  # the rows are usable, there are just too few of them
-        raise IdentificationError(
+        raise OutOfDomain(
             f"recording too short to diagnose: {n_train} training and {n_test} test rows (decimation by "
             f"{settings.decimate}); need at least {MIN_ROWS_PER_BLOCK * opt.blocks} and {MIN_ROWS_PER_BLOCK}"
         )
     if sig.valid.mean() < 0.2 or short:
-        raise IdentificationError(
+        raise OutOfDomain(
             f"too few usable rows: {n_train} training and {n_test} test rows where the direction of motion is "
             f"known ({100 * sig.valid.mean():.0f} % of {m} rows; elsewhere the speed is within its noise, "
             f"{sig.v_threshold:.3g} m/s); record more motion or a longer recording"
@@ -419,11 +439,23 @@ def _quantum_on_default_rows(design: Design, fit0: Fit, lat: Lattice, level: flo
     return q, design, lat, ""
 
 
-def _prove(design: Design, base: Model, findings: list, test_rows: np.ndarray, starts: np.ndarray, H: int):
+def _gain(r0: np.ndarray, r1: np.ndarray, rows: np.ndarray) -> float:
+    """The share of the held-out residual RMS on ``rows`` a term removes: ``1 -
+    rms(r1)/rms(r0)`` (negative when it adds)."""
+    return float(1.0 - np.linalg.norm(r1[rows]) / max(np.linalg.norm(r0[rows]), 1e-300))
+
+
+def _prove(design: Design, base: Model, findings: list, test_rows: np.ndarray, starts: np.ndarray, H: int,
+           alpha: float = ALPHA):  # fmt: skip
     """Sequential fits and held-out errors; drops findings that do not lower the test
     part's force error or that raise its simulated-output NRMSE by more than
-    :data:`OUTPUT_TOLERANCE`.  Returns fits, force errors, NRMSEs, predictions, the
-    unconfirmed findings and a note if the model cannot be simulated."""
+    :data:`OUTPUT_TOLERANCE`; a finding beside the first must also earn its place on
+    the test part with the earlier ones in the model (:func:`heldout_signflip` at
+    ``alpha`` over the findings beyond the first: one name per effect), and no finding
+    keeps parameters its physics refuses in the final model (``implausible``).  Each
+    kept finding carries its held-out ``p`` (``Finding.heldout``).  Returns fits, force
+    errors, NRMSEs, predictions, the unconfirmed findings and a note if the model cannot
+    be simulated."""
     unconfirmed = []
     while True:
         fits = _sequence(design, base, findings)
@@ -436,15 +468,31 @@ def _prove(design: Design, base: Model, findings: list, test_rows: np.ndarray, s
                 preds.append(None)
                 note = str(exc)
         nr = [p.nrmse() if p is not None else None for p in preds]
-        bad = None
+        cols = [f for f in findings if not f.sensor]  # fits[i + 1] adds cols[i]
+        level = alpha / max(len(cols) - 1, 1)
+        final = fits[-1]
+        bad, why = None, ""
         for i in range(1, len(fits)):
             worse_out = nr[i] is not None and nr[i - 1] is not None and nr[i] > nr[i - 1] * (1 + OUTPUT_TOLERANCE)
+            t, p, nb = heldout_signflip(fits[i - 1].residual, fits[i].residual, test_rows)
+            cols[i - 1].heldout = {"p": p, "t": t, "blocks": nb, "level": level if i > 1 else None}
+            unphysical = VOCABULARY[cols[i - 1].physics].implausible(final.term_params(len(base.terms) + i - 1))
             if not errs[i] < errs[i - 1] or worse_out:
                 bad = i
                 break
+            if i > 1 and not p <= level:
+                bad, why = i, (f"a further finding that did not earn its place on the held-out part with the earlier "
+                               f"ones in the model: its gain there has a {100 * p:.2g} % chance of being spurious "
+                               f"(sign-flip test over {nb} blocks, level {100 * level:.2g} %)")  # fmt: skip
+                break
+            if unphysical:
+                bad, why = i, f"unphysical in the final model: {unphysical}"
+                break
         if bad is None:
             return fits, errs, nr, preds, unconfirmed, note
-        f = findings.pop(bad - 1)
+        f = cols[bad - 1]
+        findings.remove(f)
+        f.why = why
         k = len(fits[bad].model.terms) - 1  # the dropped term, as fitted when it was tried
         f.params, f.std = fits[bad].term_params(k), fits[bad].term_std(k)
         unconfirmed.append((f, {"force_rel_pct": errs[bad - 1], "output_nrmse": nr[bad - 1]},
@@ -526,7 +574,7 @@ def _mode_support(design, base, findings, fits, errs, nr, preds, unconfirmed, no
     if not drop:
         return findings, fits, errs, nr, preds, unconfirmed, note
     kept = [f for f in findings if all(f is not d[0] for d in drop)]
-    fits, errs, nr, preds, more, note = _prove(design, base, kept, test_rows, starts, H)
+    fits, errs, nr, preds, more, note = _prove(design, base, kept, test_rows, starts, H, alpha)
     for f, ev, before, after in drop:
         f.frf = ev  # its evidence and the reason (the report's unconfirmed entry reads it)
         unconfirmed.append((f, before, after))
@@ -598,14 +646,20 @@ def _frf_modes(design: Design, fits: list, errs: list, nr: list, preds: list, st
 BLAS_THREADS = 1
 
 
-def diagnose(rec: Recording, opt: Options | None = None) -> Diagnosis:
-    """Diagnose ``rec`` (see module doc).  Raises a one-line
-    :class:`~servo.errors.ServoError` for data that cannot be diagnosed.  BLAS runs on
-    :data:`BLAS_THREADS` threads meanwhile, as it did before once it returns.  The limit
-    is the process's: diagnoses run side by side in threads of one process would reset
-    each other's; the study and the fleet run them in worker processes."""
+def diagnose(rec: Recording, opt: Options | None = None) -> Diagnosis | Unscoped:
+    """Diagnose ``rec`` (see module doc).  A recording outside the domain (an output
+    that does not move, too few usable rows: :mod:`servo.diagnose.scope`) gets an
+    :class:`~servo.diagnose.scope.Unscoped` diagnosis, verdict ``out_of_scope`` with the
+    measured reason.  Raises a one-line :class:`~servo.errors.ServoError` for options or
+    a model that cannot be used.  BLAS runs on :data:`BLAS_THREADS` threads meanwhile, as
+    it did before once it returns.  The limit is the process's: diagnoses run side by
+    side in threads of one process would reset each other's; the study and the fleet run
+    them in worker processes."""
     with threadpool_limits(limits=BLAS_THREADS, user_api="blas"):
-        return _diagnose(rec, opt)
+        try:
+            return _diagnose(rec, opt)
+        except OutOfDomain as exc:
+            return Unscoped(rec, opt or Options(), str(exc))
 
 
 def _diagnose(rec: Recording, opt: Options | None) -> Diagnosis:
@@ -614,13 +668,13 @@ def _diagnose(rec: Recording, opt: Options | None) -> Diagnosis:
         raise IdentificationError(f"test fraction {opt.test_fraction:g} must lie between 0.05 and 0.5")
     if opt.blocks < 4:
         raise IdentificationError(f"at least 4 cross-validation blocks are needed, got {opt.blocks}")
-    check_recording(rec)
     held_out_s = rec.n * rec.dt * opt.test_fraction
     if opt.horizon_s is not None and not opt.horizon_s < held_out_s:  # (its samples are allocated per start)
         raise IdentificationError(f"horizon {opt.horizon_s:g} s is not shorter than the held-out part of the recording "
                                   f"({held_out_s:.3g} s): no simulated output of that length fits in it")  # fmt: skip
     check_memory(rec.n, opt)
     base = baseline_mod.from_file(opt.model) if opt.model else baseline_mod.from_terms(opt.baseline)
+    check_recording(rec)  # after the options and the model: those are refused whatever the data
     progress.stage("signals and the baseline fit")
     design0, band_note = choose_band(rec, opt, prepare)
     check_memory(rec.n, replace(opt, settings=design0.sig.settings))
@@ -637,18 +691,49 @@ def _diagnose(rec: Recording, opt: Options | None) -> Diagnosis:
 
     progress.stage("held-out proof")
     starts_test = starts_in(design, ~design.train_rows, H)
-    fits, errs, nr, preds, unconfirmed, note = _prove(design, base, findings, test_rows, starts_test, H)
+    fits, errs, nr, preds, unconfirmed, note = _prove(design, base, findings, test_rows, starts_test, H, opt.alpha)
     if findings and _scope_of(design, fits[-1]):
         # a recording the force balance does not describe: its findings fit noise (an
         # unrelated position got several); none is named
         why = _scope_of(design, fits[-1])
         implausible.update({f.physics: f"the recording is out of scope: {why}" for f in findings})
         findings = []
-        fits, errs, nr, preds, unconfirmed, note = _prove(design, base, findings, test_rows, starts_test, H)
+        fits, errs, nr, preds, unconfirmed, note = _prove(design, base, findings, test_rows, starts_test, H, opt.alpha)
     if any(f.physics == FRF for f in findings):  # a mode the rows named needs the frequency response's support
         findings, fits, errs, nr, preds, unconfirmed, note = _mode_support(design, base, findings, fits, errs, nr, preds,
                                                                            unconfirmed, note, test_rows, starts_test,
                                                                            H, opt.alpha, rec.r)  # fmt: skip
+    variables = state_variables(sig, opt.position_unit)
+    # a named quantum is sensor noise too: q^2/12 wherever the arm moves across steps
+    # (the rows' estimate misses it where the arm rests on one step most of the time)
+    noise_x = max(sig.noise_x, qfind.params["step"] / math.sqrt(12.0)) if qfind is not None else None
+
+    def checks(fit, r, nrmse):
+        w = design.train_valid
+        first, last = np.flatnonzero(w)[[0, -1]]
+        tau_r = integrated_time(np.where(w, r, 0.0)[first : last + 1])
+        J = fit.mass()
+        return verdict_mod.assess(design, r, J, tau_r, variables, opt.alpha, nrmse, noise_x,
+                                  verdict_mod.estimation_error(design, fit))  # fmt: skip
+
+    if findings and not checks(fits[0], heldout_residual(design, base, blocks, test_rows), nr[0])["failed"]:
+        # the baseline explains the recording to its noise: a term is named only where it
+        # removes a material share of the held-out residual (a 9 % gain from a delay on
+        # a seek null was read as physics); the others are listed with their gain
+        small = []
+        for i, f in enumerate(findings):
+            g = _gain(fits[i].residual, fits[i + 1].residual, test_rows)
+            if g < MATERIAL:
+                k = len(fits[i + 1].model.terms) - 1
+                f.params, f.std = fits[i + 1].term_params(k), fits[i + 1].term_std(k)
+                f.why = (f"the baseline already explains the recording to its noise (every check passed); this term "
+                         f"removes {100 * g:.0f} % of the held-out residual RMS, less than {100 * MATERIAL:.0f} %")  # fmt: skip
+                small.append((f, {"force_rel_pct": errs[i], "output_nrmse": nr[i]},
+                              {"force_rel_pct": errs[i + 1], "output_nrmse": nr[i + 1]}))  # fmt: skip
+        if small:
+            findings = [f for f in findings if f not in [e[0] for e in small]]
+            fits, errs, nr, preds, dropped, note = _prove(design, base, findings, test_rows, starts_test, H, opt.alpha)
+            unconfirmed = unconfirmed + dropped + small
     if qfind is not None and not qfind.after.get("rows_differ"):  # named on these rows: errors unchanged by it
         qfind.before = {"force_rel_pct": errs[0], "output_nrmse": nr[0]}
         qfind.after = {**qfind.before, "rows_differ": False}
@@ -670,9 +755,14 @@ def _diagnose(rec: Recording, opt: Options | None) -> Diagnosis:
     progress.stage("locate tests and the verdict")  # on the baseline's held-out residual
     r_before = heldout_residual(design, base, blocks, test_rows)
     r_after = heldout_residual(design, final.model, blocks, test_rows)
+    follows = []  # terms whose course through the test part the verdict's residual fits there (a drift)
+    for t in final.model.terms:
+        phys = VOCABULARY[t.physics]
+        if phys.follows:
+            r_after = phys.followed(design, t.params, r_after, test_rows)
+            follows.append(phys.follows)
     sel.set_noise(base)
     tau = sel.tau
-    variables = state_variables(sig, opt.position_unit)
     y0 = design.target_raw(Model())
     r0 = np.where(sig.valid, r_before, 0.0)
     fs = 1.0 / sig.row_dt
@@ -695,18 +785,6 @@ def _diagnose(rec: Recording, opt: Options | None) -> Diagnosis:
     if bfind is not None:  # not a column of the rows: after the findings it does not change
         findings.append(bfind)
 
-    # a named quantum is sensor noise too: q^2/12 wherever the arm moves across steps
-    # (the rows' estimate misses it where the arm rests on one step most of the time)
-    noise_x = max(sig.noise_x, qfind.params["step"] / math.sqrt(12.0)) if qfind is not None else None
-
-    def checks(fit, r, nrmse):
-        w = design.train_valid
-        first, last = np.flatnonzero(w)[[0, -1]]
-        tau_r = integrated_time(np.where(w, r, 0.0)[first : last + 1])
-        J = fit.mass()
-        return verdict_mod.assess(design, r, J, tau_r, variables, opt.alpha, nrmse, noise_x,
-                                  verdict_mod.estimation_error(design, fit))  # fmt: skip
-
     base_checks, final_checks = checks(fits[0], r_before, nr[0]), checks(final, r_after, nr[-1])
     verdict_mod.add_frf(base_checks, frf.before, frf)
     verdict_mod.add_frf(final_checks, frf.after, frf)
@@ -720,6 +798,8 @@ def _diagnose(rec: Recording, opt: Options | None) -> Diagnosis:
     verdict = verdict_mod.decide(base_checks, final_checks, len(findings), scope, opt.force_unit,
                                  tuple(f"breakaway ({f.physics}, proven on the {f.breakaway['proof']})" for f in findings
                                        if f.breakaway is not None), sensor)  # fmt: skip
+    if follows and verdict["verdict"] != "out_of_scope":
+        verdict["text"] += f" (in the final model's held-out residual, {'; '.join(follows)})"
     verdict.update(baseline_checks=base_checks, final_checks=final_checks)
 
     base_err = {"force_rel_pct": errs[0], "output_nrmse": nr[0]}

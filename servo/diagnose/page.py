@@ -17,6 +17,13 @@ def page(report: dict, folder: str | Path | None = None) -> Page:
     """The page of a diagnosis's ``report`` (:func:`servo.diagnose.report.build_report`);
     the plots are read from ``folder`` when given."""
     rc, rows, b, fm = report["recording"], report["rows"], report["baseline"], report["final_model"]
+    if rows is None:  # out of scope before any row was made (:mod:`servo.diagnose.scope`)
+        rec = Table([["source", rc["source"]], ["samples", rc["samples"]], ["sample rate (Hz)", rc["sample_rate_hz"]],
+                     ["duration (s)", rc["duration_s"]], ["position span", rc.get("position_span_m")],
+                     ["input span", rc.get("input_span")]])  # fmt: skip
+        return Page("servo diagnose", [f"verdict: {report['verdict']}: {report['verdict_text']}",
+                                       "no rows and no model: nothing was fitted or named"],
+                    PAGE_STATUS.get(report["verdict"], "info"), [Section("Recording", [rec])], report.get("provenance"))
     be, fe = b["error"], fm["error"]
     lines = [f"verdict: {report['verdict']}: {report['verdict_text']}",
              f"held-out force error {be['test_force_rel_pct']:.3g} % -> {fe['test_force_rel_pct']:.3g} %"

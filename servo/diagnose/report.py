@@ -13,6 +13,7 @@ from servo.diagnose.band import band_hz
 from servo.diagnose.fit import Fit
 from servo.diagnose.job import Diagnosis, Finding
 from servo.diagnose.model import GATE
+from servo.diagnose.scope import Unscoped
 from servo.diagnose.terms import VOCABULARY
 from servo.errors import ConfigError
 from servo.physics import EFFECTS
@@ -77,10 +78,14 @@ def _evidence(f: Finding) -> dict:
 
 
 def finding_dict(f: Finding, fu: str, pu: str = "m") -> dict:
+    """A finding's entry; ``heldout`` its sign-flip test on the test part against the
+    model without it (``p``: its chance of being spurious; ``level`` the one a finding
+    beside the first had to pass, None for the first), None where the rows' proof does
+    not make it (a sensor's lattice, a breakaway, a mode of the frequency response)."""
     return {
         "physics": f.physics, "params": f.params, "std": f.std, "units": _units(f.physics, f.params, fu, pu),
         "where": f.where, "evidence": _evidence(f), "error_before": f.before, "error_after": f.after,
-        "note": VOCABULARY[f.physics].note(f.params),
+        "heldout": f.heldout, "note": VOCABULARY[f.physics].note(f.params),
     }  # fmt: skip
 
 
@@ -109,7 +114,39 @@ def partial_note(fit: Fit) -> str:
             "switch); it describes the recording from that time on, the part the proof covers")  # fmt: skip
 
 
-def build_report(D: Diagnosis, files: list | None = None) -> dict:
+#: the held-out errors of a report, None where no model was fitted
+_NO_ERROR = {"train_force_rel_pct": None, "test_force_rel_pct": None, "test_output_nrmse": None}
+
+
+def unscoped_report(D: Unscoped, files: list | None = None) -> dict:
+    """``report.json`` of a recording outside the domain (:mod:`servo.diagnose.scope`):
+    the verdict ``out_of_scope`` and its reason, the recording and the settings, every
+    section of a diagnosis's report present and empty (no rows, no model)."""
+    rec, opt = D.rec, D.opt
+    report = {
+        "schema": SCHEMA, "verdict": D.verdict["verdict"], "verdict_text": D.reason,
+        "checks": {"baseline": None, "final_model": None},
+        "recording": {"source": rec.source, "samples": rec.n, "sample_rate_hz": rec.sample_rate_hz,
+                      "duration_s": float(rec.t[-1] - rec.t[0]), "force_unit": opt.force_unit,
+                      "position_unit": opt.position_unit, "position_max_m": float(np.max(np.abs(rec.x))),
+                      "position_span_m": float(np.ptp(rec.x)), "input_span": float(np.ptp(rec.u))},
+        "settings": {"baseline": None if opt.model else (opt.baseline or "J,B,Fc,K,h0"), "model": opt.model,
+                     "test_fraction": opt.test_fraction, "blocks": opt.blocks, "alpha": opt.alpha,
+                     "horizon_s": opt.horizon_s, "robust": asdict(opt.settings) if opt.settings is not None else None},
+        "rows": None,
+        "baseline": {"source": "model file" if opt.model else "terms", "terms": [], "error": dict(_NO_ERROR)},
+        "findings": [],
+        "final_model": {"terms": [], "drive": None, "drive_note": "no model was fitted: the recording is out of scope",
+                        "partial": "", "error": dict(_NO_ERROR)},
+        "unconfirmed": [], "frf": None, "not_testable": {}, "implausible": {}, "candidates": [], "locate": None,
+        "simulation_note": "", "files": sorted(files or []),
+    }  # fmt: skip
+    return _num(report)
+
+
+def build_report(D: Diagnosis | Unscoped, files: list | None = None) -> dict:
+    if isinstance(D, Unscoped):
+        return unscoped_report(D, files)
     fu, pu = D.opt.force_unit, D.opt.position_unit
     sig = D.sig
     rec = D.rec
@@ -162,7 +199,7 @@ def build_report(D: Diagnosis, files: list | None = None) -> dict:
                         "error": {"train_force_rel_pct": D.errors["train_force_rel_pct"]["after"],
                                   "test_force_rel_pct": D.errors["test_force_rel_pct"]["after"],
                                   "test_output_nrmse": D.errors["test_output_nrmse"]["after"]}},
-        "unconfirmed": [{**finding_dict(f, fu, pu), "reason": (f.frf or f.breakaway or {}).get("reason") or
+        "unconfirmed": [{**finding_dict(f, fu, pu), "reason": (f.frf or f.breakaway or {}).get("reason") or f.why or
                          "did not lower the held-out error of the test part",
                          "test_error_before": a, "test_error_after": b} for f, a, b in D.unconfirmed],
         "frf": D.frf.summary() if D.frf is not None else None,
@@ -232,9 +269,23 @@ def _change(f: dict) -> str:
     return f"{_err(b)} -> {_err(a)}"
 
 
+def _spurious(f: dict) -> str:
+    """A finding's chance of being spurious on the held-out part, for its summary line."""
+    h = f.get("heldout")
+    if not h or not h.get("blocks"):
+        return ""
+    lv = f", level {100 * h['level']:.2g} %" if h.get("level") is not None else ""
+    return f"; chance of being spurious {100 * h['p']:.2g} % (held-out sign-flip test, {h['blocks']} blocks{lv})"
+
+
 def format_summary(report: dict, out: Path) -> str:
     """The human summary: recording, baseline, one line per finding, final model."""
     rc, rows, b, fm = report["recording"], report["rows"], report["baseline"], report["final_model"]
+    if rows is None:  # out of scope before any row was made (:mod:`servo.diagnose.scope`)
+        return "\n".join([f"verdict: {report['verdict']}: {report['verdict_text']}",
+                          f"servo diagnose: {rc['source']} ({rc['samples']} samples at {rc['sample_rate_hz']:.6g} Hz, "
+                          f"{rc['duration_s']:.3g} s)", "  no rows and no model: nothing was fitted or named",
+                          f"  wrote {out}/: " + ", ".join(report["files"])])  # fmt: skip
     lines = [
         f"verdict: {report['verdict']}: {report['verdict_text']}",
         f"servo diagnose: {rc['source']} ({rc['samples']} samples at {rc['sample_rate_hz']:.6g} Hz, {rc['duration_s']:.3g} s"
@@ -264,7 +315,7 @@ def format_summary(report: dict, out: Path) -> str:
         for i, f in enumerate(report["findings"], 1):
             note = f" [{f['note']}]" if f.get("note") else ""
             lines.append(f"    {i}. {f['physics']}: {_fmt_params(f['params'], f['units'], f['std'])}{note}; "
-                         f"where: {f['where'].get('text', '')}; {_change(f)}")  # fmt: skip
+                         f"where: {f['where'].get('text', '')}; {_change(f)}{_spurious(f)}")  # fmt: skip
     elif report["verdict"] == "consistent":
         lines.append(f"  no finding: the baseline explains these data to their noise "
                      f"(family-wise false-alarm level {100 * s['alpha']:.0f} %)")  # fmt: skip
@@ -279,7 +330,7 @@ def format_summary(report: dict, out: Path) -> str:
             continue
         lines.append(f"  not confirmed on the held-out part (dropped): {u['physics']}: "
                      f"{_fmt_params(u['params'], u['units'], u['std'])} ({_err(u['test_error_before'])} -> "
-                     f"{_err(u['test_error_after'])})")  # fmt: skip
+                     f"{_err(u['test_error_after'])}; {u['reason']})")  # fmt: skip
     for name, why in report["implausible"].items():
         lines.append(f"  not named: {name}: {why}")
     fe = fm["error"]
@@ -298,4 +349,4 @@ def format_summary(report: dict, out: Path) -> str:
     return "\n".join(lines)
 
 
-__all__ = ["build_report", "drive_section", "format_summary", "partial_note", "write_drive_toml", "write_report"]
+__all__ = ["build_report", "unscoped_report", "drive_section", "format_summary", "partial_note", "write_drive_toml", "write_report"]

@@ -108,6 +108,31 @@ def _cut(idx: np.ndarray, parts: int) -> list:
     return [slice(cuts[i], cuts[i + 1]) for i in range(parts)]
 
 
+#: gain blocks of the held-out test of a further finding (:func:`heldout_signflip`):
+#: exact over all sign vectors, so its smallest p is 2^-12
+HELDOUT_BLOCKS = 12
+
+
+def heldout_signflip(r0: np.ndarray, r1: np.ndarray, rows: np.ndarray, blocks: int = HELDOUT_BLOCKS,
+                     min_rows: int = MIN_SUB_ROWS) -> tuple[float, float, int]:  # fmt: skip
+    """Whether a term earns its place on the held-out part: the residuals without
+    (``r0``) and with it (``r1``, (m,) each, both models fitted on the training part)
+    on the ``rows`` cut into up to ``blocks`` contiguous gain blocks of at least
+    ``min_rows`` rows, and the sign-flip test (:func:`signflip_test`) of their sums of
+    squares.  Returns ``(t, p, N)``: ``p`` the chance of a gain at least this consistent
+    from a term that predicts nothing (the finding's chance of being spurious), ``N``
+    the blocks; ``(0, 1, 0)`` when the rows make fewer than 4."""
+    idx = np.flatnonzero(rows)
+    n = min(int(blocks), idx.size // max(int(min_rows), 1))
+    if n < 4:
+        return 0.0, 1.0, 0
+    parts = np.array_split(idx, n)
+    S0 = np.array([float(r0[p] @ r0[p]) for p in parts])
+    S1 = np.array([float(r1[p] @ r1[p]) for p in parts])
+    t, p = signflip_test(S0, S1)
+    return t, p, n
+
+
 def make_blocks(train_valid: np.ndarray, K: int = N_BLOCKS, sub: int = SUB_BLOCKS, min_sub_rows: int = MIN_SUB_ROWS) -> Blocks:
     """``K`` contiguous folds over the training rows, equal in usable rows, each cut into
     up to ``sub`` gain blocks of at least ``min_sub_rows`` usable rows."""
@@ -362,8 +387,31 @@ class Selector:
         sc.t, sc.p = signflip_test(S0, S1)
         sc.k = len(phys.coefs) + len(phys.thetas)
         ratio = S1.sum() / max(S0.sum(), 1e-300)
-        sc.delta_ic = float(self.n_eff * np.log(max(ratio, 1e-300)) + sc.k * np.log(self.n_eff))
+        n_eff = self._n_eff_with(model, physics, sc.thetas, y0, Phi)
+        sc.delta_ic = float(n_eff * np.log(max(ratio, 1e-300)) + sc.k * np.log(n_eff))
         return sc
+
+    def _n_eff_with(self, model: Model, physics: str, thetas: list, y0: np.ndarray, Phi: np.ndarray) -> float:
+        """The criterion's effective number of rows: the training rows over the integrated
+        autocorrelation time of the residual the model *with* the candidate leaves (its
+        variant chosen in most folds), at least the current model's count.  Under the null
+        the two residuals agree; where the candidate removes a slow structure (a drift),
+        the current model's residual counts that structure's own correlation as the
+        noise's, and a term that whitens the residual would be charged for the structure
+        it removes."""
+        phys = VOCABULARY[physics]
+        keys = [tuple(sorted(th.items())) for th in thetas]
+        th = thetas[max(range(len(keys)), key=keys.count)]
+        term = Term.make(physics, th)
+        if phys.kind == "input":
+            y, Z = self.d.matrix(model, extra=term)[0], Phi
+        else:
+            y, Z = y0, np.column_stack([Phi, self.d.term_rows(term, model)])
+        w = self.blocks.weights > 0
+        r = np.where(w, y - Z @ fit_rows(y, Z, w), 0.0)
+        idx = w.nonzero()[0]
+        tau = integrated_time(r[idx[0] : idx[-1] + 1])
+        return max(self.n_eff, float(w.sum()) / tau)
 
     def _input_variant(self, model, physics, theta, Phi):
         y, _, _ = self.d.matrix(model, extra=Term.make(physics, theta))
@@ -524,5 +572,5 @@ class Selector:
         return ok, why
 
 
-__all__ = ["ALPHA", "Blocks", "Grams", "N_BLOCKS", "Score", "Selector", "fit_rows", "fft_len", "integrated_time",
+__all__ = ["ALPHA", "Blocks", "Grams", "N_BLOCKS", "Score", "Selector", "HELDOUT_BLOCKS", "fit_rows", "fft_len", "heldout_signflip", "integrated_time",
            "make_blocks", "paired_test", "screen_stats", "signflip_test", "solve"]  # fmt: skip

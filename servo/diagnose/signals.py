@@ -39,6 +39,7 @@ from functools import cached_property, lru_cache
 import numpy as np
 from scipy import signal
 
+from servo.diagnose.scope import OutOfDomain
 from servo.identify.regressors import IdentificationError, RobustSettings, regressor
 from servo.io.recording import Recording
 
@@ -436,7 +437,7 @@ def make_signals(rec: Recording, settings: RobustSettings | None = None) -> Sign
     n = x.size
     kept = n - s.trim_start - s.trim_end
     if n <= 3 * s.butter_order or kept < 200 * s.decimate:
-        raise IdentificationError(
+        raise OutOfDomain(
             f"recording too short to diagnose: {n} samples, {kept} after trimming; need at least "
             f"{200 * s.decimate} (200 rows after decimation by {s.decimate})"
         )

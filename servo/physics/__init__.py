@@ -32,6 +32,7 @@ MODULES = (
     "dead_zone",
     "cubic_spring",
     "backlash",
+    "drift",
 )  # fmt: skip
 
 #: effect name -> its :class:`~servo.physics.base.Effect`

@@ -335,6 +335,17 @@ class Judging:
     def unit(self, name: str, force_unit: str) -> str:
         return self.units.get(name, "-").replace("F", force_unit)
 
+    #: what :meth:`followed` does to the verdict's held-out residual, for its text ("": nothing)
+    follows = ""
+
+    def followed(self, d, theta: dict, r: np.ndarray, rows: np.ndarray) -> np.ndarray:
+        """The verdict's held-out residual (m,) of a model holding this term, on the test
+        ``rows``: as predicted (the default), or, for a term that is a record of the
+        recording's past rather than a property of the drive (a wandering offset,
+        :mod:`servo.physics.drift`), with its course through the test part fitted there,
+        every other coefficient as trained; the term's own proof stays the prediction."""
+        return r
+
     def std_extra(self, params: dict, std: dict) -> dict:
         """Std of the derived reported parameters (``std`` holds the fitted ones')."""
         return {}

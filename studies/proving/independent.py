@@ -75,6 +75,7 @@ def _simulate(mod, name: str, over: dict):
 def score_case(mod, name: str, folder: Path) -> dict:
     """Diagnose the suite's recording ``folder/name.csv`` and measure its effect (module doc)."""
     from servo.diagnose.job import diagnose
+    from studies.proving.study import levels
     from servo.io.recording import Recording, load_recording
     from studies.proving.twin import heldout_rms
 
@@ -90,9 +91,7 @@ def score_case(mod, name: str, folder: Path) -> dict:
     except Exception as exc:  # a study records refusals instead of stopping
         return {**out, "error": f"{type(exc).__name__}: {str(exc)[:200]}"}
     v = D.verdict
-    out.update({"findings": [f.physics for f in D.findings], "verdict": v["verdict"],
-                "decimate": int(D.sig.settings.decimate), "base_ratio": v["baseline_checks"]["level"]["ratio"],
-                "final_ratio": v["final_checks"]["level"]["ratio"]})  # fmt: skip
+    out.update({"findings": [f.physics for f in D.findings], "verdict": v["verdict"], **levels(D)})
     if not null:
         try:
             rms, settings = heldout_rms(rec)

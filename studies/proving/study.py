@@ -134,13 +134,23 @@ def run_one(job: tuple) -> dict:
             out["twin_error"] = f"{type(exc_).__name__}: {str(exc_)[:200]}"
     return {**out, "seconds": seconds, "findings": [f.physics for f in D.findings],
             "verdict": v["verdict"], "expect": truth["expect"], "verdicts": truth["verdicts"],
-            "decimate": int(D.sig.settings.decimate),
-            "base_ratio": v["baseline_checks"]["level"]["ratio"], "final_ratio": v["final_checks"]["level"]["ratio"],
+            **levels(D),
             "frf_ran": bool(D.frf is not None and D.frf.ran),
             "frf_method": D.frf.method if D.frf is not None else None,
             "gated": {f.physics: f.term.params["from_s"] for f in D.findings if "from_s" in f.term.params},
             "frf_findings": [f.physics for f in D.findings if getattr(f, "frf", None) is not None],
             "frf_failed": bool(v["final_checks"].get("frf", {}).get("failed"))}  # fmt: skip
+
+
+def levels(D) -> dict:
+    """A diagnosis's decimation and its baseline's and final model's held-out residual
+    over the floor; None each for a recording out of scope before any row was made
+    (:class:`servo.diagnose.scope.Unscoped`)."""
+    if D.sig is None:
+        return {"decimate": None, "base_ratio": None, "final_ratio": None}
+    v = D.verdict
+    return {"decimate": int(D.sig.settings.decimate), "base_ratio": v["baseline_checks"]["level"]["ratio"],
+            "final_ratio": v["final_checks"]["level"]["ratio"]}
 
 
 def run_batch(jobs: list) -> list[dict]:
@@ -196,7 +206,10 @@ def effect(r: dict) -> float:
 
 def effect_vs_floor(r: dict) -> float:
     """The first measure: ``1 - 1/base_ratio``, the share of the baseline's held-out RMS
-    error that a model at the recording's noise floor removes (module doc)."""
+    error that a model at the recording's noise floor removes (module doc); 0 for a
+    recording out of scope before any row was made (no residual to measure)."""
+    if r.get("base_ratio") is None:
+        return 0.0
     return 1 - 1 / max(r["base_ratio"], 1e-300)
 
 

@@ -1,0 +1,170 @@
+"""A slowly wandering force offset (thermal drift, a bias that wanders): ``h0 + drift(t)``.
+
+The effect's diagnosis term, drive mapping and documentation entry
+(:class:`~servo.physics.base.Effect`).
+
+**The columns.**  ``drift(t)`` is piecewise linear in time: :data:`KNOTS` hat functions
+whose knots stand ``time_scale`` apart, counted back from the end of the training part
+(the last knot one time scale before its last sample); before the earliest knot's left
+neighbour the drift is 0 (the offset ``h0`` carries the level there) and after the last
+knot it holds the level it reached.  The last knot stands back from the end so that the
+cross-validation's last block, left out, is forecast as the test part is (the level
+held from the knots its neighbours determine), not extrapolated along a hat whose
+coefficient only that block's rows could set.  The coefficients ``d1 .. d6`` are the drift at the knots, earliest first, in
+the force unit; ``time_scale`` (s) is a nonlinear parameter (a grid of three from a
+fourteenth to a seventh of the training span, refined between), so at the largest time
+scale the knots cover the whole training part.  Reported beside them: ``size`` the
+drift's peak-to-peak over its knots and ``end_level`` where it stands at the end.
+
+**Why it holds after the training part.**  The test part lies later in time than the
+training part (:mod:`servo.diagnose.select` holds out the recording's last quarter);
+no smooth basis fitted on the past says where a random wander goes next, so the term
+predicts the test part with the level the drift reached at the end of training (the
+persistence forecast).  Its held-out proof is that this forecast beats the offset's
+average over the training part; where the drift turns back inside the test part, it
+does not, and the finding is not confirmed.  Inside the training part the blocked
+cross-validation interpolates a left-out block between its neighbours' knots.
+
+**The verdict's checks follow it through the test part** (:meth:`Drift.followed`).
+A wander goes on after the training part, so the forecast's residual on the test part
+holds the drift's change since, which says nothing about whether the physics explains
+the recording.  The verdict's held-out residual of a model with a drift therefore has
+the drift's course through the test part fitted there (knots ``time_scale`` apart
+continuing from the training part's last, a handful of coefficients against thousands of
+rows), every physical coefficient as trained; the report says so.
+
+**The simulated drive does not carry it.**  Its plant (:mod:`kernels.plant`) has no
+clock: a drift is a record of this recording's past, not a property of the drive to
+replay.  The fitted model's ``[drive]`` section holds the offset the drift reached at
+the end of training (``h0 + d6``), which is what the short-horizon simulation of the
+held-out part and ``final_model.toml`` use, and what ``servo compensate`` cancels as
+the bias (eq. 9); the wander itself is :attr:`Effect.not_cancellable`.  No concealment
+either: the concealed-effect study (:mod:`servo.diagnose.concealed`) hides effects in
+the simulated drive, which has no drift; the proving ground's ``drift`` family
+(``studies/proving/``) is its test bed.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from servo.physics.base import DriveMap, Effect, Term, geom
+
+#: hat functions of the drift (its coefficients ``d1 .. d6``)
+KNOTS = 6
+#: the time-scale grid: from the training span / (KNOTS * SPAN_RANGE) to span / KNOTS
+SPAN_RANGE = 2.0
+
+
+def _span(d) -> tuple[float, float]:
+    """``(first, last)`` full-rate time (s) of the training part of the design ``d``."""
+    t = d.sig.t
+    last = int(np.flatnonzero(d.train_samples)[-1])
+    return float(t[0]), float(t[last])
+
+
+def hats(t: np.ndarray, t_end: float, time_scale: float) -> np.ndarray:
+    """The drift's columns (n, :data:`KNOTS`) at times ``t`` (s): hat functions with
+    knots ``t_end - j*time_scale`` (``j = KNOTS .. 1``, earliest first), the drift 0
+    up to ``t_end - (KNOTS+1)*time_scale`` and held at the last knot's level after
+    ``t_end - time_scale`` (module doc)."""
+    last = t_end - time_scale
+    s = (np.minimum(t, last) - last) / time_scale + KNOTS  # knots at 1 .. KNOTS, 0 the drift's zero
+    return _tents(s, np.arange(1, KNOTS + 1))
+
+
+def _tents(s: np.ndarray, knots: np.ndarray) -> np.ndarray:
+    """``max(0, 1 - |s - k|)`` for each knot ``k``, (n, len(knots)), built column by
+    column in place (a full-rate recording's temporaries of the whole block cost a
+    diagnosis its memory budget)."""
+    H = np.empty((s.size, knots.size))
+    for j, k in enumerate(knots):
+        col = H[:, j]
+        np.subtract(s, k, out=col)
+        np.abs(col, out=col)
+        np.subtract(1.0, col, out=col)
+        np.maximum(col, 0.0, out=col)
+    return H
+
+
+class Drift(Term):
+    name, thetas = "drift", ("time_scale",)
+    coefs = tuple(f"d{j}" for j in range(1, KNOTS + 1))
+    units = {"time_scale": "s", "size": "F", "end_level": "F", **{c: "F" for c in coefs}}
+    doc = "a force offset wandering in time: piecewise linear, knots time_scale apart (held after training)"
+    requires = ("offset",)  # the level before the drift's first knot
+    gated = False  # it is a function of time already
+
+    def full(self, d, theta, u_eff):
+        _, t_end = _span(d)
+        return hats(d.sig.t, t_end, theta["time_scale"])
+
+    def rows(self, d, theta, u_eff):
+        """The exact rows (m, :data:`KNOTS`), one full-rate column at a time (the
+        default builds the (n, KNOTS) block first: 48 bytes a sample beyond the
+        diagnosis's memory estimate)."""
+        _, t_end = _span(d)
+        last = t_end - theta["time_scale"]
+        s = (np.minimum(d.sig.t, last) - last) / theta["time_scale"] + KNOTS
+        return np.column_stack([d.sig.rows(_tents(s, np.array([k]))[:, 0]) for k in range(1, KNOTS + 1)])
+
+    def grid(self, d, model):
+        t0, t_end = _span(d)
+        hi = (t_end - t0) / (KNOTS + 1)
+        return [{"time_scale": float(v)} for v in geom(hi / SPAN_RANGE, hi, 3.5)]
+
+    def bounds(self, d, model):
+        t0, t_end = _span(d)
+        hi = (t_end - t0) / (KNOTS + 1)
+        return {"time_scale": (hi / SPAN_RANGE, hi, True)}
+
+    follows = "the drift's course through the test part is fitted there, since a wander cannot be forecast"
+
+    def followed(self, d, theta, r, rows):
+        """The held-out residual ``r`` (m,) with the drift's course through the test
+        ``rows`` fitted there: hat functions ``time_scale`` apart from the training part's
+        last knot (its level already in ``r``) to the end, through the rows' filter (the
+        first reaches back into the training part: its rows are not fitted here)."""
+        _, t_end = _span(d)
+        tau = theta["time_scale"]
+        t = d.sig.t
+        last = t_end - tau  # the training part's last knot
+        k = np.arange(1, int(np.ceil((t[-1] - last) / tau)) + 1)
+        if not k.size or not rows.any():
+            return r
+        s = (np.maximum(t, last) - last) / tau
+        F = _tents(s, k)
+        F[:, -1] = np.clip(s - (k[-1] - 1), 0.0, 1.0)  # the last knot holds its level to the end
+        Z = np.column_stack([d.sig.rows(np.ascontiguousarray(F[:, j])) for j in range(k.size)])
+        c, *_ = np.linalg.lstsq(Z[rows], r[rows], rcond=None)
+        out = r.copy()
+        out[rows] = r[rows] - Z[rows] @ c
+        return out
+
+    def physical(self, theta, coef):
+        c = np.asarray(coef, dtype=float)
+        path = np.concatenate([[0.0], c])  # the drift at the knots, from its zero
+        return {"size": float(np.ptp(path)), "time_scale": float(theta["time_scale"]), "end_level": float(c[-1]),
+                **{k: float(v) for k, v in zip(self.coefs, c)}}  # fmt: skip
+
+    def from_physical(self, p):
+        return {"time_scale": p["time_scale"]}, tuple(p[k] for k in self.coefs)
+
+
+class DriftDrive(DriveMap):
+    """The drift in the ``[drive]`` section: the offset it reached at the end of the
+    training part (the drive has no clock, module doc)."""
+
+    name = "drift"
+
+    def to_drive(self, P, fit):
+        return {"h0": P.get("offset", {}).get("h0", 0.0) + P[self.name]["end_level"]}
+
+
+EFFECT = Effect(
+    "drift", "a force offset wandering in time (thermal drift, a wandering bias): size and time scale",
+    term=Drift(),
+    drive_map=DriftDrive(),
+    not_cancellable=("a wandering offset goes on after the recording: a static term cancels the level it reached "
+                     "(final_model.toml's h0 holds it, cancelled with the bias of eq. 9), not its future course; "
+                     "an integrator in the loop follows it"),
+)  # fmt: skip

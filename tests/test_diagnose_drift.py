@@ -1,0 +1,88 @@
+"""Drift as physics (issue 24 item 4): a wandering force offset is a term of the
+vocabulary, forecast on the test part with the level it reached, followed there by the
+verdict's residual, held by the fitted drive as the bias it reached; named on the
+independent generator's drifting recordings where it used to be called out of scope."""
+import numpy as np
+import pytest
+
+from servo import physics
+from servo.diagnose.job import diagnose
+from servo.physics.drift import KNOTS, Drift, hats
+from studies.proving.cases import Case, recording
+
+
+def test_the_hats_rise_from_zero_and_hold_the_last_level():
+    t_end, tau = 10.0, 1.0
+    t = np.linspace(0.0, 14.0, 1401)
+    H = hats(t, t_end, tau)
+    assert H.shape == (t.size, KNOTS)
+    first = t_end - (KNOTS + 1) * tau  # the drift's zero: the offset carries the level before it
+    assert np.all(H[t <= first] == 0.0)
+    last = t_end - tau  # the last knot, one time scale before the training part's end
+    after = t >= last
+    assert np.allclose(H[after, -1], 1.0) and np.all(H[after, :-1] == 0.0)  # held: the persistence forecast
+    for j in range(KNOTS):  # each column is 1 at its knot, a hat tau wide on either side
+        k = np.argmin(np.abs(t - (first + (j + 1) * tau)))
+        assert H[k, j] == pytest.approx(1.0) and np.sum(H[k]) == pytest.approx(1.0)
+    inside = (t > first + tau) & (t < last)
+    assert np.allclose(H[inside].sum(axis=1), 1.0)  # piecewise linear between knots
+
+
+def test_the_drift_reports_its_size_and_the_drive_holds_the_level_it_reached():
+    term = Drift()
+    coef = (1.0, 3.0, -1.0, 0.5, 2.0, 2.5)
+    p = term.physical({"time_scale": 0.3}, coef)
+    assert p["size"] == pytest.approx(4.0)  # -1 .. 3 over the knots
+    assert p["end_level"] == 2.5 and p["time_scale"] == 0.3
+    assert term.from_physical(p) == ({"time_scale": 0.3}, coef)
+    e = physics.EFFECTS["drift"]
+    assert e.drive_map.to_drive({"offset": {"h0": 1e-3}, "drift": p}, None) == {"h0": pytest.approx(1e-3 + 2.5)}
+    assert e.study is None and e.drive == {} and "integrator" in e.not_cancellable
+    assert "drift" in physics.not_cancellable()
+
+
+def test_the_verdict_follows_the_drift_through_the_test_part_and_nothing_else():
+    """The followed residual fits the drift's course on the test rows only."""
+
+    class Sig:
+        t = np.arange(1000) * 1e-2
+        n = 1000
+
+        @staticmethod
+        def rows(f):
+            return f[::10]
+
+    class D:
+        sig = Sig()
+        train_samples = np.arange(1000) < 750
+
+    rows = np.arange(100) >= 75
+    r = np.where(rows, 0.02 * (np.arange(100) - 75.0), 0.1 * np.sin(np.arange(100)))  # a ramp on the test rows
+    out = Drift().followed(D(), {"time_scale": 1.0}, r, rows)
+    assert np.array_equal(out[~rows], r[~rows])
+    assert np.linalg.norm(out[rows]) < 1e-6 * np.linalg.norm(r[rows])
+    assert Drift().follows and not physics.VOCABULARY["offset"].follows
+
+
+def test_a_drift_called_out_of_scope_is_named():
+    """Issue 24 item 3's case on the proving ground (open loop, a drift of 3 x Fc): the
+    report said ``out_of_scope``, "the input does not accelerate the position as a mass
+    would", with J right and the level and window checks failing on the drift."""
+    rec, truth = recording(Case("drift", 3.0, "force", "chirp", 5000.0, noise="white"), seed=310303)
+    D = diagnose(rec)
+    assert [f.physics for f in D.findings] == ["drift"]
+    assert D.verdict["verdict"] != "out_of_scope", D.verdict["text"]
+    assert D.final_fit.combined()["inertia"]["J"] == pytest.approx(truth["J"], rel=0.05)
+    f = D.findings[0]
+    assert f.params["size"] == pytest.approx(truth["drift_pp"], rel=0.5)
+    assert f.after["force_rel_pct"] < 0.5 * f.before["force_rel_pct"]  # the forecast beats the average level
+    if D.verdict["verdict"] == "unexplained":
+        assert "drift" in D.verdict["text"]  # the text says how its residual was read
+
+
+def test_a_drift_in_a_closed_loop_is_named_first():
+    rec, truth = recording(Case("drift", 1.0, "pdi", "chirp", 5000.0, noise="white"), seed=310200)
+    D = diagnose(rec)
+    assert [f.physics for f in D.findings][:1] == ["drift"]
+    assert D.findings[0].params["size"] == pytest.approx(truth["drift_pp"], rel=0.5)
+    assert D.final_fit.combined()["inertia"]["J"] == pytest.approx(truth["J"], rel=0.02)
