@@ -113,6 +113,31 @@ class NoiseSpectrum:
                 "read_band_hz": list(self.band_hz), "bins": self.bins}  # fmt: skip
 
 
+#: the method when the spectrum could not be read (the rows' first estimate is kept)
+FALLBACK = ("what the Butterworth removes (the position above its cutoff, a robust std), taken as white: the force "
+            "balance's spectrum above the rows' band could not be read")
+
+
+def describe(spec: NoiseSpectrum | None, noise_x: float, noise_v: float) -> dict:
+    """``report.json``'s ``rows.noise``: the method, the spectrum's parameters, and
+    ``noise_x`` (m: the white noise whose std through the rows' acceleration chain is
+    the same, what the verdict's floor uses) and ``noise_v`` (m/s, through the
+    velocity chain)."""
+    out = {"method": FALLBACK} if spec is None else spec.as_dict()
+    out.update(white_equivalent_m=noise_x, velocity_noise_m_s=noise_v)
+    return out
+
+
+def describe_text(d: dict) -> str:
+    """One line of the summary from :func:`describe`'s dict."""
+    if "beta" not in d:
+        return f"{d['white_equivalent_m']:.3g} m RMS, white, from {d['method']}"
+    lo, hi = d["read_band_hz"]
+    return (f"{d['white_equivalent_m']:.3g} m RMS white-equivalent through the rows' filters; spectrum "
+            f"~ f^{d['beta']:.2g}, read at {lo:.4g}-{hi:.4g} Hz from the force balance at the full rate (the input's "
+            "motion cancels there)")  # fmt: skip
+
+
 def second_difference_gain(f: np.ndarray, fs: float) -> np.ndarray:
     """``|D2(f)|`` (1/s^2) of the three-point second difference at ``fs`` Hz."""
     return (2.0 - 2.0 * np.cos(2 * np.pi * np.asarray(f) / fs)) * fs * fs
@@ -175,14 +200,24 @@ def estimate(e: np.ndarray, J: float, fs: float, f_edge: float, uncertain: np.nd
     fb = f[sel]
     S = P[sel] / (J * J * second_difference_gain(fb, fs) ** 2 * (2.0 - 2.0 * np.cos(2 * np.pi * fb / fs)))
     lx, ly = np.log(fb), np.log(S)
-    beta = float(stats.theilslopes(ly, lx)[0]) if fb.size <= 600 else _thinned_theil(lx, ly)
+    # the slope over the read band's first two octaves (where the rows' chains weigh
+    # it: a sampled low-pass noise bends away from a power law towards Nyquist), the
+    # level over its first octave
+    near = fb <= 4.0 * fb[0]
+    if near.sum() < MIN_BINS:
+        near = np.ones(fb.size, bool)
+    lxn, lyn = lx[near], ly[near]
+    beta = float(stats.theilslopes(lyn, lxn)[0]) if lxn.size <= 600 else _thinned_theil(lxn, lyn)
     beta = float(np.clip(beta, *BETA_RANGE))
-    f0 = float(math.sqrt(fb[0] * fb[-1]))
-    # intercept: the median of the log spectrum about the slope, less the median's bias
+    first = fb <= 2.0 * fb[0]
+    if first.sum() < MIN_BINS // 2:
+        first = np.arange(fb.size) < MIN_BINS // 2
+    f0 = float(math.sqrt(fb[first][0] * fb[first][-1]))
+    # the level: the median of the log spectrum about the slope, less the median's bias
     # for a Welch estimate (log of a chi-square with 2K dof, K the segments)
     K = max((2 * n) // nper - 1, 1)
     bias = math.log(stats.chi2.median(2 * K) / (2 * K))
-    c = float(np.median(ly - beta * (lx - math.log(f0)))) - bias
+    c = float(np.median(ly[first] - beta * (lx[first] - math.log(f0)))) - bias
     return NoiseSpectrum(float(math.exp(c)), f0, beta, (float(fb[0]), float(fb[-1])), int(fb.size))
 
 
@@ -194,4 +229,4 @@ def _thinned_theil(lx: np.ndarray, ly: np.ndarray) -> float:
     return float(stats.theilslopes(ly[:m].reshape(-1, g).mean(1), lx[:m].reshape(-1, g).mean(1))[0])
 
 
-__all__ = ["METHOD", "NoiseSpectrum", "estimate", "second_difference_gain", "welch_nperseg"]
+__all__ = ["FALLBACK", "METHOD", "NoiseSpectrum", "describe", "describe_text", "estimate", "gate", "second_difference_gain", "welch_nperseg"]

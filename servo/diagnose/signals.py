@@ -45,6 +45,9 @@ from servo.io.recording import Recording
 
 #: ``|x'|`` below this many noise standard deviations: the direction is uncertain.
 DIRECTION_Z = 3.0
+#: ``|vf|`` below this many times the velocity the input drives above the Butterworth
+#: (:func:`driven_ripple`): the direction is uncertain (the fitted inertia's error)
+RIPPLE_MARGIN = 1.5
 #: a row is unusable if its decimation filter's response to a sample there exceeds this
 #: fraction of the response's peak (the filter's reach: 15 rows with the default settings)
 REACH_LEVEL = 0.01
@@ -87,6 +90,17 @@ class Signals:
     #: the position noise's spectrum (:class:`servo.diagnose.noise.NoiseSpectrum`) that
     #: ``noise_x`` and ``noise_v`` come from; None: read from what the Butterworth removes
     noise: object = None
+    #: (n,) m/s: the envelope of the velocity the input drives above the Butterworth's
+    #: cutoff, which the filtered velocity lacks (:func:`driven_ripple`); None: not known
+    v_ripple: np.ndarray | None = None
+
+    @property
+    def uncertain(self) -> np.ndarray:
+        """(n,) bool: the samples whose direction of motion the filtered velocity does
+        not tell: ``|vf|`` within ``v_threshold`` (the noise) or within ``v_ripple``
+        (the motion the filter removed could reverse it)."""
+        slow = np.abs(self.vf) <= self.v_threshold
+        return slow if self.v_ripple is None else slow | (np.abs(self.vf) <= self.v_ripple)
 
     @property
     def n(self) -> int:
@@ -453,37 +467,63 @@ def make_signals(rec: Recording, settings: RobustSettings | None = None) -> Sign
     reach = filter_reach(s)
     valid = rows_clear_of(keep, np.abs(vf) <= v_thr, reach)
     sig = Signals(t, u, x, xf, vf, af, dt, s, keep, valid, noise_x, noise_v, v_thr)
-    spec = sensor_noise(sig)
-    if spec is None:
+    coef = balance_coefficients(sig)
+    if coef is None:
         return sig
-    noise_x = spec.white_equivalent(chain_impulse(s, fs, "acceleration"), fs)
-    noise_v = spec.std_through(chain_impulse(s, fs, "velocity"), fs)
-    v_thr = DIRECTION_Z * noise_v
-    valid = rows_clear_of(keep, np.abs(vf) <= v_thr, reach)
-    return Signals(t, u, x, xf, vf, af, dt, s, keep, valid, noise_x, noise_v, v_thr, spec)
+    spec = sensor_noise(sig, coef)
+    if spec is not None:
+        noise_x = spec.white_equivalent(chain_impulse(s, fs, "acceleration"), fs)
+        noise_v = spec.std_through(chain_impulse(s, fs, "velocity"), fs)
+        v_thr = DIRECTION_Z * noise_v
+    ripple = driven_ripple(sig, float(coef[0]))
+    out = Signals(t, u, x, xf, vf, af, dt, s, keep, valid, noise_x, noise_v, v_thr, spec, ripple)
+    out.valid = rows_clear_of(keep, out.uncertain, reach)
+    return out
 
 
-def sensor_noise(sig: Signals):
-    """The position noise's spectrum (:class:`servo.diagnose.noise.NoiseSpectrum`) of
-    :mod:`servo.diagnose.noise`: eq. (3) fitted on ``sig``'s usable rows (the friction's
-    sign zero where the direction is uncertain), its residual at the full rate on the
-    recorded position, read above the rows' band; None where the fit or the read band
-    is too thin (the caller keeps what the Butterworth removes)."""
-    from servo.diagnose import noise
-
-    fs = 1.0 / sig.dt
+def balance_coefficients(sig: Signals) -> np.ndarray | None:
+    """``(J, B, K, h0, Fc)`` of eq. (3) fitted on ``sig``'s usable rows at the full rate
+    (the rows' samples, the Butterworth-filtered signals, the friction's sign zero where
+    the direction is uncertain: eq. (3) holds sample by sample on the filtered signals,
+    so the decimation filter is not needed for a first fit); None where fewer than 50
+    rows are usable or the inertia is not positive."""
     sign = np.where(np.abs(sig.vf) <= sig.v_threshold, 0.0, held_sign(sig.vf))
-    ua = align(sig.u)
-    # eq. (3) holds sample by sample on the Butterworth-filtered signals (parallel
-    # filtering): fitted on the rows' samples, without the decimation filter's cost
     at = sig.keep[sig.valid]
     if at.size < 50:
         return None
     A = np.column_stack([sig.af[at], sig.vf[at], sig.xf[at], np.ones(at.size), sign[at]])
     scale = np.abs(A).max(axis=0).clip(1e-300)
-    coef = np.linalg.lstsq(A / scale, sig.butter(ua)[at], rcond=None)[0] / scale
-    if not (coef[0] > 0 and np.isfinite(coef).all()):
-        return None
+    coef = np.linalg.lstsq(A / scale, sig.force()[at], rcond=None)[0] / scale
+    return coef if coef[0] > 0 and np.isfinite(coef).all() else None
+
+
+def driven_ripple(sig: Signals, J: float) -> np.ndarray:
+    """(n,) m/s: the envelope (the largest magnitude within one Butterworth period
+    either side) of the velocity the recorded input drives in the inertia ``J`` above
+    the position's Butterworth cutoff: ``HP(integral of the aligned input)/J``, ``HP``
+    one minus the zero-phase Butterworth.  The filtered velocity lacks exactly this
+    part of a mass's velocity, so where ``|vf|`` is within it the true velocity may
+    have the other sign: an open-loop PRBS's ripple (20 x the noise threshold on the
+    proving ground) and the zero-phase filter's pre-ringing before a closed loop's step
+    otherwise left 60-100 % of the rows with a friction sign the arm did not have."""
+    ua = align(sig.u)
+    hp = ua - sig.butter(ua)
+    w = np.cumsum(hp) * (sig.dt / J)
+    w = w - sig.butter(w)
+    return RIPPLE_MARGIN * np.abs(w)
+
+
+def sensor_noise(sig: Signals, coef: np.ndarray):
+    """The position noise's spectrum (:class:`servo.diagnose.noise.NoiseSpectrum`) of
+    :mod:`servo.diagnose.noise`: the residual of eq. (3) (``coef``,
+    :func:`balance_coefficients`) at the full rate on the recorded position, read above
+    the rows' band with the direction-uncertain samples gated out; None where the read
+    band is too thin (the caller keeps what the Butterworth removes)."""
+    from servo.diagnose import noise
+
+    fs = 1.0 / sig.dt
+    sign = np.where(np.abs(sig.vf) <= sig.v_threshold, 0.0, held_sign(sig.vf))
+    ua = align(sig.u)
     J, B, K, h0, Fc = (float(c) for c in coef)
     e = J * second_difference(sig.x, sig.dt) + B * derivative(sig.x, sig.dt) + K * sig.x + h0 + Fc * sign - ua
     st = sig.settings

@@ -143,13 +143,13 @@ def ranges_beyond_training(design, train: np.ndarray, test: np.ndarray) -> list:
 def window_rows(sig) -> np.ndarray:
     """The rows (m,) the ``windows`` check reads: usable rows (``sig.valid``) beyond the
     decimation filter's reach at :data:`LEAK_LEVEL` from every sample the rows cannot
-    trust: the direction-uncertain ones (``|vf| <= v_threshold``, which the fits' rule
+    trust: the direction-uncertain ones (``Signals.uncertain``, which the fits' rule
     keeps out at 1 %) and the samples trimmed at both ends, where the Butterworth's
     zero-phase padding leaves a transient that does not obey the force balance (the
     first row of a null read 9-19 x the floor)."""
     from servo.diagnose.signals import filter_reach, rows_clear_of
 
-    uncertain = np.abs(sig.vf) <= sig.v_threshold
+    uncertain = sig.uncertain.copy()
     st = sig.settings
     uncertain[: st.trim_start] = True  # the Butterworth's edge transient (module doc)
     if st.trim_end > 0:
