@@ -171,3 +171,12 @@ def test_an_open_loop_prbs_null_is_consistent_at_the_default_decimation():
     rec, _ = recording(Case("null", 0.0, "force", "prbs", FS, 30000, "white"), 300005)
     D = diagnose(rec, Options(settings=settings_for(10, FS, None)))
     assert D.verdict["verdict"] == "consistent", D.verdict["text"]
+
+
+def test_the_study_reads_the_former_estimate_inflated_on_an_open_loop_prbs():
+    """``python -m studies.noise_floor`` (docs/studies/2026-11-28-noise-floor.md): the
+    former estimate, what the Butterworth removes, is inflated by the PRBS's motion."""
+    from studies.noise_floor import one
+
+    r = one("force", "prbs", "white", 7)
+    assert r["old"] > 5 and 1 / FACTOR < r["new"] < FACTOR, r

@@ -48,6 +48,11 @@ DIRECTION_Z = 3.0
 #: ``|vf|`` below this many times the velocity the input drives above the Butterworth
 #: (:func:`driven_ripple`): the direction is uncertain (the fitted inertia's error)
 RIPPLE_MARGIN = 1.5
+#: the ripple rule is not applied where it would leave fewer usable rows than this share
+#: (and the noise rule more): a closed loop's steps with a dithering force ripple
+#: everywhere, and with it no decimation left rows to diagnose (refused) where without
+#: it the diagnosis ran (docs/studies/2026-11-28-noise-floor.md)
+RIPPLE_MIN_USABLE = 0.2
 #: a row is unusable if its decimation filter's response to a sample there exceeds this
 #: fraction of the response's peak (the filter's reach: 15 rows with the default settings)
 REACH_LEVEL = 0.01
@@ -475,9 +480,13 @@ def make_signals(rec: Recording, settings: RobustSettings | None = None) -> Sign
         noise_x = spec.white_equivalent(chain_impulse(s, fs, "acceleration"), fs)
         noise_v = spec.std_through(chain_impulse(s, fs, "velocity"), fs)
         v_thr = DIRECTION_Z * noise_v
-    ripple = driven_ripple(sig, float(coef[0]))
-    out = Signals(t, u, x, xf, vf, af, dt, s, keep, valid, noise_x, noise_v, v_thr, spec, ripple)
-    out.valid = rows_clear_of(keep, out.uncertain, reach)
+    valid = rows_clear_of(keep, np.abs(vf) <= v_thr, reach)
+    out = Signals(t, u, x, xf, vf, af, dt, s, keep, valid, noise_x, noise_v, v_thr, spec, driven_ripple(sig, float(coef[0])))
+    signed = rows_clear_of(keep, out.uncertain, reach)
+    if signed.mean() >= RIPPLE_MIN_USABLE or valid.mean() < RIPPLE_MIN_USABLE:
+        out.valid = signed
+    else:  # no rows could be signed: the noise rule's rows, with the misfit the ripple makes
+        out.v_ripple = None
     return out
 
 

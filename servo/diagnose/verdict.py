@@ -2,11 +2,12 @@
 
 A model's held-out force residual (each training block predicted by the fit on the
 other blocks, the test part by the fit on the training part; usable rows only) is held
-against the **noise floor** the recording itself implies: the position noise ``sigma_x``
-(estimated from what the Butterworth removes, :func:`servo.diagnose.signals.make_signals`)
+against the **noise floor** the recording itself implies: the position noise's spectrum
+(read where the input drives nothing the model misses, :mod:`servo.diagnose.noise`)
 goes through the acceleration path (Butterworth, second difference, the rows'
 decimation filter) and the fitted inertia, ``floor = |J| * sigma_x * g`` with ``g`` the
-2-norm of that chain's impulse response (:func:`acceleration_noise_gain`).  On null
+2-norm of that chain's impulse response (:func:`acceleration_noise_gain`) and
+``sigma_x`` the white noise of the same std through it (a coloured noise's own floor).  On null
 recordings of both generators (nothing missing, position noise only) the held-out
 residual is 1.00-1.05 times this floor.
 
