@@ -53,6 +53,9 @@ RIPPLE_MARGIN = 1.5
 #: everywhere, and with it no decimation left rows to diagnose (refused) where without
 #: it the diagnosis ran (docs/studies/2026-11-28-noise-floor.md)
 RIPPLE_MIN_USABLE = 0.2
+#: the spectrum's direction threshold is kept only where it leaves at least this share of
+#: the rows the first estimate's threshold leaves (:func:`make_signals`)
+THRESHOLD_KEEP = 0.9
 #: a row is unusable if its decimation filter's response to a sample there exceeds this
 #: fraction of the response's peak (the filter's reach: 15 rows with the default settings)
 REACH_LEVEL = 0.01
@@ -478,7 +481,14 @@ def make_signals(rec: Recording, settings: RobustSettings | None = None) -> Sign
     spec = sensor_noise(sig, coef)
     if spec is not None:
         noise_x = spec.white_equivalent(chain_impulse(s, fs, "acceleration"), fs)
-        noise_v = spec.std_through(chain_impulse(s, fs, "velocity"), fs)
+        nv = spec.std_through(chain_impulse(s, fs, "velocity"), fs)
+        # the direction threshold from the spectrum, unless it leaves under 90 % of
+        # the rows the first estimate's does (THRESHOLD_KEEP): a quantised sensor's steps add
+        # noise only where the arm crosses them, and the spectrum, read there, called
+        # a slowly moving arm's whole motion uncertain (refused, where the first
+        # estimate's rows named the quantum)
+        if rows_clear_of(keep, np.abs(vf) <= DIRECTION_Z * nv, reach).mean() >= THRESHOLD_KEEP * valid.mean():
+            noise_v = nv
         v_thr = DIRECTION_Z * noise_v
     valid = rows_clear_of(keep, np.abs(vf) <= v_thr, reach)
     out = Signals(t, u, x, xf, vf, af, dt, s, keep, valid, noise_x, noise_v, v_thr, spec, driven_ripple(sig, float(coef[0])))
