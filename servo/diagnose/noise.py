@@ -25,10 +25,15 @@ edge ``0.4*fs/q`` to ``0.45*fs``) the rows test nothing, and the noise through
 ``D2`` rises as ``f^4`` over any misfit of the force balance there; so the noise's
 spectrum is read there: the Welch PSD of ``e`` (the project's estimator,
 :func:`servo.frf.estimate.psd`) over ``J^2 |D2(f)|^2``, and a power law
-``S(f) = S0 (f/f0)^beta`` fitted to its logarithm by Theil-Sen (a median of slopes: a
-lightly damped mode, a reversal's burst or a tone's harmonic in a few bins does not
-move it).  White noise is ``beta = 0``, pink ``-1``, a first-order low-pass above its
-corner ``-2``.  The power law is then carried through each chain the diagnosis
+``S(f) = S0 (f/f0)^beta`` fitted to its logarithm: the slope by Theil-Sen (a median of
+slopes: a lightly damped mode, a reversal's burst or a tone's harmonic in a few bins
+does not move it) over the read band's first two octaves, the level by the median over
+its first octave (where the rows' chains weigh it; a sampled low-pass noise bends away
+from a power law towards Nyquist).  The spectrum is read on the first difference of
+``e`` (a low-frequency misfit falls by ``f^2`` before the gate's edges could spread
+it) with the samples near a direction-uncertain one or a sign change gated out
+(:func:`gate`: a stuck arm's constraint force, a reversal's switch).  White noise is
+``beta = 0``, pink ``-1``, a first-order low-pass above its corner ``-2``.  The power law is then carried through each chain the diagnosis
 applies to the position (the rows' acceleration: Butterworth, second difference,
 decimation filter; the velocity: Butterworth, derivative), whose gain falls to zero
 at DC, so that the extrapolation into the band weighs mostly near the band's edge.
@@ -229,4 +234,5 @@ def _thinned_theil(lx: np.ndarray, ly: np.ndarray) -> float:
     return float(stats.theilslopes(ly[:m].reshape(-1, g).mean(1), lx[:m].reshape(-1, g).mean(1))[0])
 
 
-__all__ = ["FALLBACK", "METHOD", "NoiseSpectrum", "describe", "describe_text", "estimate", "gate", "second_difference_gain", "welch_nperseg"]
+__all__ = ["FALLBACK", "METHOD", "NoiseSpectrum", "describe", "describe_text", "estimate", "gate", "second_difference_gain",
+           "welch_nperseg"]

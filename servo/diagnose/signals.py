@@ -491,7 +491,8 @@ def make_signals(rec: Recording, settings: RobustSettings | None = None) -> Sign
             noise_v = nv
         v_thr = DIRECTION_Z * noise_v
     valid = rows_clear_of(keep, np.abs(vf) <= v_thr, reach)
-    out = Signals(t, u, x, xf, vf, af, dt, s, keep, valid, noise_x, noise_v, v_thr, spec, driven_ripple(sig, float(coef[0])))
+    ripple = driven_ripple(sig, float(coef[0]))
+    out = Signals(t, u, x, xf, vf, af, dt, s, keep, valid, noise_x, noise_v, v_thr, spec, ripple)
     signed = rows_clear_of(keep, out.uncertain, reach)
     if signed.mean() >= RIPPLE_MIN_USABLE or valid.mean() < RIPPLE_MIN_USABLE:
         out.valid = signed
