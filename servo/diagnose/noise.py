@@ -50,7 +50,7 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-from scipy import stats
+from scipy import signal, stats
 
 from servo.frf.estimate import psd
 
@@ -103,10 +103,9 @@ class NoiseSpectrum:
     def std_through(self, h: np.ndarray, fs: float) -> float:
         """Std of this noise through a filter of impulse response ``h`` (full rate, at
         ``fs`` Hz): ``sqrt(int S(f) |H(f)|^2 df)``, on the grid of ``h``'s length."""
-        H = np.fft.rfft(h)
-        f = np.fft.rfftfreq(h.size, 1.0 / fs)
+        f, H = signal.freqz(h, worN=h.size, fs=fs)  # the filter's response, 0 .. fs/2 (step fs/(2 N))
         w = np.abs(H) ** 2 * self.psd(f)
-        return float(math.sqrt(max(np.sum(w) * fs / h.size, 0.0)))
+        return float(math.sqrt(max(np.sum(w) * fs / (2 * h.size), 0.0)))
 
     def white_equivalent(self, h: np.ndarray, fs: float) -> float:
         """The std (m) of a white noise that gives the same std through ``h`` (its
