@@ -172,8 +172,11 @@ def test_a_gated_term_is_judged_by_the_criterion_of_its_refined_onset():
     D = diagnose(rec)
     g = next(r for r in D.rounds if r.get("gated"))
     h = next(s for s in g["scores"] if s.physics == "hysteresis")
-    assert h.p < g["level"] and h.delta_ic > 0  # the grid's criterion alone would refuse it
-    assert h.refined_ic is not None and h.refined_ic < 0 and h.passes(g["level"])
+    # the refined onset's criterion is far better than the grid's (with the rows the
+    # noise-floor round leaves, 2026-11-28, the grid's alone no longer refuses it: -4.5
+    # against -108; before, it did)
+    assert h.p < g["level"] and h.refined_ic is not None and h.refined_ic < h.delta_ic - 50
+    assert h.refined_ic < 0 and h.passes(g["level"])
     assert [f.physics for f in D.findings] == ["hysteresis"]
     assert abs(D.findings[0].params[GATE] - rec.t[rec.n // 2]) <= 2 * D.sig.dt
     assert D.verdict["verdict"] == "explained", D.verdict["text"]
@@ -181,4 +184,4 @@ def test_a_gated_term_is_judged_by_the_criterion_of_its_refined_onset():
     json.dumps(rep, allow_nan=False)
     assert rep["findings"][0]["evidence"]["delta_ic_refined"] == pytest.approx(h.refined_ic)
     cand = next(c for r in rep["candidates"] for c in r if c["gated_in_time"] and c["physics"] == "hysteresis")
-    assert cand["passed"] and cand["delta_ic"] > 0 > cand["delta_ic_refined"]
+    assert cand["passed"] and cand["delta_ic"] > cand["delta_ic_refined"] and cand["delta_ic_refined"] < 0

@@ -46,7 +46,7 @@ def page(report: dict, folder: str | Path | None = None) -> Page:
                  ["position unit", rc.get("position_unit", "m")],
                  ["rows (training / held out)", f"{rows['train']} / {rows['test']}"],
                  ["usable fraction", rows["usable_fraction"]], ["band of the rows (Hz)", rows["band_hz"][1]],
-                 ["band note", rows["band_note"]]])  # fmt: skip
+                 ["band note", rows["band_note"]]] + _noise_row(rows))  # fmt: skip
     sections = [Section("Findings", findings)]
     if folder is not None:
         figs = images(folder, PLOTS)
@@ -59,6 +59,13 @@ def page(report: dict, folder: str | Path | None = None) -> Page:
     if report.get("files"):
         sections.append(Section("Files", [Text(", ".join(report["files"]))]))
     return Page("servo diagnose", lines, PAGE_STATUS.get(report["verdict"], "info"), sections, report.get("provenance"))
+
+
+def _noise_row(rows: dict) -> list:
+    """The sensor noise and how it was read (``rows.noise`` of ``report.json``)."""
+    from servo.diagnose.noise import describe_text
+
+    return [["sensor noise", describe_text(rows["noise"])]] if rows.get("noise") else []
 
 
 __all__ = ["PLOTS", "page"]

@@ -12,6 +12,7 @@ from servo.config import from_dict, to_toml
 from servo.diagnose.band import band_hz
 from servo.diagnose.fit import Fit
 from servo.diagnose.job import Diagnosis, Finding
+from servo.diagnose import noise as noise_mod
 from servo.diagnose.model import GATE
 from servo.diagnose.scope import Unscoped
 from servo.diagnose.terms import VOCABULARY
@@ -182,7 +183,7 @@ def build_report(D: Diagnosis | Unscoped, files: list | None = None) -> dict:
                  "test": int((~D.design.train_rows).sum()), "usable_fraction": float(sig.valid.mean()),
                  "direction_threshold_m_s": sig.v_threshold, "position_noise_m": sig.noise_x, "tau_rows": loc["tau"],
                  "decimate": int(sig.settings.decimate), "band_hz": [0.0, band_hz(sig.settings, 1.0 / sig.dt)],
-                 "band_note": D.band_note},
+                 "band_note": D.band_note, "noise": noise_mod.describe(sig.noise, sig.noise_x, sig.noise_v)},
         "baseline": {"source": "model file" if D.opt.model else "terms", "terms": fit_terms(D.baseline_fit, fu, pu=pu),
                      "error": {"train_force_rel_pct": D.errors["train_force_rel_pct"]["before"],
                                "test_force_rel_pct": D.errors["test_force_rel_pct"]["before"],
@@ -294,6 +295,8 @@ def format_summary(report: dict, out: Path) -> str:
         f"{100 * rows['usable_fraction']:.0f} % usable (direction known)",
         f"  band: every force-balance test covers 0-{rows['band_hz'][1]:.4g} Hz ({rows['band_note']})",
     ]
+    if rows.get("noise"):
+        lines.append(f"  sensor noise: {noise_mod.describe_text(rows['noise'])}")
     fr = report.get("frf")
     if fr and fr["band_hz"]:
         how = "P_rx/P_ru, the recording's r as instrument" if fr.get("method") == "instrumental" else "H1"

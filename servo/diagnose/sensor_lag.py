@@ -156,7 +156,7 @@ class LaggedSignals(Signals):
         a = lag_coefficient(tau, sig.dt)
         gain = _unlag_noise_gain(sig.settings, 1.0 / sig.dt, a)
         out = cls(sig.t, sig.u, sig.x, unlag(sig.xf, a), unlag(sig.vf, a), unlag(sig.af, a), sig.dt, sig.settings,
-                  sig.keep, sig.valid, sig.noise_x, sig.noise_v * gain, sig.v_threshold * gain)  # fmt: skip
+                  sig.keep, sig.valid, sig.noise_x, sig.noise_v * gain, sig.v_threshold * gain, sig.noise)  # fmt: skip
         out.lag_a = a
         return out
 

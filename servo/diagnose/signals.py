@@ -33,6 +33,7 @@ column survives the filtering exactly.
 """
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from functools import cached_property, lru_cache
 
@@ -45,6 +46,17 @@ from servo.io.recording import Recording
 
 #: ``|x'|`` below this many noise standard deviations: the direction is uncertain.
 DIRECTION_Z = 3.0
+#: ``|vf|`` below this many times the velocity the input drives above the Butterworth
+#: (:func:`driven_ripple`): the direction is uncertain (the fitted inertia's error)
+RIPPLE_MARGIN = 1.5
+#: the ripple rule is not applied where it would leave fewer usable rows than this share
+#: (and the noise rule more): a closed loop's steps with a dithering force ripple
+#: everywhere, and with it no decimation left rows to diagnose (refused) where without
+#: it the diagnosis ran (docs/studies/2026-11-28-noise-floor.md)
+RIPPLE_MIN_USABLE = 0.2
+#: the spectrum's direction threshold is kept only where it leaves at least this share of
+#: the rows the first estimate's threshold leaves (:func:`make_signals`)
+THRESHOLD_KEEP = 0.9
 #: a row is unusable if its decimation filter's response to a sample there exceeds this
 #: fraction of the response's peak (the filter's reach: 15 rows with the default settings)
 REACH_LEVEL = 0.01
@@ -84,6 +96,20 @@ class Signals:
     noise_x: float
     noise_v: float
     v_threshold: float
+    #: the position noise's spectrum (:class:`servo.diagnose.noise.NoiseSpectrum`) that
+    #: ``noise_x`` and ``noise_v`` come from; None: read from what the Butterworth removes
+    noise: object = None
+    #: (n,) m/s: the envelope of the velocity the input drives above the Butterworth's
+    #: cutoff, which the filtered velocity lacks (:func:`driven_ripple`); None: not known
+    v_ripple: np.ndarray | None = None
+
+    @property
+    def uncertain(self) -> np.ndarray:
+        """(n,) bool: the samples whose direction of motion the filtered velocity does
+        not tell: ``|vf|`` within ``v_threshold`` (the noise) or within ``v_ripple``
+        (the motion the filter removed could reverse it)."""
+        slow = np.abs(self.vf) <= self.v_threshold
+        return slow if self.v_ripple is None else slow | (np.abs(self.vf) <= self.v_ripple)
 
     @property
     def n(self) -> int:
@@ -114,13 +140,22 @@ class Signals:
         the samples (``J, B, K, h0, Fc``: what the crossings' fit needs to take the
         input's part out of the velocity near a reversal, :func:`reversal_times`);
         None where it is not positive or the rows are too few."""
+        coef = self.balance_fit(force, held_sign(self.vf))
+        if coef is None:
+            return None
+        J = float(coef[0])
+        return J if J > 0 and np.isfinite(J) else None
+
+    def balance_fit(self, force: np.ndarray, sign: np.ndarray) -> np.ndarray | None:
+        """``(J, B, K, h0, Fc)`` of eq. (3) fitted by least squares on the usable rows,
+        the Coulomb column ``sign`` (n,); None with fewer than 50 usable rows."""
         if self.valid.sum() < 50:
             return None
-        Z = [self.af, self.vf, self.xf, np.ones(self.n), held_sign(self.vf)]
+        Z = [self.af, self.vf, self.xf, np.ones(self.n), sign]
         A = np.column_stack([self.rows(z)[self.valid] for z in Z])
-        coef = np.linalg.lstsq(A / np.abs(A).max(axis=0).clip(1e-300), self.rows(force)[self.valid], rcond=None)[0]
-        J = float(coef[0] / max(np.abs(A[:, 0]).max(), 1e-300))
-        return J if J > 0 and np.isfinite(J) else None
+        scale = np.abs(A).max(axis=0).clip(1e-300)
+        coef = np.linalg.lstsq(A / scale, self.rows(force)[self.valid], rcond=None)[0] / scale
+        return coef[[0, 1, 2, 3, 4]]
 
     @cached_property
     def t_rows(self) -> np.ndarray:
@@ -447,16 +482,119 @@ def make_signals(rec: Recording, settings: RobustSettings | None = None) -> Sign
     af = second_difference(xf, dt)
     keep = np.arange(s.trim_start, n - s.trim_end)[(kept - 1) % s.decimate :: s.decimate]
 
-    # position noise: what the Butterworth removes (a robust std: kinks and steps of the
-    # motion leave a few large values), scaled up for the part of the band it keeps
+    # a first position noise: what the Butterworth removes (a robust std: kinks and steps
+    # of the motion leave a few large values), scaled up for the part of the band it
+    # keeps; it places the rows whose direction is certain for the force balance that
+    # reads the noise where the input drives nothing the balance misses (servo.diagnose.noise)
     frac_kept = min(fc / (fs / 2), 0.5)
     hp = (x - xf)[s.trim_start : n - s.trim_end]
     noise_x = float(1.4826 * np.median(np.abs(hp - np.median(hp))) / np.sqrt(1.0 - frac_kept))
     noise_v = noise_x * velocity_noise_gain(s, fs)
     v_thr = DIRECTION_Z * noise_v
     # a row is unusable if its decimation filter reaches an uncertain sample
-    valid = rows_clear_of(keep, np.abs(vf) <= v_thr, filter_reach(s))
-    return Signals(t, u, x, xf, vf, af, dt, s, keep, valid, noise_x, noise_v, v_thr)
+    reach = filter_reach(s)
+    valid = rows_clear_of(keep, np.abs(vf) <= v_thr, reach)
+    sig = Signals(t, u, x, xf, vf, af, dt, s, keep, valid, noise_x, noise_v, v_thr)
+    coef = balance_coefficients(sig)
+    if coef is None:
+        return sig
+    spec = sensor_noise(sig, coef)
+    if spec is not None:
+        noise_x = spec.white_equivalent(chain_impulse(s, fs, "acceleration"), fs)
+        nv = spec.std_through(chain_impulse(s, fs, "velocity"), fs)
+        # the direction threshold from the spectrum, unless it leaves under 90 % of
+        # the rows the first estimate's does (THRESHOLD_KEEP): a quantised sensor's steps add
+        # noise only where the arm crosses them, and the spectrum, read there, called
+        # a slowly moving arm's whole motion uncertain (refused, where the first
+        # estimate's rows named the quantum)
+        if rows_clear_of(keep, np.abs(vf) <= DIRECTION_Z * nv, reach).mean() >= THRESHOLD_KEEP * valid.mean():
+            noise_v = nv
+        v_thr = DIRECTION_Z * noise_v
+    valid = rows_clear_of(keep, np.abs(vf) <= v_thr, reach)
+    ripple = driven_ripple(sig, float(coef[0]))
+    out = Signals(t, u, x, xf, vf, af, dt, s, keep, valid, noise_x, noise_v, v_thr, spec, ripple)
+    signed = rows_clear_of(keep, out.uncertain, reach)
+    if signed.mean() >= RIPPLE_MIN_USABLE or valid.mean() < RIPPLE_MIN_USABLE:
+        out.valid = signed
+    else:  # no rows could be signed: the noise rule's rows, with the misfit the ripple makes
+        out.v_ripple = None
+    return out
+
+
+def balance_coefficients(sig: Signals) -> np.ndarray | None:
+    """``(J, B, K, h0, Fc)`` of eq. (3) fitted on ``sig``'s usable rows at the full rate
+    (the rows' samples, the Butterworth-filtered signals, the friction's sign zero where
+    the direction is uncertain: eq. (3) holds sample by sample on the filtered signals,
+    so the decimation filter is not needed for a first fit); None where fewer than 50
+    rows are usable or the inertia is not positive."""
+    sign = np.where(np.abs(sig.vf) <= sig.v_threshold, 0.0, held_sign(sig.vf))
+    at = sig.keep[sig.valid]
+    if at.size < 50:
+        return None
+    A = np.column_stack([sig.af[at], sig.vf[at], sig.xf[at], np.ones(at.size), sign[at]])
+    scale = np.abs(A).max(axis=0).clip(1e-300)
+    coef = np.linalg.lstsq(A / scale, sig.force()[at], rcond=None)[0] / scale
+    return coef if coef[0] > 0 and np.isfinite(coef).all() else None
+
+
+def driven_ripple(sig: Signals, J: float) -> np.ndarray:
+    """(n,) m/s: the envelope (the largest magnitude within one Butterworth period
+    either side) of the velocity the recorded input drives in the inertia ``J`` above
+    the position's Butterworth cutoff: ``HP(integral of the aligned input)/J``, ``HP``
+    one minus the zero-phase Butterworth.  The filtered velocity lacks exactly this
+    part of a mass's velocity, so where ``|vf|`` is within it the true velocity may
+    have the other sign: an open-loop PRBS's ripple (20 x the noise threshold on the
+    proving ground) and the zero-phase filter's pre-ringing before a closed loop's step
+    otherwise left 60-100 % of the rows with a friction sign the arm did not have."""
+    ua = align(sig.u)
+    hp = ua - sig.butter(ua)
+    w = np.cumsum(hp) * (sig.dt / J)
+    w = w - sig.butter(w)
+    return RIPPLE_MARGIN * np.abs(w)
+
+
+def sensor_noise(sig: Signals, coef: np.ndarray):
+    """The position noise's spectrum (:class:`servo.diagnose.noise.NoiseSpectrum`) of
+    :mod:`servo.diagnose.noise`: the residual of eq. (3) (``coef``,
+    :func:`balance_coefficients`) at the full rate on the recorded position, read above
+    the rows' band with the direction-uncertain samples gated out; None where the read
+    band is too thin (the caller keeps what the Butterworth removes)."""
+    from servo.diagnose import noise
+
+    fs = 1.0 / sig.dt
+    sign = np.where(np.abs(sig.vf) <= sig.v_threshold, 0.0, held_sign(sig.vf))
+    ua = align(sig.u)
+    J, B, K, h0, Fc = (float(c) for c in coef)
+    e = J * second_difference(sig.x, sig.dt) + B * derivative(sig.x, sig.dt) + K * sig.x + h0 + Fc * sign - ua
+    st = sig.settings
+    cut = slice(st.trim_start, sig.n - st.trim_end)
+    q = max(int(st.decimate), 1)
+    # gated out: where the direction is uncertain, and beside every sign change (a true
+    # reversal's switch is placed within a sample at best; the zero-phase filter's
+    # pre-ringing before a closed loop's step flips the filtered velocity for a few samples)
+    flips = np.zeros(sig.n, bool)
+    flips[1:] = np.diff(np.sign(sig.vf)) != 0
+    return noise.estimate(e[cut], J, fs, 0.4 * fs / q if q > 1 else 0.45 * fs, ((sign == 0) | flips)[cut],
+                          int(math.ceil(noise.GUARD * fs / st.cutoff(fs))))
+
+
+def chain_impulse(settings: RobustSettings, fs: float, kind: str) -> np.ndarray:
+    """Full-rate impulse response (N,) of a chain the diagnosis applies to the position:
+    ``"acceleration"`` (Butterworth zero-phase, second difference, the rows' decimation
+    filter: its energy is a row's variance per unit white noise, whichever phase the
+    decimation keeps; 1/s^2) or ``"velocity"`` (Butterworth, the rows' derivative; 1/s)."""
+    q = max(int(settings.decimate), 1)
+    b, a = butter_ba(settings.butter_order, settings.cutoff(fs) / (fs / 2))
+    N = 400 * max(q, 2) + 1
+    z = np.zeros(N)
+    z[N // 2] = 1.0
+    xf = signal.filtfilt(b, a, z, padlen=3 * settings.butter_order)
+    if kind == "velocity":
+        return derivative(xf, 1.0 / fs)
+    h = second_difference(xf, 1.0 / fs)
+    if q > 1:
+        h = signal.sosfiltfilt(cheby_sos(settings.decimate_order, settings.decimate_ripple_db, q), h)
+    return h
 
 
 def rows_clear_of(keep: np.ndarray, bad: np.ndarray, reach: int) -> np.ndarray:

@@ -2,11 +2,12 @@
 
 A model's held-out force residual (each training block predicted by the fit on the
 other blocks, the test part by the fit on the training part; usable rows only) is held
-against the **noise floor** the recording itself implies: the position noise ``sigma_x``
-(estimated from what the Butterworth removes, :func:`servo.diagnose.signals.make_signals`)
+against the **noise floor** the recording itself implies: the position noise's spectrum
+(read where the input drives nothing the model misses, :mod:`servo.diagnose.noise`)
 goes through the acceleration path (Butterworth, second difference, the rows'
 decimation filter) and the fitted inertia, ``floor = |J| * sigma_x * g`` with ``g`` the
-2-norm of that chain's impulse response (:func:`acceleration_noise_gain`).  On null
+2-norm of that chain's impulse response (:func:`acceleration_noise_gain`) and
+``sigma_x`` the white noise of the same std through it (a coloured noise's own floor).  On null
 recordings of both generators (nothing missing, position noise only) the held-out
 residual is 1.00-1.05 times this floor.
 
@@ -143,13 +144,13 @@ def ranges_beyond_training(design, train: np.ndarray, test: np.ndarray) -> list:
 def window_rows(sig) -> np.ndarray:
     """The rows (m,) the ``windows`` check reads: usable rows (``sig.valid``) beyond the
     decimation filter's reach at :data:`LEAK_LEVEL` from every sample the rows cannot
-    trust: the direction-uncertain ones (``|vf| <= v_threshold``, which the fits' rule
+    trust: the direction-uncertain ones (``Signals.uncertain``, which the fits' rule
     keeps out at 1 %) and the samples trimmed at both ends, where the Butterworth's
     zero-phase padding leaves a transient that does not obey the force balance (the
     first row of a null read 9-19 x the floor)."""
     from servo.diagnose.signals import filter_reach, rows_clear_of
 
-    uncertain = np.abs(sig.vf) <= sig.v_threshold
+    uncertain = sig.uncertain.copy()
     st = sig.settings
     uncertain[: st.trim_start] = True  # the Butterworth's edge transient (module doc)
     if st.trim_end > 0:
