@@ -35,12 +35,16 @@ class CLoggedLoop:
         path, flags = cref.build(workdir, cc, SOURCE)
         lib = ctypes.CDLL(str(path))
         lib.ref_closed_loop_logged.argtypes = [_P] * 4 + [_P, _I, _P, _I, _P, _I] + [_P] * 4 + [_P] * 4 + [_I] * 4 + [
-            _P, _P, _I, _I]
+            _P, _P, _I, _I, _P, _P, _I, _P]
         lib.ref_closed_loop_logged.restype = _I
         return cls(lib, flags)
 
-    def run(self, plant, latency, records, r, u_exc, d, noise, k0, n, est_every, log_every, stats, log, row) -> int:
-        """Returns the next free row of ``log`` (rows, width >= 12)."""
+    def run(self, plant, latency, records, r, u_exc, d, noise, k0, n, est_every, log_every, stats, log, row,
+            watch, ring, carry) -> int:
+        """Returns the next free row of ``log`` (rows, width >= 12).  ``watch``, ``ring``,
+        ``carry``: the run watchdog's (:func:`kernels.watch.watch_row`)."""
+        if watch.dtype != np.float64 or ring.dtype != np.uint8 or carry.dtype != np.int64 or carry.shape[0] < 6:
+            raise ValueError("watch float64, ring uint8, carry int64 of 6")
         p = plant
         for a in (r, u_exc, d):
             if a.shape[0] < n:
@@ -50,4 +54,5 @@ class CLoggedLoop:
         return self.lib.ref_closed_loop_logged(
             _ptr(p.state), _ptr(p.params), _ptr(p.q), _ptr(p.mab), _ptr(p.gain), p.q.shape[0], _ptr(p.ubuf),
             p.ubuf.shape[0], _ptr(latency), latency.shape[0], *map(_ptr, records), _ptr(r), _ptr(u_exc), _ptr(d),
-            _ptr(noise), k0, n, est_every, log_every, _ptr(stats), _ptr(log), log.shape[1], row)  # fmt: skip
+            _ptr(noise), k0, n, est_every, log_every, _ptr(stats), _ptr(log), log.shape[1], row, _ptr(watch),
+            _ptr(ring), ring.shape[0], _ptr(carry))  # fmt: skip

@@ -26,6 +26,7 @@ from servo.io.runlog import RunLog
 from servo.runtime.controller import Controller
 from servo.runtime.loop import run_closed_loop
 from servo.runtime.simdriver import SimDriver
+from servo.runtime.watchdog import Watchdog
 from servo.scenarios import scenario_inputs
 
 #: Round pairs (each side 25 000 ticks, ~15 ms on a calm host).
@@ -62,27 +63,36 @@ class Loop:
         ctl.start(0.0, 0.0, drv.plant.u_hold)
         return drv, ctl
 
-    def c(self, lib, drv, ctl, stats):
+    def c(self, lib, drv, ctl, stats, wd):
         r = self.cfg.run
         return lib.run(drv.plant, drv.latency, ctl.records(), self.r, self.u_exc, self.d, self.noise, 0,
-                       self.cfg.n_ticks, r.estimator_every, r.log_every, stats, self.log, 0)  # fmt: skip
+                       self.cfg.n_ticks, r.estimator_every, r.log_every, stats, self.log, 0, wd.watch, wd.ring,
+                       wd.carry)  # fmt: skip
 
-    def kernel(self, drv, ctl, stats):
+    def kernel(self, drv, ctl, stats, wd):
         p, r = drv.plant, self.cfg.run
         return ctl.kernels.closed_loop(p.state, p.params, p.q, p.mab, p.gain, p.ubuf, drv.latency, ctl.buf, self.r,
                                        self.u_exc, self.d, self.noise, 0, self.cfg.n_ticks, r.estimator_every,
-                                       r.log_every, stats, self.log, 0, 0, 0.0)  # fmt: skip
+                                       r.log_every, stats, self.log, 0, 0, 0.0, wd.watch, wd.ring,
+                                       wd.carry)  # fmt: skip
 
 
 def test_c_logs_what_the_fast_path_logs(clog):
-    """The C loop and the compiled fast path: the same log rows, estimator and states, to the bit."""
+    """The C loop and the compiled fast path: the same log rows, estimator, states and
+    watchdog's state, to the bit; the watchdog's bounds set low enough (10 um, 2.5 mA) that
+    both of its tests find a row, so that each of its branches is compared."""
     cfg = Config().replace(run={"duration_s": 0.3})  # through the first steps of the scenario
     loop = Loop(cfg)
     (da, ca), (db, cb) = loop.started(), loop.started()
     sa, sb = np.zeros(STATS_SIZE), np.zeros(STATS_SIZE)
-    assert loop.kernel(da, ca, sa) == cfg.n_ticks
+    wa, wb = Watchdog(cfg), Watchdog(cfg)
+    for w in (wa, wb):
+        w.watch[:2] = 1e-5, 2.5e-3  # m, A: the arm steps 20 um; |u| is 2.0-2.7 mA on 80 % of the ticks
+    assert loop.kernel(da, ca, sa, wa) == cfg.n_ticks
     rows_numba = loop.log.copy()
-    assert loop.c(clog, db, cb, sb) == cfg.n_ticks
+    assert loop.c(clog, db, cb, sb, wb) == cfg.n_ticks
+    assert wa.carry[3] >= 0 and wa.carry[4] >= 0 and 0 < wa.ring.sum() < wa.ring.size
+    assert wa.carry.tobytes() == wb.carry.tobytes() and wa.ring.tobytes() == wb.ring.tobytes()
     assert np.ptp(rows_numba[:, LOG_COLUMNS.index("x")]) > 1e-6  # the arm moved
     assert rows_numba.tobytes() == loop.log.tobytes()
     assert sa.tobytes() == sb.tobytes()
@@ -120,9 +130,9 @@ def test_fast_path_over_c_with_logging(cfg, clog, record, tmp_path):
 
     def timed(fn, *args):
         drv, ctl = loop.started()
-        stats = np.zeros(STATS_SIZE)
+        stats, wd = np.zeros(STATS_SIZE), Watchdog(c)
         t0 = clock()
-        fn(*args, drv, ctl, stats)
+        fn(*args, drv, ctl, stats, wd)
         return clock() - t0
 
     sides = {"fast path": fast, "kernel": lambda: timed(loop.kernel), "C": lambda: timed(loop.c, clog)}

@@ -28,7 +28,7 @@ pays one argument's type check, ~0.3 us, not four):
 
       tick k:  plant_measure -> [servo_start on the first tick] -> servo_tick
                -> link latency -> plant_step -> [estimator every est_every]
-               -> [log row every log_every]
+               -> [log row every log_every, the run watchdog's tests of it]
 
 The kernels are the templates below compiled with the kind's kernels in their globals
 and the kind's record types in their signatures, ``cache=True``: each kind gets its own
@@ -41,7 +41,7 @@ import types
 from typing import NamedTuple
 
 import numpy as np
-from numba import float64, from_dtype, int64, void
+from numba import float64, from_dtype, int64, uint8, void
 
 from kernels._cache import kernel
 from kernels.delay import shift_in
@@ -50,6 +50,7 @@ from kernels.stage import (
     STAGE_PARAMS, STAGE_STATE, stage_output, stage_params_rec_t, stage_room, stage_start, stage_state_rec_t,
     stage_update,
 )  # fmt: skip
+from kernels.watch import watch_row
 
 #: Columns every run log starts with.  Units: tick (-), t (s), r x (m), v (m/s),
 #: u u_n u_c u_exc h_hat (A), regime (0 SLOW / 1 FAST), e (m).
@@ -57,6 +58,7 @@ LOG_COLUMNS = ("tick", "t", "r", "x", "v", "u", "u_n", "u_c", "u_exc", "h_hat", 
 #: The unit of each column of :data:`LOG_COLUMNS`.
 LOG_UNITS = dict(zip(LOG_COLUMNS, ("-", "s", "m", "m", "m/s", "A", "A", "A", "A", "A", "-", "m")))
 N_COMMON = len(LOG_COLUMNS)
+_IX, _IU = LOG_COLUMNS.index("x"), LOG_COLUMNS.index("u")  # the columns the run watchdog tests
 
 #: Accumulators of the tracking-error estimator: sum of e^2, count, max |e|.
 STATS_SIZE = 3
@@ -119,6 +121,7 @@ def _closed_loop(
     k0, n, est_every, log_every,
     stats, log, row,
     start, u_start,
+    watch, ring, carry,
 ):  # fmt: skip
     dt = pp[0].dt
     b = buf[0]
@@ -134,6 +137,7 @@ def _closed_loop(
             error_stats(stats, s.e)
         if k % log_every == 0:
             log_row(log[row], k, dt, x, u_exc[i], buf)  # noqa: F821
+            watch_row(log[row, _IX], log[row, _IU], row, watch, ring, carry)  # while the row is in cache
             row += 1
     return row
 
@@ -147,7 +151,8 @@ reference ``r`` (m) and excitation ``u_exc`` (A) as the excitation task holds th
 (:class:`servo.runtime.window.Window`), disturbance ``d`` (A), ``noise`` the two
 standard normal draws.  Logs every ``log_every`` ticks into ``log[row]`` onwards and
 returns the next free row.  ``start != 0``: the controller takes over at ``k0`` with
-``u_start`` (A) applied."""
+``u_start`` (A) applied.  ``watch``, ``ring``, ``carry``: the run watchdog's tests of
+each logged row (:func:`kernels.watch.watch_row`), done as the row is written."""
 
 
 class Composed(NamedTuple):
@@ -219,6 +224,7 @@ def compose(name: str, tag: str, state_dtype, params_dtype, start, tick, log) ->
             float64[::1], buf_t,
             float64[::1], float64[::1], float64[::1], float64[:, ::1],
             int64, int64, int64, int64, float64[::1], float64[:, ::1], int64, int64, float64,
+            float64[::1], uint8[::1], int64[::1],
         ),
         nogil=True,  # a block of ticks runs while the run log's writer thread journals the last
     )  # fmt: skip

@@ -196,7 +196,7 @@ def rigid_substep(st, p, u, d, h):
     st.H = H1
 
 
-@kernel(void(float64[:, ::1], float64[:, :, ::1], float64, float64))
+@kernel(void(float64[:, ::1], float64[:, :, ::1], float64, float64), inline="always")
 def modes_advance(q, mab, part, u):
     """Advance the flexible modes ``q[i] = (q_i, q_i')`` over one constant-input interval
     with their exact discretisation ``mab[i, part] = (a11, a12, a21, a22, b1, b2)``."""
@@ -233,6 +233,7 @@ def plant_step(ps, pp, q, mab, ubuf, u_cmd, d):
     disturbance force ``d`` (A).  ``ubuf`` (length ``delay_whole + 2``) holds the past
     commands of the input delay; ``q``/``mab`` the flexible modes (see module doc)."""
     p = pp[0]
+    st = ps[0]
     u = min(max(u_cmd, -p.u_max), p.u_max)
     shift_in(ubuf, u)
     m = int(p.delay_whole)
@@ -241,11 +242,16 @@ def plant_step(ps, pp, q, mab, ubuf, u_cmd, d):
     if p.dz_width > 0.0:  # the buffer holds the clipped commands, the arm gets them through the dead zone
         u_late = dead_zone(u_late, p.dz_width)
         u_early = dead_zone(u_early, p.dz_width)
+    # The modes and the rigid body do not feed each other within a sample: the modes go
+    # first, so that no call that may raise (rigid_advance's) lies between the arrays'
+    # uses, and Numba prunes every reference count of q and mab (modes_advance is
+    # inlined: a call handed the arrays kept three increments and decrements a sample).
     if p.delay_frac > 0.0:
-        rigid_advance(ps[0], p, u_early, d, p.delay_frac)
         modes_advance(q, mab, 0.0, u_early)
-    rigid_advance(ps[0], p, u_late, d, p.dt - p.delay_frac)
     modes_advance(q, mab, 1.0, u_late)
+    if p.delay_frac > 0.0:
+        rigid_advance(st, p, u_early, d, p.delay_frac)
+    rigid_advance(st, p, u_late, d, p.dt - p.delay_frac)
 
 
 @kernel(

@@ -7,7 +7,10 @@
  *     -> error_stats every est_every ticks -> one log row every log_every ticks
  *
  * The log row is kernels/compose.py's log_row for the PI kind (which logs no columns of
- * its own): tick, t, r, x, v, u, u_n, u_c, u_exc, h_hat, regime, e.  Built by
+ * its own): tick, t, r, x, v, u, u_n, u_c, u_exc, h_hat, regime, e; then the run
+ * watchdog's tests of the row as the loop writes it (kernels/watch.py's watch_row:
+ * watch = {position, limit, most}, ring of n_ring at-limit flags, carry = {flags in the
+ * ring, rows seen, next slot, first row outside, first row over the share, its count}).  Built by
  * bench/cref.py with the same flags as servo_ref.c; bench/test_fastpath_c.py checks that
  * it logs the same bits as the Numba loop, then times the two.
  */
@@ -19,7 +22,8 @@ int64_t ref_closed_loop_logged(plant_state *st, const plant_params *p, double *q
                                int64_t n_latency, stage_state *c, const stage_params *sp, pi_state *ci,
                                const pi_params *cp, const double *r, const double *u_exc, const double *d,
                                const double *noise, int64_t k0, int64_t n, int64_t est_every, int64_t log_every,
-                               double *stats, double *log, int64_t width, int64_t row)
+                               double *stats, double *log, int64_t width, int64_t row, const double *watch,
+                               uint8_t *ring, int64_t n_ring, int64_t *carry)
 {
     double dt = p->dt, xv[2];
     for (int64_t k = k0; k < k0 + n; k++) {
@@ -49,6 +53,28 @@ int64_t ref_closed_loop_logged(plant_state *st, const plant_params *p, double *q
             o[9] = c->H_dahl;
             o[10] = c->regime;
             o[11] = c->e;
+            /* watch_row on x and u */
+            if (carry[3] < 0 && !(fabs(o[3]) < watch[0]))
+                carry[3] = row;
+            if (carry[4] < 0) {
+                int64_t count = carry[0], seen = carry[1], slot = carry[2];
+                int64_t f = fabs(o[5]) >= watch[1] ? 1 : 0;
+                if (seen >= n_ring)
+                    count -= ring[slot];
+                ring[slot] = (uint8_t)f;
+                count += f;
+                slot++;
+                if (slot == n_ring)
+                    slot = 0;
+                seen++;
+                carry[0] = count;
+                carry[1] = seen;
+                carry[2] = slot;
+                if (seen >= n_ring && (double)count > watch[2]) {
+                    carry[4] = row;
+                    carry[5] = count;
+                }
+            }
             row++;
         }
     }

@@ -178,10 +178,11 @@ def _run_ticks(cfg, driver, controller, inputs, log, stats, pacer, durations, wa
 #: a loaded machine (taking the interpreter lock back from the input and journal
 #: threads, the state check, the watchdog's call, caches refilled after the switch):
 #: with calls of 1024 ticks the fast path measured 1.35x the C, with these 1.29x
-#: (alternated rounds, load 22: docs/studies/2026-11-28-fast-path-at-c.md).  The state
-#: check and the watchdog run between calls, so a diverging simulation is stopped at
-#: the end of the call it diverged in.  A call also ends where the run log's block is
-#: full.
+#: (alternated rounds, load 22: docs/studies/2026-11-28-fast-path-at-c.md).  The
+#: compiled loop runs the watchdog's tests on each row as it logs it; the state check
+#: and the watchdog's verdict come between calls, so a diverging simulation is stopped
+#: at the end of the call it diverged in.  A call also ends where the run log's block
+#: is full.
 CALL_TICKS = 8 * BLOCK
 
 
@@ -217,7 +218,7 @@ def _fast_inputs(cfg, driver: SimDriver, inputs, k: int, n: int):
 _ENTRY: dict = {}
 
 
-def _closed_loop_entry(cfg, driver: SimDriver, controller, stats, log, u_start):
+def _closed_loop_entry(cfg, driver: SimDriver, controller, stats, log, u_start, watchdog):
     """The compiled loop without Numba's per-call type dispatch (~0.3 us per record array),
     its types checked by a call of no ticks on copies, once per process: the plant's and
     the controller's arrays have the types of their records whatever the run, the log
@@ -231,7 +232,8 @@ def _closed_loop_entry(cfg, driver: SimDriver, controller, stats, log, u_start):
         fn = _ENTRY[key] = entry_point(
             controller.kernels.closed_loop, p.state.copy(), p.params, p.q.copy(), p.mab, p.gain, p.ubuf.copy(),
             driver.latency.copy(), controller.buf.copy(), none, none, none, no_rows, driver.tick, 0,
-            cfg.run.estimator_every, cfg.run.log_every, stats.copy(), data[:0].copy(), 0, 0, u_start)  # fmt: skip
+            cfg.run.estimator_every, cfg.run.log_every, stats.copy(), data[:0].copy(), 0, 0, u_start,
+            watchdog.watch, watchdog.ring.copy(), watchdog.carry.copy())  # fmt: skip
     return fn
 
 
@@ -239,7 +241,7 @@ def _run_fast(cfg, driver: SimDriver, controller, inputs, log, stats, watchdog) 
     p = driver.plant
     u_start = driver.applied_current
     first = driver.tick
-    closed_loop = _closed_loop_entry(cfg, driver, controller, stats, log, u_start)
+    closed_loop = _closed_loop_entry(cfg, driver, controller, stats, log, u_start, watchdog)
     est_every, log_every = cfg.run.estimator_every, cfg.run.log_every
     block_rows = getattr(log, "block_rows", log.data.shape[0])
     # the next chunk's inputs are computed while this one runs (the kernel releases the lock)
@@ -260,11 +262,12 @@ def _run_fast(cfg, driver: SimDriver, controller, inputs, log, stats, watchdog) 
                     r_, u_, d_, noise_,
                     k + i, n, est_every, log_every,
                     stats, log.data, log.rows, 1 if k + i == first else 0, u_start,
+                    watchdog.watch, watchdog.ring, watchdog.carry,
                 )  # fmt: skip
                 i += n
                 driver.tick = k + i
                 driver.check_state()  # after the call's log is kept
-                watchdog.flush(log)
+                watchdog.flush(log, looked=True)  # the loop tested each row as it logged it
 
 
 __all__ = ["LOG_COLUMNS", "LoopResult", "log_rows", "run_closed_loop"]

@@ -24,7 +24,7 @@ from __future__ import annotations
 import numpy as np
 
 from kernels.compose import LOG_COLUMNS
-from kernels.watch import first_outside, first_over_share
+from kernels.watch import CARRY_SIZE, first_outside, first_over_share
 from servo.config import Config
 from servo.errors import UnstableLoop
 
@@ -46,7 +46,10 @@ class Watchdog:
         self.ix, self.iu = LOG_COLUMNS.index("x"), LOG_COLUMNS.index("u")
         self.start = 0  # first row of the log's block not looked at yet
         self.ring = np.zeros(self.window, dtype=np.uint8)  # at-limit flags of the latest window of rows (kernels.watch)
-        self.carry = np.zeros(3, dtype=np.int64)
+        self.carry = np.zeros(CARRY_SIZE, dtype=np.int64)
+        self.carry[3:5] = -1  # no row outside, none over the share (kernels.watch.watch_row)
+        #: what the compiled loop tests each row against: position, limit, most flags in a window
+        self.watch = np.array([self.position, self.limit, self.share * self.window if self.share < 1.0 else np.inf])
 
     def look(self, log) -> None:
         """Check the rows ``log.data[start:log.rows]``; raises :class:`UnstableLoop`."""
@@ -56,23 +59,43 @@ class Watchdog:
             return
         i = first_outside(rows, self.ix, self.position)
         if i >= 0:
-            x = rows[i, self.ix]
-            raise UnstableLoop(f"unstable loop: the position reached {x * 1e3:.3f} mm at t = {rows[i, 1]:.4f} s, "
-                               f"outside +-{self.position * 1e3:.4g} mm (run.fault_position); run stopped, drive set "
-                               "to zero current")  # fmt: skip
+            self._outside(rows[i])
         if self.share >= 1.0:
             return
         j, count = first_over_share(rows, self.iu, self.limit, self.ring, self.carry, self.share * self.window)
         if j >= 0:
-            t = rows[-1, 1]
-            raise UnstableLoop(f"unstable loop: the current command sat at its limit (+-{self.limit:.4g} A) on "
-                               f"{100 * count / self.window:.0f} % of a {self.window * self.dt_row:g} s "
-                               f"window ending near t = {t:.4f} s (run.fault_limit_share = {self.share:g}); run "
-                               "stopped, drive set to zero current")  # fmt: skip
+            self._over_share(count, rows[-1, 1])
 
-    def flush(self, log) -> None:
-        """Look at what is left of the block, then let the log hand it over."""
-        self.look(log)
+    def looked(self, log) -> None:
+        """The compiled loop has tested the rows ``log.data[start:log.rows]`` as it logged
+        them (:func:`kernels.watch.watch_row` on :attr:`watch`, :attr:`ring`,
+        :attr:`carry`): raise as :meth:`look` would have on them."""
+        i, j = self.carry[3], self.carry[4]
+        if i >= 0:
+            self._outside(log.data[i])
+        if j >= 0:
+            self._over_share(int(self.carry[5]), log.data[log.rows - 1, 1])
+        self.start = log.rows
+
+    def _outside(self, row) -> None:
+        x = row[self.ix]
+        raise UnstableLoop(f"unstable loop: the position reached {x * 1e3:.3f} mm at t = {row[1]:.4f} s, "
+                           f"outside +-{self.position * 1e3:.4g} mm (run.fault_position); run stopped, drive set "
+                           "to zero current")  # fmt: skip
+
+    def _over_share(self, count: int, t: float) -> None:
+        raise UnstableLoop(f"unstable loop: the current command sat at its limit (+-{self.limit:.4g} A) on "
+                           f"{100 * count / self.window:.0f} % of a {self.window * self.dt_row:g} s "
+                           f"window ending near t = {t:.4f} s (run.fault_limit_share = {self.share:g}); run "
+                           "stopped, drive set to zero current")  # fmt: skip
+
+    def flush(self, log, looked: bool = False) -> None:
+        """Look at what is left of the block (``looked``: the compiled loop did,
+        :meth:`looked`), then let the log hand it over."""
+        if looked:
+            self.looked(log)
+        else:
+            self.look(log)
         log.maybe_flush()
         self.start = min(self.start, log.rows)
 
