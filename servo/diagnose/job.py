@@ -271,13 +271,45 @@ def _select(sel: Selector, model: Model, opt: Options):
     findings, rounds, not_testable, implausible = [], [], {}, {}
     for corrections in (True, False):
         model = _rounds(sel, model, opt, corrections, findings, rounds, not_testable, implausible)
-    # then terms present from some time on (:mod:`servo.diagnose.partial`), counted
-    # among the candidates of the round that ended the vocabulary's stage
-    counted = len(rounds[-1]["scores"]) if rounds else 0
+    _gated(sel, model, opt, findings, rounds, not_testable, implausible)
+    return findings, rounds, not_testable, implausible
+
+
+def _gated(sel: Selector, model: Model, opt: Options, findings: list, rounds: list, not_testable: dict,
+           implausible: dict) -> None:  # fmt: skip
+    """The gated stage of :func:`_select` (terms present from some time on,
+    :mod:`servo.diagnose.partial`) on ``model``, the vocabulary stage's; appends its
+    findings and rounds.  Its candidates are counted among those of the round that ended
+    the vocabulary's stage."""
+    vocab = [r for r in rounds if not r.get("gated")]
+    counted = len(vocab[-1]["scores"]) if vocab else 0
     for term, score, level, tstd in partial.rounds(sel, model, opt.alpha, counted, opt.max_findings - len(findings),
                                                    rounds, not_testable, implausible):  # fmt: skip
         findings.append(Finding(term, score, level, tstd))
-    return findings, rounds, not_testable, implausible
+
+
+def _regate(sel: Selector, base: Model, opt: Options, findings: list, unconfirmed: list, rounds: list,
+            not_testable: dict, implausible: dict) -> bool:
+    """When the held-out proof dropped a finding of the vocabulary stage (ungated), the
+    gated stage, which ran on the model with it, is run again on the model the proof
+    keeps (docs/diagnosis.md, 4a).  A drift and a term present from some time on both
+    explain a change in time; the drift, tried first, stays only if the test part
+    confirms it; if not, the gated stage is not left conditioned on it.  Replaces, in
+    place, the gated findings and rounds (and their not-testable and implausible notes)
+    by the new stage's; returns whether it ran."""
+    if not any(partial.onset(f.term.params) is None and not f.sensor for f, _, _ in unconfirmed):
+        return False
+    kept = [f for f in findings if partial.onset(f.term.params) is None]
+    findings[:] = kept
+    rounds[:] = [r for r in rounds if not r.get("gated")]
+    for d in (not_testable, implausible):
+        for k in [k for k in d if k.endswith("(gated in time)")]:
+            del d[k]
+    model = base
+    for f in kept:
+        model = model.plus(f.term)
+    _gated(sel, model, opt, findings, rounds, not_testable, implausible)
+    return True
 
 
 def _rounds(sel: Selector, model: Model, opt: Options, corrections: bool, findings, rounds, not_testable,
@@ -693,6 +725,11 @@ def _diagnose(rec: Recording, opt: Options | None) -> Diagnosis:
     progress.stage("held-out proof")
     starts_test = starts_in(design, ~design.train_rows, H)
     fits, errs, nr, preds, unconfirmed, note = _prove(design, base, findings, test_rows, starts_test, H, opt.alpha)
+    if _regate(sel, base, opt, findings, unconfirmed, rounds, not_testable, implausible):
+        # the gated stage on the model the proof kept; its findings proven as the others
+        dropped = [e for e in unconfirmed if partial.onset(e[0].term.params) is None]  # not the old gated ones
+        fits, errs, nr, preds, unconfirmed, note = _prove(design, base, findings, test_rows, starts_test, H, opt.alpha)
+        unconfirmed = dropped + unconfirmed
     if findings and _scope_of(design, fits[-1]):
         # a recording the force balance does not describe: its findings fit noise (an
         # unrelated position got several); none is named

@@ -37,7 +37,10 @@ eligible vocabulary term **gated in time**: its columns multiplied by the indica
   a leak only costs a gated round, which has its own level): a model that already
   predicts its training part to its noise has nothing a gate could explain.
   The test part is used neither for the trigger nor for the choice; it proves the
-  finding like every other (:mod:`servo.diagnose.job`).
+  finding like every other (:mod:`servo.diagnose.job`).  When that proof drops a term
+  of the vocabulary stage (a ``drift`` the test part refuses: it, too, explains a
+  change in time), this stage is run again on the model the proof keeps
+  (:func:`servo.diagnose.job._regate`).
 * **Which terms** (:func:`gateable`): column terms eligible on the current model,
   except screened ones (a mode or a cogging appearing mid-run: 1000-3000 variants times
   39 onsets, not built) and the inertia (a mass does not appear).  Input terms (a delay,
