@@ -37,7 +37,9 @@ def test_reversals_close_in_samples_get_a_smaller_decimation_and_the_band_is_sta
     fixed = diagnose(rec, Options(settings=RobustSettings()))
     chosen = diagnose(rec, Options(band="reversals"))  # the reversals alone (the power rule: test_diagnose_power_band)
     q = chosen.sig.settings.decimate
-    assert q < 10 and chosen.sig.valid.mean() > fixed.sig.valid.mean() >= 0.3
+    # (the default keeps 28 % of the rows since rows whose friction sign the filter cannot
+    # tell are left out, signals.py; 30 % before)
+    assert q < 10 and chosen.sig.valid.mean() > fixed.sig.valid.mean() >= 0.25
     assert chosen.sig.valid.mean() >= 0.6
     assert f"decimation by {q}" in chosen.band_note and "usable" in chosen.band_note
     assert band_hz(chosen.sig.settings, FS) == pytest.approx(0.4 * FS / q)
@@ -45,7 +47,7 @@ def test_reversals_close_in_samples_get_a_smaller_decimation_and_the_band_is_sta
     # a slow motion keeps the default
     slow = diagnose(_recording(2.5), Options(band="reversals"))
     assert slow.sig.settings.decimate == 10
-    assert slow.band_note.startswith("decimation by 10: the motion reverses every 151 samples (median), 89 % of the rows")
+    assert slow.band_note.startswith("decimation by 10: the motion reverses every 151 samples (median), 81 % of the rows")  # 89 % before the uncertain rows left
 
 
 def test_out_of_scope_names_its_cause():
