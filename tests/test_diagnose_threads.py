@@ -1,5 +1,5 @@
 """A diagnosis runs BLAS on one thread and gives the process its threads back
-(``servo.diagnose.job.BLAS_THREADS``; docs/diagnosis.md, section 12)."""
+(``servo.diagnose.job.BLAS_THREADS``; docs/diagnosis-speed.md, section 12)."""
 from threadpoolctl import threadpool_info, threadpool_limits
 
 from servo.diagnose import job
