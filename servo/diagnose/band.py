@@ -21,7 +21,9 @@ larger than 10 is never tried (the rows' averaging and the study's levels stay t
 of the default).
 
 Among them, :func:`choose` tries ``q`` largest first (the most averaging and
-the fewest rows) and keeps the first whose rows are at least :data:`USABLE_MIN` usable;
+the fewest rows) and keeps the first whose rows are at least :data:`USABLE_MIN` usable
+with the friction sign the arm had (``Signals.usable_share``: where the ripple rule fell
+back to the noise rule's rows, those rows carry a wrong sign's misfit and do not count);
 failing that, the one with the most usable training rows; failing every one, it
 refuses with the cause it measured (an arm that barely moves, or reversals too close
 together for any decimation, with their count and spacing).  The note says why: the
