@@ -97,7 +97,9 @@ def _fake_design(q: int, usable: float, noise_x: float, n: int):
     m = n // q
     valid = np.arange(m) < int(round(usable * m))
     vf = np.sin(2 * np.pi * np.arange(n) / 500.0)
-    return SimpleNamespace(sig=SimpleNamespace(valid=valid, noise_x=noise_x, vf=vf, v_threshold=0.1, n=n,
+    # usable_share: the chooser's share (the friction sign known on every valid row here)
+    return SimpleNamespace(sig=SimpleNamespace(valid=valid, usable_share=float(valid.mean()), noise_x=noise_x, vf=vf,
+                                               v_threshold=0.1, n=n,
                                                settings=SimpleNamespace(decimate=q)))  # fmt: skip
 
 

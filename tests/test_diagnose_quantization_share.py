@@ -106,3 +106,21 @@ def test_a_quantum_the_arm_rests_on_sets_the_floor_it_implies():
     assert D.verdict["baseline_checks"]["level"]["position_noise_m"] == level["position_noise_m"]
     assert 0.5 < level["ratio"] < 1.2
     assert D.verdict["verdict"] == "explained", D.verdict["text"]
+
+
+def test_a_quantum_no_narrower_band_can_fit_is_still_named():
+    """Proving ground (development seed 310301 of the kinds grid): a quantum of 100 noise
+    std on an open-loop multisine with low-pass noise.  The floor read above the rows'
+    band holds the quantum's noise, so the baseline stands at it; every narrower band
+    leaves too few usable rows to be fitted.  The lattice found is still judged on the
+    default rows and named; the verdict is never ``consistent`` (it was, with an effect
+    of 0.98 against the twin without the quantum)."""
+    from studies.proving.cases import Case, recording
+
+    rec, _ = recording(Case("quantization", 100.0, "force", "multisine", 5000.0, noise="lowpass"), 310301)
+    D = diagnose(rec)
+    assert [f.physics for f in D.findings] == ["quantization"]
+    f = D.findings[0]
+    assert f.after["rows_differ"] is False and f.quant_heldout["heldout_fraction_on_lattice"] == 1.0
+    assert f.params["share_of_heldout_rms"] >= SHARE_MIN
+    assert D.verdict["verdict"] != "consistent", D.verdict["text"]

@@ -21,7 +21,9 @@ larger than 10 is never tried (the rows' averaging and the study's levels stay t
 of the default).
 
 Among them, :func:`choose` tries ``q`` largest first (the most averaging and
-the fewest rows) and keeps the first whose rows are at least :data:`USABLE_MIN` usable;
+the fewest rows) and keeps the first whose rows are at least :data:`USABLE_MIN` usable
+with the friction sign the arm had (``Signals.usable_share``: where the ripple rule fell
+back to the noise rule's rows, those rows carry a wrong sign's misfit and do not count);
 failing that, the one with the most usable training rows; failing every one, it
 refuses with the cause it measured (an arm that barely moves, or reversals too close
 together for any decimation, with their count and spacing).  The note says why: the
@@ -155,23 +157,23 @@ def _by_reversals(cands: tuple, attempt, rec: Recording):
         tried.append((q, d, exc))
         if d is None:
             continue
-        if d.sig.valid.mean() >= USABLE_MIN:
+        if d.sig.usable_share >= USABLE_MIN:
             n_rev, gap = reversals(d.sig)
             rev = f"the motion reverses every {gap:.0f} samples (median)" if n_rev > 1 else "the motion hardly reverses"
             if q == cands[0]:
-                return d, f"{rev}, {100 * d.sig.valid.mean():.0f} % of the rows usable"
+                return d, f"{rev}, {100 * d.sig.usable_share:.0f} % of the rows usable"
             return d, (f"{rev}: by {cands[0]} only {100 * _usable(tried, cands[0]):.0f} % of the rows were usable "
                        "(reversals within the decimation filter's reach)")  # fmt: skip
     default = next((d for q, d, _ in tried if q == cands[0] and d is not None), None)
-    ok = [(q, d) for q, d, _ in tried if d is not None and q != cands[0] and d.sig.valid.mean() >= FALLBACK_MIN]
+    ok = [(q, d) for q, d, _ in tried if d is not None and q != cands[0] and d.sig.usable_share >= FALLBACK_MIN]
     if ok:
-        q, d = max(ok, key=lambda t: float(t[1].sig.valid.mean()))  # shares: the row counts differ with q
-        if default is None or d.sig.valid.mean() >= GAIN_MIN * default.sig.valid.mean():
-            return d, (f"the most usable rows of the decimations tried ({100 * d.sig.valid.mean():.0f} "
+        q, d = max(ok, key=lambda t: float(t[1].sig.usable_share))  # shares: the row counts differ with q
+        if default is None or d.sig.usable_share >= GAIN_MIN * default.sig.usable_share:
+            return d, (f"the most usable rows of the decimations tried ({100 * d.sig.usable_share:.0f} "
                        f"%, {100 * _usable(tried, cands[0]):.0f} % by {cands[0]}; reversals within the "
                        "decimation filter's reach)")  # fmt: skip
     if default is not None:  # no decimation does much better: the rows are few for another reason (the arm dwells)
-        return default, (f"{100 * default.sig.valid.mean():.0f} % of the rows usable; no other decimation tried "
+        return default, (f"{100 * default.sig.usable_share:.0f} % of the rows usable; no other decimation tried "
                          "gives many more usable rows")  # fmt: skip
     last_exc = next((e for _, _, e in reversed(tried) if e is not None), None)
     raise _refusal(rec, tried, last_exc or IdentificationError("too few usable rows"))
@@ -180,7 +182,7 @@ def _by_reversals(cands: tuple, attempt, rec: Recording):
 def _usable(tried, q) -> float:
     for qq, d, _ in tried:
         if qq == q and d is not None:
-            return float(d.sig.valid.mean())
+            return float(d.sig.usable_share)
     return 0.0
 
 

@@ -421,11 +421,11 @@ def _quantization(rec: Recording, opt: Options, base: Model, design: Design, H: 
             continue
         if best is None or e2.sum() < best[2].sum():
             best = (d2, f2, e2)
-    if best is None:
-        return None, design, lat, ""
+    level = opt.alpha / len(paths)
+    if best is None:  # no narrower band leaves rows to fit: the quantum is still judged on the default rows
+        best = (design, fit0, e0)
     d2, f2, e2 = best
     t, p = improvement_test(np.array([e0[b].sum() for b in blk]), np.array([e2[b].sum() for b in blk]))
-    level = opt.alpha / len(paths)
     starts_te = starts_in(d2, ~d2.train_rows, H)  # the starts the rest of the proof uses
     p0_te = predict(design, fit0, starts_te, H)
     nr0, nr2 = p0_te.nrmse(), predict(d2, f2, starts_te, H).nrmse()

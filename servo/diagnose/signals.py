@@ -102,6 +102,19 @@ class Signals:
     #: (n,) m/s: the envelope of the velocity the input drives above the Butterworth's
     #: cutoff, which the filtered velocity lacks (:func:`driven_ripple`); None: not known
     v_ripple: np.ndarray | None = None
+    #: the share of the rows clear of every sample whose direction is uncertain, the
+    #: ripple rule's included, whether or not that rule was applied (:func:`make_signals`
+    #: falls back to the noise rule's rows where it leaves too few); None: not measured
+    signed_share: float | None = None
+
+    @property
+    def usable_share(self) -> float:
+        """The share of the rows usable *with the friction sign the arm had*: ``valid``'s,
+        or, where the ripple rule fell back to the noise rule's rows, the share that
+        rule would leave (the fallback's rows carry the misfit of a wrong sign, so a
+        choice of decimation must not count them as usable)."""
+        share = float(self.valid.mean())
+        return share if self.signed_share is None else min(share, self.signed_share)
 
     @property
     def uncertain(self) -> np.ndarray:
@@ -514,6 +527,7 @@ def make_signals(rec: Recording, settings: RobustSettings | None = None) -> Sign
     ripple = driven_ripple(sig, float(coef[0]))
     out = Signals(t, u, x, xf, vf, af, dt, s, keep, valid, noise_x, noise_v, v_thr, spec, ripple)
     signed = rows_clear_of(keep, out.uncertain, reach)
+    out.signed_share = float(signed.mean())
     if signed.mean() >= RIPPLE_MIN_USABLE or valid.mean() < RIPPLE_MIN_USABLE:
         out.valid = signed
     else:  # no rows could be signed: the noise rule's rows, with the misfit the ripple makes
