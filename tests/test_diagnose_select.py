@@ -137,3 +137,18 @@ def test_solve_gives_a_collinear_column_no_weight():
     c = solve(Z.T @ Z, Z.T @ y)
     assert np.allclose(Z @ c, y, atol=1e-9)
     assert np.all(np.abs(c) < 10)
+
+
+def test_a_column_that_is_not_finite_gets_no_weight():
+    """A candidate column with non-finite entries (a memory term's state that diverged)
+    is given no weight, and the others are solved as without it, instead of the
+    eigensolver failing on the Gram matrix (a closed-loop step recording at decimation
+    3 raised ``LinAlgError`` through the hysteresis candidate)."""
+    from servo.diagnose.select import solve
+
+    rng = np.random.default_rng(0)
+    Z = rng.standard_normal((200, 2))
+    y = Z @ np.array([2.0, -1.0])
+    Zb = np.column_stack([Z, np.full(200, np.nan)])
+    c = solve(Zb.T @ Zb, Zb.T @ y)
+    assert c[2] == 0.0 and np.allclose(c[:2], [2.0, -1.0])

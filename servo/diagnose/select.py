@@ -61,10 +61,15 @@ SCREEN_CHUNK = 32
 def solve(G: np.ndarray, g: np.ndarray) -> np.ndarray:
     """Least-squares coefficients from a Gram matrix ``G`` (q, q) and ``g = Z'y`` (q,),
     columns scaled to unit norm and near-null directions dropped (a column the rows
-    cannot tell from the others gets no weight instead of a huge one)."""
+    cannot tell from the others gets no weight instead of a huge one; so does a column
+    whose entries are not finite, e.g. a memory term's state that diverged on rows it
+    cannot follow)."""
     q = g.shape[0]
     if q == 0:
         return np.zeros(0)
+    bad = ~(np.isfinite(np.diag(G)) & np.isfinite(g))
+    if bad.any():
+        G, g = np.where(bad[:, None] | bad[None, :], 0.0, G), np.where(bad, 0.0, g)
     d = np.sqrt(np.clip(np.diag(G), 0, None))
     d[d == 0] = 1.0
     Gs = G / np.outer(d, d)
