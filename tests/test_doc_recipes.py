@@ -423,7 +423,7 @@ def test_diagnosis_page_emps_findings_are_what_diagnose_reports(beside_shared):
 def test_compensate_page_emps_residuals_are_what_compensate_prints(beside_shared):
     """docs/compensate.md, EMPS: the diagnosis (the same command as docs/diagnosis.md's,
     run once), then `servo compensate ... --recording`: every row of the held-out residual
-    table, the rows it is measured on, and the offset left out, to the digits written."""
+    table, the rows it is measured on, and the offset it cancels, to the digits written."""
     page = _page("compensate.md")
     diagnose, compensate = [c for c in doc_commands("docs/compensate.md") if "emps" in c]
     assert diagnose.startswith("servo diagnose") and "--recording" in compensate
@@ -440,9 +440,13 @@ def test_compensate_page_emps_residuals_are_what_compensate_prints(beside_shared
         assert _close(value, re.match(r"\**([0-9.]+) %", cells[1]).group(1)), (cells, key, value)
     assert s["residual_pct"]["rows"] == int(re.search(r"\((\d+) rows of the fourth period", section).group(1))
     h0, std, t = re.search(r"`h0` = " + PM + r" N, ([0-9.]+) standard deviations", section).groups()
-    (left,) = s["left_out"]
-    assert left["physics"] == "offset" and _close(left["params"]["h0"], h0) and _close(left["std"]["h0"], std)
-    assert _close(left["t"], t)
+    assert s["left_out"] == []  # "The offset is cancelled"
+    report = json.loads((beside_shared.out(diagnose) / "report.json").read_text())
+    (off,) = [term for term in report["final_model"]["terms"] if term["physics"] == "offset"]
+    assert _close(off["params"]["h0"], h0) and _close(off["std"]["h0"], std)
+    assert _close(abs(off["params"]["h0"]) / off["std"]["h0"], t)
+    (eq9,) = [c for c in s["cancelled"] if "eq. 9" in c["name"]]
+    assert _close(eq9["keys"]["h0"], h0)
 
 
 @pytest.mark.slow
