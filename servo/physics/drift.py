@@ -62,6 +62,12 @@ def _span(d) -> tuple[float, float]:
     return float(t[0]), float(t[last])
 
 
+def row_times(d) -> np.ndarray:
+    """The rows' instants (m,) in s: the time itself through the rows' decimation (a
+    zero-phase filter with odd padding returns a linear function unchanged)."""
+    return d.sig.rows(d.sig.t)
+
+
 def hats(t: np.ndarray, t_end: float, time_scale: float) -> np.ndarray:
     """The drift's columns (n, :data:`KNOTS`) at times ``t`` (s): hat functions with
     knots ``t_end - j*time_scale`` (``j = KNOTS .. 1``, earliest first), the drift 0
@@ -99,13 +105,15 @@ class Drift(Term):
         return hats(d.sig.t, t_end, theta["time_scale"])
 
     def rows(self, d, theta, u_eff):
-        """The exact rows (m, :data:`KNOTS`), one full-rate column at a time (the
-        default builds the (n, KNOTS) block first: 48 bytes a sample beyond the
-        diagnosis's memory estimate)."""
+        """The rows (m, :data:`KNOTS`): the hat functions at the rows' instants
+        (:func:`row_times`).  The rows' zero-phase low-pass leaves a function linear in
+        time unchanged, so a hat's rows differ from its filtered samples only within
+        the filter's reach (milliseconds) of a knot, against knots at least
+        ``time_scale`` (a tenth of a second and more) apart; filtering each of the
+        KNOTS columns of every time scale at full rate cost a 1e6-sample diagnosis
+        most of its time."""
         _, t_end = _span(d)
-        last = t_end - theta["time_scale"]
-        s = (np.minimum(d.sig.t, last) - last) / theta["time_scale"] + KNOTS
-        return np.column_stack([d.sig.rows(_tents(s, np.array([k]))[:, 0]) for k in range(1, KNOTS + 1)])
+        return hats(row_times(d), t_end, theta["time_scale"])
 
     def grid(self, d, model):
         t0, t_end = _span(d)
@@ -122,7 +130,7 @@ class Drift(Term):
     def followed(self, d, theta, r, rows):
         """The held-out residual ``r`` (m,) with the drift's course through the test
         ``rows`` fitted there: hat functions ``time_scale`` apart from the training part's
-        last knot (its level already in ``r``) to the end, through the rows' filter (the
+        last knot (its level already in ``r``) to the end, at the rows' instants (the
         first reaches back into the training part: its rows are not fitted here)."""
         _, t_end = _span(d)
         tau = theta["time_scale"]
@@ -131,10 +139,9 @@ class Drift(Term):
         k = np.arange(1, int(np.ceil((t[-1] - last) / tau)) + 1)
         if not k.size or not rows.any():
             return r
-        s = (np.maximum(t, last) - last) / tau
-        F = _tents(s, k)
-        F[:, -1] = np.clip(s - (k[-1] - 1), 0.0, 1.0)  # the last knot holds its level to the end
-        Z = np.column_stack([d.sig.rows(np.ascontiguousarray(F[:, j])) for j in range(k.size)])
+        sr = (np.maximum(row_times(d), last) - last) / tau
+        Z = _tents(sr, k)
+        Z[:, -1] = np.clip(sr - (k[-1] - 1), 0.0, 1.0)  # the last knot holds its level to the end
         c, *_ = np.linalg.lstsq(Z[rows], r[rows], rcond=None)
         out = r.copy()
         out[rows] = r[rows] - Z[rows] @ c
