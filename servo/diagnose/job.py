@@ -71,11 +71,11 @@ MIN_ROWS_PER_BLOCK = 20
 #: filtered motion, two effective inputs, the filters' temporaries, a second path's
 #: signals after a quantisation finding) and per row (the cached candidate columns and
 #: a chunk of screened variants); measured 310-340 B per sample in all at decimation by 10
-#: (``python -m studies.memprobe``), estimated with a margin; 200 since the noise floor's
+#: (``python -m studies.memprobe``), estimated with a margin; 224 since the noise floor's
 #: spectrum, the frequency evidence over the excited band and the drift came in (a
-#: 200 000-sample diagnosis peaked at 83.1 MB beside the recording, over the former 176's
+#: 200 000-sample diagnosis peaked at 83-84 MB beside the recording, over the former 176's
 #: 79.3 MB; measured by ``tests/test_diagnose_memory.py``)
-BYTES_PER_SAMPLE = 200
+BYTES_PER_SAMPLE = 224
 BYTES_PER_ROW = 2400
 #: a finding may not raise the held-out output NRMSE by more than this fraction
 OUTPUT_TOLERANCE = 0.05
