@@ -204,6 +204,9 @@ class Case:
     samples: int = 30000
     #: sensor noise colour, one of :data:`NOISES`
     noise: str = "white"
+    #: the motion's frequency ``f_m`` (Hz); 0: ``fs/2000`` (module doc).  A fast one puts
+    #: a reversal every few samples (a benchmark at 750 Hz driven at 5-150 Hz)
+    motion_hz: float = 0.0
 
 
 def sensor_noise(kind: str, white: np.ndarray, fs: float, fm: float) -> np.ndarray:
@@ -336,7 +339,7 @@ def _excitation(kind: str, rng, n: int, fs: float, fm: float, F: float) -> tuple
 
 def _params(case: Case, rng) -> tuple[np.ndarray, np.ndarray, np.ndarray, dict]:
     fs = case.rate_hz
-    fm = fs / 2000.0
+    fm = case.motion_hz or fs / 2000.0
     wm = 2 * np.pi * fm
     var = lambda: rng.uniform(0.7, 1.3)  # noqa: E731
     J = 1e-3 * var()
