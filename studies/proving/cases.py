@@ -10,6 +10,9 @@ its truth (what a diagnosis should name, the verdict it should reach).
 except where a case sets something in samples or in the rows' band (a mode's frequency
 relative to the band edge ``0.035*fs``, a delay in samples, a sensor cutoff relative to
 ``fs``); the seeds vary amplitudes, phases and the plant's parameters by +-30 %.
+``Case.motion_hz`` sets ``f_m`` instead (the plant's time scales follow it, the loop's
+crossover stays at ``fs/50``): a fast motion at a low rate, a reversal every few samples
+(a hysteretic benchmark at 750 Hz driven at 5-150 Hz).
 
 **Null physics** (nothing the paper's baseline ``J, B, Fc, K, h0`` lacks): a rigid body,
 viscous friction, Karnopp Coulomb friction with ``Fs = Fc``, a spring and an offset;
@@ -503,8 +506,8 @@ def recording(case: Case, seed: int = 0, excitation: bool = False) -> tuple[Reco
         other = "seeks" if case.excitation != "seeks" else "chirp"  # no frequency lines shared with the input
         if case.controller == "force":
             other = "steps" if case.excitation != "steps" else "chirp"
-        _, y, x, *_ = _simulate(Case("null", 0.0, case.controller, other, case.rate_hz, case.samples, case.noise),
-                                seed + 7919)  # fmt: skip
+        _, y, x, *_ = _simulate(Case("null", 0.0, case.controller, other, case.rate_hz, case.samples, case.noise,
+                                     case.motion_hz), seed + 7919)  # fmt: skip
     t = np.arange(case.samples) / case.rate_hz
     if not (np.all(np.isfinite(y)) and np.all(np.isfinite(u))):
         raise FloatingPointError(f"proving ground: {case} seed {seed} diverged")
