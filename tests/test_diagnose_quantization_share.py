@@ -7,8 +7,8 @@ import pytest
 from scipy import signal
 
 from servo.diagnose.job import diagnose
-from servo.diagnose.quantization import (SHARE_MIN, error_share, heldout_on_lattice, lattice_test,
-                                         quantum_floor)
+from servo.diagnose.quantization import (ACCELERATION_SHARE_MAX, SHARE_MIN, acceleration_share, attenuated_inertia,
+                                         error_share, heldout_on_lattice, lattice_test, quantum_floor)
 from servo.diagnose.signals import second_difference
 from servo.identify.regressors import RobustSettings, matlab_decimate
 
@@ -124,3 +124,46 @@ def test_a_quantum_no_narrower_band_can_fit_is_still_named():
     assert f.after["rows_differ"] is False and f.quant_heldout["heldout_fraction_on_lattice"] == 1.0
     assert f.params["share_of_heldout_rms"] >= SHARE_MIN
     assert D.verdict["verdict"] != "consistent", D.verdict["text"]
+
+
+def test_the_inertia_a_quantum_attenuates_is_recovered():
+    """Errors in variables: a force ``J*a`` regressed on accelerations that carry a white
+    noise of a known share ``s`` of their variance fits ``J*(1 - s)``; the correction
+    recovers ``J`` within 3 % over shares up to the cap, and the share is the quantum's
+    noise through the acceleration path over the rows' variance."""
+    rng = np.random.default_rng(5)
+    J, n = 2e-3, 200000
+    a = rng.standard_normal(n)
+    for s in (0.1, 0.3, ACCELERATION_SHARE_MAX):
+        noisy = a + rng.standard_normal(n) * np.sqrt(s / (1 - s))  # noise share s of the observed variance
+        J_fit = float(np.dot(noisy, J * a) / np.dot(noisy, noisy))
+        assert J_fit == pytest.approx(J * (1 - s), rel=0.03)
+        assert attenuated_inertia(J_fit, s) == pytest.approx(J, rel=0.03)
+    assert attenuated_inertia(J, 0.9) == pytest.approx(J / (1 - ACCELERATION_SHARE_MAX))  # capped
+    s_set, fs, q = RobustSettings(decimate=10, cutoff_hz=500.0), 5000.0, 1e-8
+    g = quantum_floor(q, 1.0, s_set, fs)  # the quantum's std in the acceleration rows
+    rows = rng.standard_normal(5000) * 2 * g  # rows of four times the quantum's variance
+    assert acceleration_share(q, rows, s_set, fs) == pytest.approx(0.25, rel=0.05)
+    assert acceleration_share(q, rows[:1], s_set, fs) == 0.0
+
+
+@pytest.mark.slow
+def test_a_quantum_that_leaves_the_inertia_unresolved_is_named_with_that_reason():
+    """Proving ground (development seed 310303 of the kinds grid): a quantum of 100 noise
+    std on an open-loop force chirp, whose last quarter (the test part) barely moves.
+    The quantum's noise is 78 % of the acceleration rows, so the inertia fits at a tenth
+    of the truth and not beyond 5 standard deviations: it was ``out_of_scope``, "the
+    input does not accelerate the position as a mass would", with no finding, where the
+    twin without the quantum has a 90 % lower held-out error.  The quantum is named (its
+    floor through the inertia corrected for that attenuation) and the verdict gives the
+    quantum's reason."""
+    from studies.proving.cases import Case, recording
+
+    rec, truth = recording(Case("quantization", 100.0, "force", "chirp", 5000.0), 310303)
+    D = diagnose(rec)
+    assert [f.physics for f in D.findings] == ["quantization"]
+    h = D.findings[0].quant_heldout
+    assert h["acceleration_share"] >= ACCELERATION_SHARE_MAX and h["share_of_heldout_rms"] >= SHARE_MIN
+    assert D.findings[0].params["step"] == pytest.approx(1e-7, rel=0.35)  # 100 noise std of 1e-6 stroke (+-30 %)
+    v = D.verdict
+    assert v["verdict"] == "out_of_scope" and "quantum" in v["text"] and "as a mass would" not in v["text"], v["text"]

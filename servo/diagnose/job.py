@@ -52,8 +52,9 @@ from servo.diagnose import verdict as verdict_mod
 from servo.diagnose.fit import Fit, fit_model, force_error_pct
 from servo.diagnose.model import Design, Model, Term
 from servo.diagnose.scope import OutOfDomain, Unscoped
-from servo.diagnose.quantization import (MIN_FRACTION, SHARE_MIN, Lattice, candidate_paths, error_share,
-                                         heldout_on_lattice, improvement_test, lattice_test, quantum_floor)
+from servo.diagnose.quantization import (MIN_FRACTION, SHARE_MIN, Lattice, acceleration_share, attenuated_inertia,
+                                         candidate_paths, error_share, heldout_on_lattice, improvement_test,
+                                         lattice_test, quantum_floor, scope_reason)
 from servo.diagnose.select import (ALPHA, N_BLOCKS, Grams, Score, Selector, heldout_signflip, integrated_time,
                                    make_blocks)
 from servo.diagnose.signals import Signals, distance_since_reversal, make_signals
@@ -453,12 +454,14 @@ def _quantum_on_default_rows(design: Design, fit0: Fit, lat: Lattice, level: flo
     nope = f"quantised sensor (step {lat.step:.3g} m) but a narrower band does not predict better"
     frac_te, p_te = heldout_on_lattice(sig.x[~design.train_samples], lat)
     test = ~design.train_rows & sig.valid
-    J = fit0.mass()
+    # the quantum's noise attenuates the inertia fitted on the acceleration rows it is in
+    s_acc = acceleration_share(lat.step, sig.rows(sig.af)[design.train_valid], sig.settings, 1.0 / sig.dt)
+    J = attenuated_inertia(fit0.mass(), s_acc)
     rms = float(np.sqrt(np.mean(fit0.residual[test] ** 2))) if test.any() else 0.0
     floor_q = quantum_floor(lat.step, J, sig.settings, 1.0 / sig.dt)
     share = error_share(floor_q, rms)
     q.quant_heldout = {"heldout_fraction_on_lattice": frac_te, "heldout_lattice_p": p_te, "quantum_floor": floor_q,
-                       "heldout_rms": rms, "share_of_heldout_rms": share}  # fmt: skip
+                       "heldout_rms": rms, "share_of_heldout_rms": share, "acceleration_share": s_acc}  # fmt: skip
     if not (p_te < level and frac_te >= MIN_FRACTION and share >= SHARE_MIN):
         return None, design, lat, f"{nope}, and its noise makes {100 * share:.0f} % of the held-out residual"
     s = sig.settings
@@ -828,6 +831,11 @@ def _diagnose(rec: Recording, opt: Options | None) -> Diagnosis:
     verdict_mod.add_frf(final_checks, frf.after, frf)
     scope = verdict_mod.out_of_scope(final.mass(None), final.mass_std(),
                                      force_error_pct(design, final, design.train_valid))
+    J_fin, J_sd = final.mass(None), final.mass_std()
+    if scope and qfind is not None and (J_fin is None or not J_fin > verdict_mod.J_SIGMAS * (J_sd or 0.0)):
+        # an inertia the quantum's noise leaves unresolved: the quantum's reason, not "not a mass"
+        s_acc = acceleration_share(qfind.params["step"], sig.rows(sig.af)[design.train_valid], sig.settings, 1.0 / sig.dt)
+        scope = scope_reason(qfind.params["step"], s_acc, J_fin, J_sd) or scope
     sensor = ""
     if qfind is not None and qfind.quant_heldout is not None and len(findings) == 1:  # the quantum alone, on these rows
         sensor = (f"of which the position sensor's quantum ({qfind.params['step']:.3g} m) makes "
