@@ -32,6 +32,12 @@ is cancelled by ``servo compensate``   ``compensator`` its fields, ``stage(c)`` 
                                        (:class:`Cancelling`), ``leave_out(d)`` the
                                        drive without it
 cannot be cancelled                    ``not_cancellable``: why, and what to do
+exerts a force at rest, changes the    ``rest_force(d, x)``, ``force_gain(d, x)``,
+force constant, or sits on the input   ``command_for(d, u)`` (the holding current
+                                       at start, :mod:`servo.runtime.simplant`)
+makes a force the current limit must   ``forces(f, stroke, speed)`` (the model's
+cover                                  plausibility and the compensator's
+                                       authority, :mod:`servo.compensate`)
 =====================================  ==============================================
 
 **What has defaults** (override only what the effect needs):
@@ -137,7 +143,21 @@ class Effect:
     sets (:class:`Cancelling`; entries of the same name from several effects are one
     term, their fields in registry order; None or ``[]``: none);
     ``renamed`` its config keys' former names, ``"section.old" -> "new"`` (a config that
-    uses an old one is refused with the new name)."""
+    uses an old one is refused with the new name);
+    ``rest_force(d, x) -> float`` the force (force unit) the effect exerts on the arm at
+    rest at position ``x`` (m) of the drive section ``d``, its Dahl element relaxed (the
+    holding current, :func:`servo.physics.rest_force`; None: none);
+    ``force_gain(d, x) -> float`` the factor the effect puts on the force constant at
+    ``x`` (None: 1);
+    ``command_for(d, u) -> float`` the command whose force on the arm is ``u``, through
+    an input element of the effect (None: ``u`` itself);
+    ``forces(f, stroke, speed) -> {what: size}`` the largest ``|force|`` (force unit) the
+    effect's fields ``f`` (a dict of either section's fields) make at positions up to
+    ``stroke`` (m) and speeds up to ``speed`` (m/s; None: unknown, the forces that grow
+    with speed left out), by what it is: entries of the same ``what`` from several effects
+    add up (:func:`servo.physics.largest_forces`; None: none).  The fields in the force
+    unit (converted with a force constant) are those whose declared unit is in ``A``
+    (:func:`servo.physics.force_fields`)."""
 
     name: str
     doc: str
@@ -155,6 +175,10 @@ class Effect:
     simulated: Callable | None = None
     diagnosed_by: str = ""
     cancel: Callable | None = None
+    rest_force: Callable | None = None
+    force_gain: Callable | None = None
+    command_for: Callable | None = None
+    forces: Callable | None = None
 
     def simulation(self, d: dict, sim: "Simulation") -> dict:
         """The effect's ``[drive]`` fields in the short-horizon simulation of a fitted
@@ -378,6 +402,13 @@ class Term(Columns, SignalPath, Search, Judging):
 #: the compensator term of eq. (9)'s viscous friction and bias (``B``, ``K``, ``h0``)
 EQ9 = "viscous friction, bias (eq. 9)"
 
+#: the ``forces`` hooks' names of the forces several effects add to
+#: (:attr:`Effect.forces`): the forces that hold at rest over the stroke, the
+#: friction of large motions, and the forces that grow with the speed
+BIAS = "bias (the position forces at the stroke)"
+SLIDING = "sliding friction level"
+VISCOUS = "viscous force at the largest speed"
+
 
 def number(d: dict, key: str, default: float = 0.0) -> float:
     """The field ``key`` of the fields ``d`` as a float (``default`` when it lacks it)."""
@@ -481,6 +512,6 @@ def one_field(name: str):
     return lambda section, *_: {name: getattr(section, name)}
 
 
-__all__ = ["EQ9", "Cancelling", "Columns", "Concealment", "DriveMap", "Effect", "Judging", "Search", "SignalPath",
+__all__ = ["BIAS", "EQ9", "SLIDING", "VISCOUS", "Cancelling", "Columns", "Concealment", "DriveMap", "Effect", "Judging", "Search", "SignalPath",
            "OneField", "OneFieldDrive", "Simulation", "Term", "contiguous", "field_at", "fold_ranges", "geom",
            "number", "one_field", "valid_speed", "zero"]  # fmt: skip
