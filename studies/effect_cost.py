@@ -67,7 +67,10 @@ def python_names(source: str, fields) -> set[str]:
                   and nxt.string == "="):  # fmt: skip
                 hit.add(t.string)
         elif t.type == tokenize.STRING:
-            body = t.string.lstrip("rbfuRBFU")
+            prefix = t.string[: len(t.string) - len(t.string.lstrip("rbfuRBFU"))].lower()
+            body = t.string[len(prefix):]
+            if body[:3] in ('"""', "'''") and "f" not in prefix:
+                continue  # prose (a docstring), not a name
             for f, rx in zip(sorted(fields), strings):
                 if body in (f'"{f}"', f"'{f}'") or (body[:1] in "\"'" and len(body) > len(f) + 2 and rx.search(body)):
                     hit.add(f)
@@ -129,25 +132,30 @@ def cost(root: Path = ROOT) -> dict[str, Cost]:
     """Effect name -> its :class:`Cost` in the tree at ``root`` (module doc)."""
     from servo import physics
 
-    py = {p: p.read_text(errors="replace") for p in _sources(root, PRODUCT_DIRS, (".py",))}
-    kern = {p: p.read_text(errors="replace") for p in _sources(root, KERNEL_DIRS, (".py", ".c", ".h"))}
+    effects = list(physics.EFFECTS.values())
+    config = {e.name: set(e.drive) | set(e.compensator) for e in effects}
+    records = {e.name: record_fields(e) for e in effects}
+    every = set().union(*config.values())
+    every_rec = set().union(*records.values())
+    # each file read once for every effect's names (what a file names of a set of
+    # fields is what it names of each)
+    py = {p.relative_to(root).as_posix(): python_names(p.read_text(errors="replace"), every)
+          for p in _sources(root, PRODUCT_DIRS, (".py",))}  # fmt: skip
+    kern = {}
+    for p in _sources(root, KERNEL_DIRS, (".py", ".c", ".h")):
+        src = p.read_text(errors="replace")
+        kern[p.relative_to(root).as_posix()] = (python_names(src, every_rec) if p.suffix == ".py"
+                                                else c_names(src, every_rec), generated(p))  # fmt: skip
     out = {}
-    for e in physics.EFFECTS.values():
+    for e in effects:
         c = Cost(e.name, physics.FILES[e.name])
-        config = set(e.drive) | set(e.compensator)
-        for p, src in py.items():
-            rel = p.relative_to(root).as_posix()
-            if rel in (c.module, REGISTRY) or not config:
-                continue
-            named = python_names(src, config)
-            if named:
+        for rel, names in py.items():
+            named = names & config[e.name]
+            if named and rel not in (c.module, REGISTRY):
                 c.outside[rel] = sorted(named)
-        rec = record_fields(e)
-        for p, src in kern.items():
-            rel = p.relative_to(root).as_posix()
-            named = python_names(src, rec) if p.suffix == ".py" else c_names(src, rec)
-            if named:
-                (c.generated if generated(p) else c.kernel).append(rel)
+        for rel, (names, gen) in kern.items():
+            if names & records[e.name]:
+                (c.generated if gen else c.kernel).append(rel)
         out[e.name] = c
     return out
 
