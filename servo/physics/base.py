@@ -257,8 +257,7 @@ class SignalPath:
 
     ``kind`` ``"column"``, ``"input"`` or ``"sensor"`` (:class:`Term`); ``requires`` the
     terms a model must hold before this one is tried; ``uses_input`` its columns read
-    the effective input; ``linear_in_motion`` its columns of the measured motion obey a
-    lagged force balance exactly; ``path_order`` an input term's place on the input's
+    the effective input; ``path_order`` an input term's place on the input's
     path to the arm; ``gated`` whether it may be present from some time on only;
     ``idle`` an input term that changes no row; ``column_design`` the signals other
     terms' columns read when the model holds this one; ``eligible`` whether it may be
@@ -267,9 +266,6 @@ class SignalPath:
     kind = "column"
     requires: tuple = ()
     uses_input = False
-    #: a column term linear in the motion (its columns of the measured motion obey a
-    #: lagged force balance exactly: a sensor lag leaves them as they are)
-    linear_in_motion = False
     #: an input term's place on the input's path to the arm (lower first, as in the drive)
     path_order = 0
     #: whether the term may be present from some time on only (a mass does not appear
@@ -300,11 +296,15 @@ class Search:
     """What only the screening and refinement machinery of the selection
     (:mod:`servo.diagnose.select`) asks of a term: fast approximations for large grids
     and the final refinement's intervals.  The defaults are exact and always correct;
-    a term overrides them for speed (``screening``, ``screen``, ``screen_batch``,
-    ``screen_sums``, ``screen_target``) or to refine its ``thetas`` between grid points
-    (``bounds``, ``refine_width``)."""
+    a term overrides them for speed (``screen``, ``screen_batch``, ``screen_sums``,
+    ``screen_target``) or to refine its ``thetas`` between grid points (``bounds``,
+    ``refine_width``)."""
 
-    screening = False  # large grids scanned with fast approximate rows
+    @property
+    def screening(self) -> bool:
+        """Whether its large grids are scanned with fast approximate rows: it has its own
+        :meth:`screen` (derived, not declared)."""
+        return type(self).screen is not Search.screen
 
     def screen(self, d, theta: dict, model) -> np.ndarray:
         return d.variant_rows(self.name, theta, model)
@@ -443,9 +443,9 @@ def valid_speed(d) -> np.ndarray:
 
 
 class OneField(Term):
-    """A term that is one coefficient, linear in the motion."""
-
-    linear_in_motion = True
+    """A term that is one coefficient, linear in the motion: its columns of the measured
+    motion obey a lagged force balance exactly (a sensor lag leaves them as they are,
+    :mod:`servo.diagnose.sensor_lag`)."""
 
 
 class DriveMap:

@@ -17,7 +17,6 @@ class Cogging(Term):
     name, coefs, thetas = "cogging", ("a_sin", "a_cos"), ("period",)
     units = {"a_sin": "F", "a_cos": "F", "period": "m", "amplitude": "F", "phase": "rad"}
     doc = "a force periodic in position: amplitude*sin(2*pi*x/period + phase)"
-    screening = True
     MAX_GRID = 3000
 
     def std_extra(self, params, std):
