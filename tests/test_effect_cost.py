@@ -131,3 +131,18 @@ def test_the_effects_of_the_new_home_cost_their_module_kernel_and_registration(c
 def test_every_effect_is_counted_and_the_legacy_list_names_effects_that_exist(costs):
     assert list(costs) == list(physics.EFFECTS)
     assert set(LEGACY) <= set(physics.EFFECTS)
+
+
+def test_adding_an_effect_is_the_eight_files_docs_model_md_lists(costs):
+    """docs/model.md, "Adding an effect": the module, its MODULES line, kernels/plant.py,
+    stage.py and cancel.py (whose functions take the fields as arguments, so the scan of
+    record fields does not see it), the C mirror and the generated records: 8 files for
+    the dead zone and the cubic spring."""
+    from pathlib import Path
+
+    cancel = (Path(__file__).resolve().parents[1] / "kernels" / "cancel.py").read_text()
+    for name, fn in (("dead_zone", "def dead_zone_inverse("), ("cubic_spring", "def cubic_spring(")):
+        c = costs[name]
+        assert c.kernel == ["firmware/controller.c", "firmware/plant.c", "kernels/plant.py", "kernels/stage.py"], c
+        assert c.generated == ["firmware/records.h"] and c.outside == {} and fn in cancel
+        assert c.files + 1 == 8
