@@ -68,3 +68,15 @@ def test_the_fields_a_force_constant_converts_are_those_declared_in_the_force_un
     for e in physics.EFFECTS.values():
         for k, f in {**e.drive, **e.compensator}.items():
             assert (k in fields) == (f.metadata["unit"].split("/")[0].split("*")[0] == "A"), (e.name, k)
+
+
+def test_a_rate_of_the_rigid_body_beyond_nyquist_is_refused_by_its_effect():
+    base = Config()
+    nyquist = math.pi / base.dt
+    assert physics.rates(dict(B=2e-3, K=0.1), 1e-3) == {"viscous pole |B|/J": 2.0, "natural frequency sqrt(|K|/J)": 10.0}
+    (why,) = implausible(dict(J=1e-3, B=1.01e-3 * nyquist, K=0.0), base)
+    assert why.startswith("the viscous pole |B|/J") and "Nyquist" in why
+    bias, why = implausible(dict(J=1e-3, B=0.0, K=1e-3 * (1.01 * nyquist) ** 2), base)  # a bias beyond the limit too
+    assert bias.startswith("the bias") and why.startswith("the natural frequency") and "Nyquist" in why
+    assert [w for w in implausible(dict(J=1e-3, B=0.99e-3 * nyquist, K=1e-3 * (0.99 * nyquist) ** 2), base)
+            if "Nyquist" in w] == []

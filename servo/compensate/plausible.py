@@ -14,9 +14,10 @@ model is refused, with the reason, when a term
   (``|h0| + |K|*stroke + |k3|*stroke^3``), the sliding level (the Dahl asymptote plus
   the Coulomb element's largest level, times ``1 + |asymmetry|``), a periodic force's
   amplitude, an input dead zone's half-width, the viscous force at that speed;
-* puts a pole of the rigid body beyond the Nyquist frequency of the loop that would run
-  the compensator (the base config's rate): the viscous pole ``|B|/J`` or the spring's
-  natural frequency ``sqrt(|K|/J)``, in rad/s, above ``pi*rate``; the sampled loop
+* puts a rate of the rigid body beyond the Nyquist frequency of the loop that would run
+  the compensator (the base config's rate): each effect's
+  :attr:`~servo.physics.base.Effect.rates` (the viscous pole ``|B|/J``, the spring's
+  natural frequency ``sqrt(|K|/J)``), in rad/s, above ``pi*rate``; the sampled loop
   cannot see such a plant, let alone cancel it.
 """
 from __future__ import annotations
@@ -31,7 +32,6 @@ def implausible(d: dict, base: Config, unit: str = "A", speed: float | None = No
     """The reasons (one phrase each; empty: plausible) the drive fields ``d`` (in the
     command's unit ``unit``, m, s) cannot be a model of a drive run by ``base`` (module
     doc); ``speed`` (m/s): the largest speed of the recording, None if unknown."""
-    g = lambda k, default=0.0: abs(float(d.get(k, default)))  # noqa: E731
     u_max = base.controller.current_limit
     stroke = base.drive.stroke
     J = float(d.get("J", base.drive.J))
@@ -40,12 +40,10 @@ def implausible(d: dict, base: Config, unit: str = "A", speed: float | None = No
     for what, size in physics.largest_forces(d, stroke, speed).items():  # every effect's forces hook
         if size > u_max:
             out.append(f"the {what} {size:.3g} {unit} is beyond the current limit {u_max:.3g} {unit}")
-    if g("B") / J > nyquist:
-        out.append(f"the viscous pole |B|/J = {g('B') / J:.3g} rad/s is beyond the loop's Nyquist frequency "
-                   f"{nyquist:.3g} rad/s ({0.5 / base.dt:.6g} Hz)")  # fmt: skip
-    if math.sqrt(g("K") / J) > nyquist:
-        out.append(f"the natural frequency sqrt(|K|/J) = {math.sqrt(g('K') / J) / (2 * math.pi):.3g} Hz is beyond the "
-                   f"loop's Nyquist frequency {0.5 / base.dt:.6g} Hz")  # fmt: skip
+    for what, rate in physics.rates(d, J).items():  # every effect's rates hook
+        if rate > nyquist:
+            out.append(f"the {what} = {rate:.3g} rad/s ({rate / (2 * math.pi):.3g} Hz) is beyond the loop's "
+                       f"Nyquist frequency {nyquist:.3g} rad/s ({0.5 / base.dt:.6g} Hz)")  # fmt: skip
     return out
 
 

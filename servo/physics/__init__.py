@@ -211,6 +211,16 @@ def largest_forces(f: dict, stroke: float, speed: float | None) -> dict[str, flo
     return out
 
 
+def rates(f: dict, J: float) -> dict[str, float]:
+    """What -> the rigid body's rate (rad/s) the fields ``f`` make with the moving mass
+    ``J``: every effect's ``rates`` hook, in registry order."""
+    out: dict[str, float] = {}
+    for e in EFFECTS.values():
+        if e.rates is not None:
+            out.update(e.rates(f, J))
+    return out
+
+
 def force_fields() -> tuple[str, ...]:
     """Every config field in the force unit (its declared unit ``A``, ``A/m``, ``A*s/m``,
     ...: the fields a force constant converts), either section's, in registry order."""
@@ -271,5 +281,5 @@ NAMES = tuple(e.name for e in EFFECTS.values() if e.drive_map is not None)
 __all__ = ["BASELINE_TERMS", "EFFECTS", "FILES", "MASS", "MODULES", "NAMES", "VOCABULARY", "Cancelling",
            "Concealment", "Effect", "Term", "cancel_terms", "compensator_fields", "diagnosed_by", "drive_fields",
            "command_for", "fill", "force_fields", "force_gain", "largest_forces", "markdown_table", "not_cancellable",
-           "owner", "plant_values", "register", "register_term", "renamed_keys", "rest_force", "simulated_drive",
+           "owner", "plant_values", "rates", "register", "register_term", "renamed_keys", "rest_force", "simulated_drive",
            "stage_values"]  # fmt: skip

@@ -36,8 +36,9 @@ exerts a force at rest, changes the    ``rest_force(d, x)``, ``force_gain(d, x)`
 force constant, or sits on the input   ``command_for(d, u)`` (the holding current
                                        at start, :mod:`servo.runtime.simplant`)
 makes a force the current limit must   ``forces(f, stroke, speed)`` (the model's
-cover                                  plausibility and the compensator's
-                                       authority, :mod:`servo.compensate`)
+cover, or a rate of the rigid body     plausibility and the compensator's
+                                       authority, :mod:`servo.compensate`),
+                                       ``rates(f, J)``
 =====================================  ==============================================
 
 **What has defaults** (override only what the effect needs):
@@ -155,7 +156,10 @@ class Effect:
     effect's fields ``f`` (a dict of either section's fields) make at positions up to
     ``stroke`` (m) and speeds up to ``speed`` (m/s; None: unknown, the forces that grow
     with speed left out), by what it is: entries of the same ``what`` from several effects
-    add up (:func:`servo.physics.largest_forces`; None: none).  The fields in the force
+    add up (:func:`servo.physics.largest_forces`; None: none);
+    ``rates(f, J) -> {what: rad/s}`` the rigid body's rates its fields ``f`` (either
+    section's, a dict) make with the moving mass ``J`` (a pole, a natural frequency: a
+    sampled loop cannot see one beyond its Nyquist frequency; None: none).  The fields in the force
     unit (converted with a force constant) are those whose declared unit is in ``A``
     (:func:`servo.physics.force_fields`)."""
 
@@ -179,6 +183,7 @@ class Effect:
     force_gain: Callable | None = None
     command_for: Callable | None = None
     forces: Callable | None = None
+    rates: Callable | None = None
 
     def simulation(self, d: dict, sim: "Simulation") -> dict:
         """The effect's ``[drive]`` fields in the short-horizon simulation of a fitted

@@ -34,4 +34,5 @@ EFFECT = Effect(
     leave_out=zero("B"),
     cancel=lambda d, how: [(EQ9, {"B": number(d, "B")})],
     forces=lambda f, stroke, speed: {} if speed is None else {VISCOUS: abs(number(f, "B")) * speed},
+    rates=lambda f, J: {"viscous pole |B|/J": abs(number(f, "B")) / J},
 )  # fmt: skip
