@@ -23,7 +23,8 @@ def test_the_holding_current_is_every_force_at_rest_through_the_force_constant()
     d = _drive(K=0.3, h0=-2e-3, k3=4e4, cogging=3e-4, cogging_period=7e-5, cogging_phase=0.4, kf_linear=0.2,
                kf_quadratic=-0.1, initial_position=x)  # fmt: skip
     r = x / d.stroke
-    by_hand = (0.3 * x - 2e-3 + 4e4 * x**3 + 3e-4 * math.sin(2 * math.pi * x / 7e-5 + 0.4)) / (1 + 0.2 * r - 0.1 * r * r)
+    at_rest = 0.3 * x - 2e-3 + 4e4 * x**3 + 3e-4 * math.sin(2 * math.pi * x / 7e-5 + 0.4)
+    by_hand = at_rest / (1 + 0.2 * r - 0.1 * r * r)
     assert holding_current(d, x) == pytest.approx(by_hand, rel=1e-14)
     assert physics.rest_force(d, x) * 1.0 / physics.force_gain(d, x) == holding_current(d, x)
     # the dead zone: the command is the current plus the half-width, on its side
@@ -73,7 +74,8 @@ def test_the_fields_a_force_constant_converts_are_those_declared_in_the_force_un
 def test_a_rate_of_the_rigid_body_beyond_nyquist_is_refused_by_its_effect():
     base = Config()
     nyquist = math.pi / base.dt
-    assert physics.rates(dict(B=2e-3, K=0.1), 1e-3) == {"viscous pole |B|/J": 2.0, "natural frequency sqrt(|K|/J)": 10.0}
+    rates = physics.rates(dict(B=2e-3, K=0.1), 1e-3)
+    assert rates == {"viscous pole |B|/J": 2.0, "natural frequency sqrt(|K|/J)": 10.0}
     (why,) = implausible(dict(J=1e-3, B=1.01e-3 * nyquist, K=0.0), base)
     assert why.startswith("the viscous pole |B|/J") and "Nyquist" in why
     bias, why = implausible(dict(J=1e-3, B=0.0, K=1e-3 * (1.01 * nyquist) ** 2), base)  # a bias beyond the limit too

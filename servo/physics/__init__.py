@@ -281,5 +281,5 @@ NAMES = tuple(e.name for e in EFFECTS.values() if e.drive_map is not None)
 __all__ = ["BASELINE_TERMS", "EFFECTS", "FILES", "MASS", "MODULES", "NAMES", "VOCABULARY", "Cancelling",
            "Concealment", "Effect", "Term", "cancel_terms", "compensator_fields", "diagnosed_by", "drive_fields",
            "command_for", "fill", "force_fields", "force_gain", "largest_forces", "markdown_table", "not_cancellable",
-           "owner", "plant_values", "rates", "register", "register_term", "renamed_keys", "rest_force", "simulated_drive",
-           "stage_values"]  # fmt: skip
+           "owner", "plant_values", "rates", "register", "register_term", "renamed_keys", "rest_force",
+           "simulated_drive", "stage_values"]  # fmt: skip

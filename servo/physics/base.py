@@ -517,6 +517,7 @@ def one_field(name: str):
     return lambda section, *_: {name: getattr(section, name)}
 
 
-__all__ = ["BIAS", "EQ9", "SLIDING", "VISCOUS", "Cancelling", "Columns", "Concealment", "DriveMap", "Effect", "Judging", "Search", "SignalPath",
+__all__ = ["BIAS", "EQ9", "SLIDING", "VISCOUS", "Cancelling", "Columns", "Concealment", "DriveMap", "Effect",
+           "Judging", "Search", "SignalPath",
            "OneField", "OneFieldDrive", "Simulation", "Term", "contiguous", "field_at", "fold_ranges", "geom",
            "number", "one_field", "valid_speed", "zero"]  # fmt: skip

@@ -8,7 +8,8 @@ from __future__ import annotations
 import math
 
 from servo.fields import P
-from servo.physics.base import BIAS, EQ9, Concealment, Effect, OneField, OneFieldDrive, field_at, number, one_field, zero
+from servo.physics.base import (BIAS, EQ9, Concealment, Effect, OneField,
+                                 OneFieldDrive, field_at, number, one_field, zero)
 
 
 class Stiffness(OneField):

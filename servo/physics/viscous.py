@@ -6,7 +6,8 @@ documentation entry (:class:`~servo.physics.base.Effect`).
 from __future__ import annotations
 
 from servo.fields import P
-from servo.physics.base import EQ9, VISCOUS, Concealment, Effect, OneField, OneFieldDrive, field_at, number, one_field, zero
+from servo.physics.base import (EQ9, VISCOUS, Concealment, Effect, OneField,
+                                 OneFieldDrive, field_at, number, one_field, zero)
 
 
 class Viscous(OneField):
