@@ -45,7 +45,10 @@ cover, or a rate of the rigid body     plausibility and the compensator's
 
 * :class:`Effect`: ``engaged`` (the stage's ``extras`` switch), ``simulated`` (its
   fields in the short-horizon simulation of a fitted model, default as fitted),
-  ``diagnosed_by`` (a stage beside the selection rounds), ``renamed`` (former keys).
+  ``diagnosed_by`` (a stage beside the selection rounds), ``renamed`` (former keys),
+  and the force hooks ``rest_force``, ``force_gain``, ``command_for``, ``forces``,
+  ``rates`` (None: no force at rest, a force constant of 1, the command as it is, no
+  force, no rate).
 * :class:`Term` is four concerns, each a base class with defaults that are exact and
   always correct: :class:`Columns` (``rows`` through the rows' filter, ``physical`` /
   ``from_physical`` the same names), :class:`SignalPath` (a column term of the measured
