@@ -115,7 +115,7 @@ def test_on_a_dahl_pivot_the_baseline_coulomb_noise_is_not_cancelled(dahl_report
 
 
 @pytest.mark.parametrize("field,value,needle,why", [
-    ("h0", 1e11, "the bias |h0| + |K|*stroke", "beyond"),
+    ("h0", 1e11, "the bias (the position forces at the stroke)", "beyond"),
     ("K", 1e11, "natural frequency", "at or above Nyquist"),  # the drive's own check (servo.config) comes first
     ("B", 1e11, "viscous pole |B|/J", "beyond"),
     ("Fc", 5.0, "sliding friction level", "beyond"),

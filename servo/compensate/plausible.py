@@ -7,19 +7,24 @@ bias of 1e11 A is clipped to the authority, and the loop then tracks to a millim
 model is refused, with the reason, when a term
 
 * needs more than the current limit ``u_max`` (the base config's ``[controller]
-  current_limit``, the command's unit) anywhere the arm can be: the bias
-  ``|h0| + |K|*stroke + |k3|*stroke^3``, an input dead zone's half-width, the sliding level ``max(Ha, Fc, Fs)*(1 + |asymmetry|)``, a
-  periodic force's amplitude, or the viscous force ``|B|*(1 + |b_asymmetry|)*v`` at the
-  largest speed the recording reached (when the source says it);
-* puts a pole of the rigid body beyond the Nyquist frequency of the loop that would run
-  the compensator (the base config's rate): the viscous pole ``|B|/J`` or the spring's
-  natural frequency ``sqrt(|K|/J)``, in rad/s, above ``pi*rate``; the sampled loop
+  current_limit``, the command's unit) anywhere the arm can be: each force the effects
+  declare (their :attr:`~servo.physics.base.Effect.forces`, the entries of one name
+  added, :func:`servo.physics.largest_forces`) over the stroke and up to the largest
+  speed the recording reached (when the source says it): the bias at the stroke
+  (``|h0| + |K|*stroke + |k3|*stroke^3``), the sliding level (the Dahl asymptote plus
+  the Coulomb element's largest level, times ``1 + |asymmetry|``), a periodic force's
+  amplitude, an input dead zone's half-width, the viscous force at that speed;
+* puts a rate of the rigid body beyond the Nyquist frequency of the loop that would run
+  the compensator (the base config's rate): each effect's
+  :attr:`~servo.physics.base.Effect.rates` (the viscous pole ``|B|/J``, the spring's
+  natural frequency ``sqrt(|K|/J)``), in rad/s, above ``pi*rate``; the sampled loop
   cannot see such a plant, let alone cancel it.
 """
 from __future__ import annotations
 
 import math
 
+from servo import physics
 from servo.config import Config
 
 
@@ -27,35 +32,18 @@ def implausible(d: dict, base: Config, unit: str = "A", speed: float | None = No
     """The reasons (one phrase each; empty: plausible) the drive fields ``d`` (in the
     command's unit ``unit``, m, s) cannot be a model of a drive run by ``base`` (module
     doc); ``speed`` (m/s): the largest speed of the recording, None if unknown."""
-    g = lambda k, default=0.0: abs(float(d.get(k, default)))  # noqa: E731
     u_max = base.controller.current_limit
     stroke = base.drive.stroke
     J = float(d.get("J", base.drive.J))
     nyquist = math.pi / base.dt  # rad/s
     out = []
-    bias = g("h0") + g("K") * stroke + g("k3") * stroke**3
-    if bias > u_max:
-        cubic = f" + |k3|*stroke^3 ({g('k3'):.3g} {unit}/m^3)" if g("k3") else ""
-        out.append(f"the bias |h0| + |K|*stroke{cubic} = {g('h0'):.3g} + {g('K'):.3g}*{stroke:.3g} m"
-                   f"{' + ...' if cubic else ''} = {bias:.3g} {unit} is beyond the current limit {u_max:.3g} {unit}")  # fmt: skip
-    if g("dead_zone") > u_max:
-        out.append(f"the input dead zone's half-width {g('dead_zone'):.3g} {unit} is beyond the current limit "
-                   f"{u_max:.3g} {unit}")  # fmt: skip
-    sliding = max(g("Ha", 1e-12), g("Fc"), g("Fs")) * (1 + g("fc_asymmetry"))
-    if sliding > u_max:
-        out.append(f"the sliding friction level {sliding:.3g} {unit} is beyond the current limit {u_max:.3g} {unit}")
-    if g("cogging") > u_max:
-        out.append(f"the periodic force's amplitude {g('cogging'):.3g} {unit} is beyond the current limit "
-                   f"{u_max:.3g} {unit}")  # fmt: skip
-    if speed is not None and g("B") * (1 + g("b_asymmetry")) * speed > u_max:
-        out.append(f"the viscous force |B|*v = {g('B'):.3g} {unit}*s/m * {speed:.3g} m/s at the recording's largest "
-                   f"speed is beyond the current limit {u_max:.3g} {unit}")  # fmt: skip
-    if g("B") / J > nyquist:
-        out.append(f"the viscous pole |B|/J = {g('B') / J:.3g} rad/s is beyond the loop's Nyquist frequency "
-                   f"{nyquist:.3g} rad/s ({0.5 / base.dt:.6g} Hz)")  # fmt: skip
-    if math.sqrt(g("K") / J) > nyquist:
-        out.append(f"the natural frequency sqrt(|K|/J) = {math.sqrt(g('K') / J) / (2 * math.pi):.3g} Hz is beyond the "
-                   f"loop's Nyquist frequency {0.5 / base.dt:.6g} Hz")  # fmt: skip
+    for what, size in physics.largest_forces(d, stroke, speed).items():  # every effect's forces hook
+        if size > u_max:
+            out.append(f"the {what} {size:.3g} {unit} is beyond the current limit {u_max:.3g} {unit}")
+    for what, rate in physics.rates(d, J).items():  # every effect's rates hook
+        if rate > nyquist:
+            out.append(f"the {what} = {rate:.3g} rad/s ({rate / (2 * math.pi):.3g} Hz) is beyond the loop's "
+                       f"Nyquist frequency {nyquist:.3g} rad/s ({0.5 / base.dt:.6g} Hz)")  # fmt: skip
     return out
 
 

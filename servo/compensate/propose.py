@@ -3,27 +3,9 @@ compensator term, with an authority that bounds what a wrong model can do.
 
 **The mirror.**  The compensator cancels the drive's forces one for one (``kernels/stage.py``,
 ``kernels/cancel.py``), so with exact estimates the plant the controller sees is
-``J*x'' = u_n`` (eq. 10):
-
-=========================  =============================================================
-drive (``[drive]``)        compensator (``[compensator]``)
-=========================  =============================================================
-``B``, ``K``, ``h0``       ``B``, ``K``, ``h0`` (eq. 9)
-``sigma, Ha, alpha``       ``sigma, Ha, alpha`` (the Dahl element, eq. 6-7, with its
-                           turnaround memory), ``sliding_level = Ha`` (eq. 3's
-                           large-motion regime) and ``fast_on_distance``: 4 Dahl
-                           lengths (:data:`servo.physics.hysteresis.SATURATED`) before that regime takes over
-``b_asymmetry``            ``b_asymmetry``
-``Fc, Fs, stribeck_velocity, fc_asymmetry``
-                           ``coulomb_extra, coulomb_static, stribeck_velocity,
-                           coulomb_asymmetry`` (a Coulomb element beyond the Dahl one)
-``cogging*``               ``periodic_amplitudes/phases/period`` (one harmonic)
-``kf_linear, kf_quadratic, stroke``
-                           ``kf_linear, kf_quadratic, kf_stroke`` (the command divided)
-``k3``                     ``k3`` (``k3*x^3`` fed forward)
-``dead_zone``              ``dead_zone`` (the inverse dead zone on the command, at most
-                           ``authority``)
-=========================  =============================================================
+``J*x'' = u_n`` (eq. 10).  Which ``[drive]`` fields each compensator term mirrors is the
+effect's own ``cancel`` hook (:mod:`servo.physics`; the table of both sections' fields
+per effect is ``docs/model.md``'s, :func:`servo.physics.markdown_table`).
 
 ``paper=True`` writes what eq. (9) alone can hold of the model: one sliding-friction
 level ``sliding_level = Ha + Fc`` (the drive's Coulomb level beyond the Dahl element
@@ -112,12 +94,9 @@ def mirror(d: dict, paper: bool = False, dahl_length: float = 3.125e-6, c=None) 
 def largest_force(c: dict, speed: float, position: float) -> float:
     """The largest ``|u_c|`` (A) the compensator fields ``c`` make at speeds up to
     ``speed`` (m/s) and positions up to ``|position|`` (m), bounding each term by its
-    largest magnitude (a sum: the terms may line up)."""
-    coul = max(abs(c.get("coulomb_extra", 0.0)), abs(c.get("coulomb_static", 0.0))) * (1 + abs(c.get("coulomb_asymmetry", 0.0)))
-    sliding = max(abs(c.get("sliding_level", 0.0)), abs(c.get("Ha", 0.0)))
-    viscous = abs(c.get("B", 0.0)) * (1 + abs(c.get("b_asymmetry", 0.0))) * speed
-    bias = abs(c.get("h0", 0.0)) + abs(c.get("K", 0.0)) * position + abs(c.get("k3", 0.0)) * position**3
-    return viscous + sliding + coul + bias + sum(abs(a) for a in c.get("periodic_amplitudes", [])) + abs(c.get("dead_zone", 0.0))
+    largest magnitude (a sum: the terms may line up): every effect's
+    :attr:`~servo.physics.base.Effect.forces` (:func:`servo.physics.largest_forces`)."""
+    return sum(physics.largest_forces(c, abs(position), speed).values())
 
 
 def kf_change(c: dict) -> float:
@@ -180,7 +159,7 @@ def propose(model: SourceModel, base: Config, paper: bool = False, force_constan
     if model.force_unit != "A" and force_constant is not None:
         if not force_constant > 0 or not math.isfinite(force_constant):
             raise ValueError(f"--force-constant {force_constant!r}: expected a positive number of {unit}/A")
-        for k in ("B", "K", "h0", "Ha", "Fc", "Fs", "cogging", "sigma", "J", "k3", "dead_zone"):
+        for k in physics.force_fields():  # the fields whose declared unit is in the force unit
             if k in d:
                 d[k] = float(d[k]) / force_constant
         unit = "A"

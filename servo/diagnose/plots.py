@@ -15,6 +15,7 @@ from pathlib import Path
 import numpy as np
 from matplotlib.figure import Figure
 
+from servo import physics
 from servo.diagnose.job import Diagnosis
 from servo.io.plotting import finish, subplots
 
@@ -177,7 +178,8 @@ def plot_fits(D: Diagnosis, path: Path | None = None) -> Figure:
     ax[1].plot(t[z], np.where(vz, D.final_fit.residual[z], np.nan) * k, color="k", lw=0.8, label="final model")
     ax[1].set_ylabel(f"residual ({unit})")
     e = D.errors
-    moved = any(f.physics == "quantization" and f.after.get("rows_differ") for f in D.findings)
+    lattice = physics.diagnosed_by("lattice")  # the term the sensor's lattice test names
+    moved = any(f.physics == lattice and f.after.get("rows_differ") for f in D.findings)
     rows = " (quantisation-aware rows; the force error before is on the default rows)" if moved else ""
     ax[0].set_title(f"{_title(D)}\nheld-out part: force error {e['test_force_rel_pct']['before']:.3g} % -> "
                     f"{e['test_force_rel_pct']['after']:.3g} %{rows}")  # fmt: skip

@@ -66,7 +66,7 @@ from scipy import signal
 from servo.diagnose.band import band_hz
 from servo.diagnose.signals import Signals
 from servo.physics import register_term
-from servo.physics.base import Term
+from servo.physics.base import OneField, Term
 
 
 def lag_coefficient(tau: float, dt: float) -> float:
@@ -133,9 +133,9 @@ def corrects(phys) -> bool:
     motion alone (Coulomb, asymmetric friction, Stribeck, hysteresis, cogging).  Terms of
     the input (a resonance: linear in it, exact already; a position-dependent gain, the
     product of the motion and the input: not corrected) and the linear terms are not."""
-    # a column linear in the motion (``linear_in_motion``) already obeys the lagged force
+    # a column linear in the motion (a ``OneField``) already obeys the lagged force
     # balance exactly (``L`` commutes with it); the true motion would only add noise
-    return phys.kind == "column" and not phys.uses_input and not phys.linear_in_motion
+    return phys.kind == "column" and not phys.uses_input and not isinstance(phys, OneField)
 
 
 class LaggedSignals(Signals):

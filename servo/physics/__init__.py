@@ -11,6 +11,9 @@ cannot) and its documentation line.  The registry derives from them:
   :func:`servo.runtime.simplant.plant_params` for the runtime, the diagnosis and the
   studies alike) and of the compensator (:func:`stage_values`);
 * the vocabulary of the diagnosis (:data:`VOCABULARY`, :data:`NAMES`);
+* the holding current at start (:func:`rest_force`, :func:`force_gain`,
+  :func:`command_for`), the forces a model's current must cover (:func:`largest_forces`)
+  and the fields a force constant converts (:func:`force_fields`);
 * the docs tables (:func:`markdown_table`).
 
 Adding an effect is one module here and one entry in :data:`MODULES`.
@@ -164,6 +167,72 @@ def cancel_terms(d: dict, how, c) -> list[tuple[str, dict]]:
     return sorted(terms.items(), key=lambda item: rank[item[0]])
 
 
+def rest_force(d, x: float) -> float:
+    """The force (the drive's force unit) every effect of the drive section ``d`` exerts
+    on the arm at rest at position ``x`` (m), the Dahl element relaxed (``H = 0``): the
+    sum of their ``rest_force`` hooks, in registry order."""
+    f = None
+    for e in EFFECTS.values():
+        v = e.rest_force(d, x) if e.rest_force is not None else 0.0
+        if v != 0.0:  # a force that is not there adds nothing, not even a zero's sign
+            f = v if f is None else f + v
+    return 0.0 if f is None else f
+
+
+def force_gain(d, x: float) -> float:
+    """The force constant's factor at position ``x`` (m) of the drive section ``d``: the
+    product of the effects' ``force_gain`` hooks (1 with none)."""
+    g = 1.0
+    for e in EFFECTS.values():
+        if e.force_gain is not None:
+            g *= e.force_gain(d, x)
+    return g
+
+
+def command_for(d, u: float) -> float:
+    """The command whose force on the arm is ``u`` through the input elements of the
+    drive section ``d`` (each effect's ``command_for`` hook, in registry order)."""
+    for e in EFFECTS.values():
+        if e.command_for is not None:
+            u = e.command_for(d, u)
+    return u
+
+
+def largest_forces(f: dict, stroke: float, speed: float | None) -> dict[str, float]:
+    """What -> the largest ``|force|`` (force unit) the fields ``f`` (a dict of
+    ``[drive]`` or ``[compensator]`` fields) make at positions up to ``stroke`` (m) and
+    speeds up to ``speed`` (m/s; None: unknown): every effect's ``forces`` hook, the
+    entries of one ``what`` added (the terms may line up), in registry order."""
+    out: dict[str, float] = {}
+    for e in EFFECTS.values():
+        if e.forces is not None:
+            for what, size in e.forces(f, stroke, speed).items():
+                out[what] = out.get(what, 0.0) + size
+    return out
+
+
+def rates(f: dict, J: float) -> dict[str, float]:
+    """What -> the rigid body's rate (rad/s) the fields ``f`` make with the moving mass
+    ``J``: every effect's ``rates`` hook, in registry order."""
+    out: dict[str, float] = {}
+    for e in EFFECTS.values():
+        if e.rates is not None:
+            out.update(e.rates(f, J))
+    return out
+
+
+def force_fields() -> tuple[str, ...]:
+    """Every config field in the force unit (its declared unit ``A``, ``A/m``, ``A*s/m``,
+    ...: the fields a force constant converts), either section's, in registry order."""
+    out = []
+    for e in EFFECTS.values():
+        for k, fld in {**e.drive, **e.compensator}.items():
+            unit = fld.metadata.get("unit", "")
+            if (unit == "A" or unit.startswith(("A/", "A*"))) and k not in out:
+                out.append(k)
+    return tuple(out)
+
+
 def fill(record: np.ndarray, values: dict) -> None:
     """Write ``values`` into the one-element ``record``: a scalar field whole, an array
     field's first ``len(value)`` entries."""
@@ -211,5 +280,6 @@ NAMES = tuple(e.name for e in EFFECTS.values() if e.drive_map is not None)
 
 __all__ = ["BASELINE_TERMS", "EFFECTS", "FILES", "MASS", "MODULES", "NAMES", "VOCABULARY", "Cancelling",
            "Concealment", "Effect", "Term", "cancel_terms", "compensator_fields", "diagnosed_by", "drive_fields",
-           "fill", "markdown_table", "not_cancellable", "owner", "plant_values", "register", "register_term",
-           "renamed_keys", "simulated_drive", "stage_values"]  # fmt: skip
+           "command_for", "fill", "force_fields", "force_gain", "largest_forces", "markdown_table", "not_cancellable",
+           "owner", "plant_values", "rates", "register", "register_term", "renamed_keys", "rest_force",
+           "simulated_drive", "stage_values"]  # fmt: skip

@@ -8,7 +8,8 @@ from __future__ import annotations
 import numpy as np
 
 from servo.fields import P
-from servo.physics.base import Concealment, DriveMap, Effect, Term, number
+from servo.physics import coulomb
+from servo.physics.base import SLIDING, VISCOUS, Concealment, DriveMap, Effect, Term, number
 
 
 class Asymmetric(Term):
@@ -47,6 +48,16 @@ _STUDY = Concealment("asymmetric_friction", "-", "fc_asymmetry = b_asymmetry", (
                      fields=_conceal)
 
 
+def _forces(f, stroke, speed):
+    """What the asymmetry adds to the Coulomb element's largest level and (at ``speed``)
+    to the viscous force, in the fields ``f`` of either section."""
+    a = max(abs(number(f, "fc_asymmetry")), abs(number(f, "coulomb_asymmetry")))
+    out = {SLIDING: a * coulomb.peak(f)}
+    if speed is not None:
+        out[VISCOUS] = abs(number(f, "b_asymmetry")) * abs(number(f, "B")) * speed
+    return out
+
+
 EFFECT = Effect(
     "asymmetric_friction", "direction-dependent viscous and Coulomb friction",
     drive=dict(
@@ -67,4 +78,5 @@ EFFECT = Effect(
     simulated=lambda d, sim: {"fc_asymmetry": 0.0, "b_asymmetry": d.get("b_asymmetry", 0.0)},
     cancel=lambda d, how: [] if how.paper or not number(d, "b_asymmetry") else [
         ("asymmetric viscous friction", dict(b_asymmetry=number(d, "b_asymmetry")))],
+    forces=_forces,
 )  # fmt: skip

@@ -32,13 +32,23 @@ is cancelled by ``servo compensate``   ``compensator`` its fields, ``stage(c)`` 
                                        (:class:`Cancelling`), ``leave_out(d)`` the
                                        drive without it
 cannot be cancelled                    ``not_cancellable``: why, and what to do
+exerts a force at rest, changes the    ``rest_force(d, x)``, ``force_gain(d, x)``,
+force constant, or sits on the input   ``command_for(d, u)`` (the holding current
+                                       at start, :mod:`servo.runtime.simplant`)
+makes a force the current limit must   ``forces(f, stroke, speed)`` (the model's
+cover, or a rate of the rigid body     plausibility and the compensator's
+                                       authority, :mod:`servo.compensate`),
+                                       ``rates(f, J)``
 =====================================  ==============================================
 
 **What has defaults** (override only what the effect needs):
 
 * :class:`Effect`: ``engaged`` (the stage's ``extras`` switch), ``simulated`` (its
   fields in the short-horizon simulation of a fitted model, default as fitted),
-  ``diagnosed_by`` (a stage beside the selection rounds), ``renamed`` (former keys).
+  ``diagnosed_by`` (a stage beside the selection rounds), ``renamed`` (former keys),
+  and the force hooks ``rest_force``, ``force_gain``, ``command_for``, ``forces``,
+  ``rates`` (None: no force at rest, a force constant of 1, the command as it is, no
+  force, no rate).
 * :class:`Term` is four concerns, each a base class with defaults that are exact and
   always correct: :class:`Columns` (``rows`` through the rows' filter, ``physical`` /
   ``from_physical`` the same names), :class:`SignalPath` (a column term of the measured
@@ -137,7 +147,24 @@ class Effect:
     sets (:class:`Cancelling`; entries of the same name from several effects are one
     term, their fields in registry order; None or ``[]``: none);
     ``renamed`` its config keys' former names, ``"section.old" -> "new"`` (a config that
-    uses an old one is refused with the new name)."""
+    uses an old one is refused with the new name);
+    ``rest_force(d, x) -> float`` the force (force unit) the effect exerts on the arm at
+    rest at position ``x`` (m) of the drive section ``d``, its Dahl element relaxed (the
+    holding current, :func:`servo.physics.rest_force`; None: none);
+    ``force_gain(d, x) -> float`` the factor the effect puts on the force constant at
+    ``x`` (None: 1);
+    ``command_for(d, u) -> float`` the command whose force on the arm is ``u``, through
+    an input element of the effect (None: ``u`` itself);
+    ``forces(f, stroke, speed) -> {what: size}`` the largest ``|force|`` (force unit) the
+    effect's fields ``f`` (a dict of either section's fields) make at positions up to
+    ``stroke`` (m) and speeds up to ``speed`` (m/s; None: unknown, the forces that grow
+    with speed left out), by what it is: entries of the same ``what`` from several effects
+    add up (:func:`servo.physics.largest_forces`; None: none);
+    ``rates(f, J) -> {what: rad/s}`` the rigid body's rates its fields ``f`` (either
+    section's, a dict) make with the moving mass ``J`` (a pole, a natural frequency: a
+    sampled loop cannot see one beyond its Nyquist frequency; None: none).  The fields in the force
+    unit (converted with a force constant) are those whose declared unit is in ``A``
+    (:func:`servo.physics.force_fields`)."""
 
     name: str
     doc: str
@@ -155,6 +182,11 @@ class Effect:
     simulated: Callable | None = None
     diagnosed_by: str = ""
     cancel: Callable | None = None
+    rest_force: Callable | None = None
+    force_gain: Callable | None = None
+    command_for: Callable | None = None
+    forces: Callable | None = None
+    rates: Callable | None = None
 
     def simulation(self, d: dict, sim: "Simulation") -> dict:
         """The effect's ``[drive]`` fields in the short-horizon simulation of a fitted
@@ -233,8 +265,7 @@ class SignalPath:
 
     ``kind`` ``"column"``, ``"input"`` or ``"sensor"`` (:class:`Term`); ``requires`` the
     terms a model must hold before this one is tried; ``uses_input`` its columns read
-    the effective input; ``linear_in_motion`` its columns of the measured motion obey a
-    lagged force balance exactly; ``path_order`` an input term's place on the input's
+    the effective input; ``path_order`` an input term's place on the input's
     path to the arm; ``gated`` whether it may be present from some time on only;
     ``idle`` an input term that changes no row; ``column_design`` the signals other
     terms' columns read when the model holds this one; ``eligible`` whether it may be
@@ -243,9 +274,6 @@ class SignalPath:
     kind = "column"
     requires: tuple = ()
     uses_input = False
-    #: a column term linear in the motion (its columns of the measured motion obey a
-    #: lagged force balance exactly: a sensor lag leaves them as they are)
-    linear_in_motion = False
     #: an input term's place on the input's path to the arm (lower first, as in the drive)
     path_order = 0
     #: whether the term may be present from some time on only (a mass does not appear
@@ -276,11 +304,15 @@ class Search:
     """What only the screening and refinement machinery of the selection
     (:mod:`servo.diagnose.select`) asks of a term: fast approximations for large grids
     and the final refinement's intervals.  The defaults are exact and always correct;
-    a term overrides them for speed (``screening``, ``screen``, ``screen_batch``,
-    ``screen_sums``, ``screen_target``) or to refine its ``thetas`` between grid points
-    (``bounds``, ``refine_width``)."""
+    a term overrides them for speed (``screen``, ``screen_batch``, ``screen_sums``,
+    ``screen_target``) or to refine its ``thetas`` between grid points (``bounds``,
+    ``refine_width``)."""
 
-    screening = False  # large grids scanned with fast approximate rows
+    @property
+    def screening(self) -> bool:
+        """Whether its large grids are scanned with fast approximate rows: it has its own
+        :meth:`screen` (derived, not declared)."""
+        return type(self).screen is not Search.screen
 
     def screen(self, d, theta: dict, model) -> np.ndarray:
         return d.variant_rows(self.name, theta, model)
@@ -378,6 +410,13 @@ class Term(Columns, SignalPath, Search, Judging):
 #: the compensator term of eq. (9)'s viscous friction and bias (``B``, ``K``, ``h0``)
 EQ9 = "viscous friction, bias (eq. 9)"
 
+#: the ``forces`` hooks' names of the forces several effects add to
+#: (:attr:`Effect.forces`): the forces that hold at rest over the stroke, the
+#: friction of large motions, and the forces that grow with the speed
+BIAS = "bias (the position forces at the stroke)"
+SLIDING = "sliding friction level"
+VISCOUS = "viscous force at the largest speed"
+
 
 def number(d: dict, key: str, default: float = 0.0) -> float:
     """The field ``key`` of the fields ``d`` as a float (``default`` when it lacks it)."""
@@ -412,9 +451,9 @@ def valid_speed(d) -> np.ndarray:
 
 
 class OneField(Term):
-    """A term that is one coefficient, linear in the motion."""
-
-    linear_in_motion = True
+    """A term that is one coefficient, linear in the motion: its columns of the measured
+    motion obey a lagged force balance exactly (a sensor lag leaves them as they are,
+    :mod:`servo.diagnose.sensor_lag`)."""
 
 
 class DriveMap:
@@ -481,6 +520,7 @@ def one_field(name: str):
     return lambda section, *_: {name: getattr(section, name)}
 
 
-__all__ = ["EQ9", "Cancelling", "Columns", "Concealment", "DriveMap", "Effect", "Judging", "Search", "SignalPath",
+__all__ = ["BIAS", "EQ9", "SLIDING", "VISCOUS", "Cancelling", "Columns", "Concealment", "DriveMap", "Effect",
+           "Judging", "Search", "SignalPath",
            "OneField", "OneFieldDrive", "Simulation", "Term", "contiguous", "field_at", "fold_ranges", "geom",
            "number", "one_field", "valid_speed", "zero"]  # fmt: skip

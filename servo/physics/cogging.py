@@ -17,7 +17,6 @@ class Cogging(Term):
     name, coefs, thetas = "cogging", ("a_sin", "a_cos"), ("period",)
     units = {"a_sin": "F", "a_cos": "F", "period": "m", "amplitude": "F", "phase": "rad"}
     doc = "a force periodic in position: amplitude*sin(2*pi*x/period + phase)"
-    screening = True
     MAX_GRID = 3000
 
     def std_extra(self, params, std):
@@ -155,4 +154,7 @@ EFFECT = Effect(
     cancel=lambda d, how: [] if how.paper or not number(d, "cogging") else [("force periodic in position", dict(
         periodic_amplitudes=[number(d, "cogging")], periodic_phases=[number(d, "cogging_phase")],
         periodic_period=number(d, "cogging_period", 1e-4)))],
+    rest_force=lambda d, x: d.cogging * math.sin(2.0 * math.pi * x / d.cogging_period + d.cogging_phase),
+    forces=lambda f, stroke, speed: {"periodic force's amplitude": abs(number(f, "cogging")) + sum(
+        abs(a) for a in f.get("periodic_amplitudes", []))},
 )  # fmt: skip

@@ -6,7 +6,7 @@ documentation entry (:class:`~servo.physics.base.Effect`).
 from __future__ import annotations
 
 from servo.fields import P
-from servo.physics.base import Concealment, DriveMap, Effect, Term, number, one_field
+from servo.physics.base import SLIDING, Concealment, DriveMap, Effect, Term, number, one_field
 
 
 class Coulomb(Term):
@@ -49,6 +49,14 @@ _STUDY = Concealment("coulomb_friction", "A", "Fc = Fs (Coulomb level)", (1e-6, 
                      baseline="J,B,K,h0", fixed={"Fc": 0.0, "Fs": 0.0}, fields=_conceal)  # fmt: skip
 
 
+def peak(f: dict) -> float:
+    """The Coulomb element's largest level in the fields ``f`` (either section's, a dict):
+    its sliding level ``|Fc|`` (``|coulomb_extra|``) or the Stribeck breakaway of the
+    stribeck_friction effect, ``|Fs|`` (``|coulomb_static|``), whichever is larger."""
+    return max(abs(number(f, "Fc")), abs(number(f, "coulomb_extra")), abs(number(f, "Fs")),
+               abs(number(f, "coulomb_static")))  # fmt: skip
+
+
 def _cancel(d, how):
     """The Coulomb element beyond the Dahl one (``kernels.cancel.coulomb_stribeck``): its
     sliding level, the Stribeck rise to a breakaway (the stribeck_friction effect's
@@ -77,4 +85,5 @@ EFFECT = Effect(
     leave_out=_leave_out,
     study=_STUDY,
     cancel=_cancel,
+    forces=lambda f, stroke, speed: {SLIDING: peak(f)},
 )  # fmt: skip

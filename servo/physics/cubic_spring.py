@@ -14,7 +14,7 @@ documentation entry (:class:`~servo.physics.base.Effect`).
 from __future__ import annotations
 
 from servo.fields import P
-from servo.physics.base import Concealment, Effect, OneFieldDrive, Term, field_at, number, one_field, zero
+from servo.physics.base import BIAS, Concealment, Effect, OneFieldDrive, Term, field_at, number, one_field, zero
 
 
 class CubicSpring(Term):
@@ -56,4 +56,6 @@ EFFECT = Effect(
     leave_out=zero("k3"),
     study=_STUDY,
     cancel=_cancel,
+    rest_force=lambda d, x: d.k3 * x * x * x,
+    forces=lambda f, stroke, speed: {BIAS: abs(number(f, "k3")) * stroke**3},
 )  # fmt: skip

@@ -14,6 +14,8 @@ documentation entry (:class:`~servo.physics.base.Effect`).
 """
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 from servo.fields import P
@@ -95,4 +97,6 @@ EFFECT = Effect(
     study=_STUDY,
     simulated=lambda d, sim: {"dead_zone": 0.0},  # applied to the input beforehand
     cancel=_cancel,
+    command_for=lambda d, u: u + math.copysign(d.dead_zone, u) if d.dead_zone > 0.0 and u != 0.0 else u,
+    forces=lambda f, stroke, speed: {"input dead zone's half-width": abs(number(f, "dead_zone"))},
 )  # fmt: skip

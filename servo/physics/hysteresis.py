@@ -8,7 +8,7 @@ from __future__ import annotations
 import numpy as np
 
 from servo.fields import P
-from servo.physics.base import Concealment, DriveMap, Effect, Term, geom, number
+from servo.physics.base import SLIDING, Concealment, DriveMap, Effect, Term, geom, number
 
 
 class Hysteresis(Term):
@@ -153,4 +153,5 @@ EFFECT = Effect(
     study=_STUDY,
     simulated=_simulated,
     cancel=_cancel,
+    forces=lambda f, stroke, speed: {SLIDING: max(abs(number(f, "sliding_level")), abs(number(f, "Ha")))},
 )  # fmt: skip

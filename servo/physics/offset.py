@@ -8,7 +8,8 @@ from __future__ import annotations
 import numpy as np
 
 from servo.fields import P
-from servo.physics.base import EQ9, Concealment, Effect, OneField, OneFieldDrive, field_at, number, one_field, zero
+from servo.physics.base import (BIAS, EQ9, Concealment, Effect, OneField,
+                                 OneFieldDrive, field_at, number, one_field, zero)
 
 
 class Offset(OneField):
@@ -34,4 +35,6 @@ EFFECT = Effect(
     study=_STUDY,
     leave_out=zero("h0"),
     cancel=lambda d, how: [(EQ9, {"h0": number(d, "h0")})],
+    rest_force=lambda d, x: d.h0,
+    forces=lambda f, stroke, speed: {BIAS: abs(number(f, "h0"))},
 )  # fmt: skip

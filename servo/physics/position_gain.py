@@ -63,6 +63,12 @@ def _cancel(d, how):
              kf_quadratic=number(d, "kf_quadratic"), kf_stroke=number(d, "stroke", 15e-3)))]
 
 
+def _kf(d, x):
+    """The force constant's factor ``kf(x)`` of the drive section ``d`` at ``x`` (m)."""
+    r = x / d.stroke
+    return 1.0 + d.kf_linear * r + d.kf_quadratic * r * r
+
+
 EFFECT = Effect(
     "position_dependent_gain", "force constant varying over the stroke",
     drive=dict(
@@ -85,4 +91,5 @@ EFFECT = Effect(
     study=_STUDY,
     simulated=_simulated,
     cancel=_cancel,
+    force_gain=_kf,
 )  # fmt: skip

@@ -5,8 +5,11 @@ documentation entry (:class:`~servo.physics.base.Effect`).
 """
 from __future__ import annotations
 
+import math
+
 from servo.fields import P
-from servo.physics.base import EQ9, Concealment, Effect, OneField, OneFieldDrive, field_at, number, one_field, zero
+from servo.physics.base import (BIAS, EQ9, Concealment, Effect, OneField,
+                                 OneFieldDrive, field_at, number, one_field, zero)
 
 
 class Stiffness(OneField):
@@ -32,4 +35,7 @@ EFFECT = Effect(
     study=_STUDY,
     leave_out=zero("K"),
     cancel=lambda d, how: [(EQ9, {"K": number(d, "K")})],
+    rest_force=lambda d, x: d.K * x,
+    forces=lambda f, stroke, speed: {BIAS: abs(number(f, "K")) * stroke},
+    rates=lambda f, J: {"natural frequency sqrt(|K|/J)": math.sqrt(abs(number(f, "K")) / J)},
 )  # fmt: skip

@@ -6,7 +6,8 @@ documentation entry (:class:`~servo.physics.base.Effect`).
 from __future__ import annotations
 
 from servo.fields import P
-from servo.physics.base import EQ9, Concealment, Effect, OneField, OneFieldDrive, field_at, number, one_field, zero
+from servo.physics.base import (EQ9, VISCOUS, Concealment, Effect, OneField,
+                                 OneFieldDrive, field_at, number, one_field, zero)
 
 
 class Viscous(OneField):
@@ -33,4 +34,6 @@ EFFECT = Effect(
     study=_STUDY,
     leave_out=zero("B"),
     cancel=lambda d, how: [(EQ9, {"B": number(d, "B")})],
+    forces=lambda f, stroke, speed: {} if speed is None else {VISCOUS: abs(number(f, "B")) * speed},
+    rates=lambda f, J: {"viscous pole |B|/J": abs(number(f, "B")) / J},
 )  # fmt: skip

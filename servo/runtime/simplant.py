@@ -85,30 +85,23 @@ def plant_params(d: DriveConfig, dt: float) -> np.ndarray:
 
 
 def holding_current(d: DriveConfig, x: float) -> float:
-    """Current (A) that balances the bias, cubic-spring and cogging forces at rest at ``x``
-    with the pivot's Dahl element relaxed (``H = 0``): what reaches the arm (after the
-    input dead zone, :func:`holding_command` the command that gives it)."""
-    r = x / d.stroke
-    kf = 1.0 + d.kf_linear * r + d.kf_quadratic * r * r
-    f = d.K * x + d.h0
-    if d.k3 != 0.0:
-        f += d.k3 * x * x * x
-    if d.cogging != 0.0:
-        f += d.cogging * math.sin(2.0 * math.pi * x / d.cogging_period + d.cogging_phase)
-    return f / kf
+    """Current (A) that balances the forces at rest at ``x`` (each effect's
+    :attr:`~servo.physics.base.Effect.rest_force`, the pivot's Dahl element relaxed,
+    ``H = 0``) through the force constant there (:func:`servo.physics.force_gain`): what
+    reaches the arm (:func:`holding_command` the command that gives it)."""
+    return physics.rest_force(d, x) / physics.force_gain(d, x)
 
 
 def holding_command(d: DriveConfig, u: float) -> float:
-    """The command (A) whose current after the input dead zone is ``u`` (A)."""
-    if d.dead_zone > 0.0 and u != 0.0:
-        return u + math.copysign(d.dead_zone, u)
-    return u
+    """The command (A) whose current through the drive's input elements (each effect's
+    :attr:`~servo.physics.base.Effect.command_for`) is ``u`` (A)."""
+    return physics.command_for(d, u)
 
 
 def build_plant(d: DriveConfig, dt: float) -> SimPlant:
     """Fresh plant arrays for drive ``d`` sampled every ``dt`` s: the arm at rest at
     ``d.initial_position``, held there by :func:`holding_current` (``u_hold`` the command
-    that gives it through the dead zone), the flexible modes at their static deflection
+    that gives it through the input elements), the flexible modes at their static deflection
     under that current."""
     whole, frac = split_delay(d.input_delay_s, dt)
     u_arm = holding_current(d, d.initial_position)
