@@ -165,7 +165,7 @@ def _by_reversals(cands: tuple, attempt, rec: Recording):
             return d, (f"{rev}: by {cands[0]} only {100 * _usable(tried, cands[0]):.0f} % of the rows were usable "
                        "(reversals within the decimation filter's reach)")  # fmt: skip
     default = next((d for q, d, _ in tried if q == cands[0] and d is not None), None)
-    ok = [(q, d) for q, d, _ in tried if d is not None and q != cands[0] and d.sig.usable_share >= FALLBACK_MIN]
+    ok = [(q, d) for q, d, _ in tried if d is not None and q != cands[0] and _enough(d.sig)]
     if ok:
         q, d = max(ok, key=lambda t: float(t[1].sig.usable_share))  # shares: the row counts differ with q
         if default is None or d.sig.usable_share >= GAIN_MIN * default.sig.usable_share:
@@ -177,6 +177,20 @@ def _by_reversals(cands: tuple, attempt, rec: Recording):
                          "gives many more usable rows")  # fmt: skip
     last_exc = next((e for _, _, e in reversed(tried) if e is not None), None)
     raise _refusal(rec, tried, last_exc or IdentificationError("too few usable rows"))
+
+
+def _enough(sig) -> bool:
+    """Whether a decimation's rows are enough for the fallback (module doc): at least
+    :data:`FALLBACK_MIN` usable, or, where only the ripple rule thins them (the noise
+    rule leaves that share: a closed loop's dither at rest, not reversals within the
+    filter's reach), at least the share the ripple rule is applied down to
+    (:data:`servo.diagnose.signals.RIPPLE_MIN_USABLE`)."""
+    from servo.diagnose.signals import RIPPLE_MIN_USABLE
+
+    if sig.usable_share >= FALLBACK_MIN:
+        return True
+    return bool(sig.v_ripple is not None and (sig.noise_share or 0.0) >= FALLBACK_MIN
+                and sig.usable_share >= RIPPLE_MIN_USABLE)  # fmt: skip
 
 
 def _usable(tried, q) -> float:
