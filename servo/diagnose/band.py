@@ -181,14 +181,18 @@ def _by_reversals(cands: tuple, attempt, rec: Recording):
 
 def _enough(sig) -> bool:
     """Whether a decimation's rows are enough for the fallback (module doc): at least
-    :data:`FALLBACK_MIN` usable, or, where only the ripple rule thins them (the noise
-    rule leaves that share: a closed loop's dither at rest, not reversals within the
-    filter's reach), at least the share the ripple rule is applied down to
-    (:data:`servo.diagnose.signals.RIPPLE_MIN_USABLE`)."""
+    :data:`FALLBACK_MIN` usable, or thinned by a dither alone (:func:`dithered`)."""
+    return bool(sig.usable_share >= FALLBACK_MIN or dithered(sig))
+
+
+def dithered(sig) -> bool:
+    """Whether ``sig``'s rows are few only because the ripple rule thins them: the noise
+    rule alone leaves :data:`FALLBACK_MIN` of them (a closed loop's dither at rest, not
+    reversals within the filter's reach) and the ripple rule at least the share it is
+    applied down to (:data:`servo.diagnose.signals.RIPPLE_MIN_USABLE`).  Such rows are
+    diagnosed (``servo.diagnose.job.prepare`` refuses other rows under 20 %)."""
     from servo.diagnose.signals import RIPPLE_MIN_USABLE
 
-    if sig.usable_share >= FALLBACK_MIN:
-        return True
     return bool(sig.v_ripple is not None and (sig.noise_share or 0.0) >= FALLBACK_MIN
                 and sig.usable_share >= RIPPLE_MIN_USABLE)  # fmt: skip
 
@@ -230,4 +234,4 @@ def _refusal(rec: Recording, tried: list, last_exc, settings: RobustSettings | N
                                                                          ", or try a smaller --decimate"))  # fmt: skip
 
 
-__all__ = ["CANDIDATES", "RULES", "USABLE_MIN", "band_hz", "choose", "power_decimation", "reversals", "settings_for"]
+__all__ = ["CANDIDATES", "RULES", "USABLE_MIN", "band_hz", "choose", "dithered", "power_decimation", "reversals", "settings_for"]
