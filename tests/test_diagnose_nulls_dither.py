@@ -6,7 +6,9 @@ At the default decimation (10) the ripple rule leaves under 1 % of the rows; the
 diagnosis used to fall back to the noise rule's rows and read 12-28 x the floor,
 `unexplained`, on every closed-loop steps null.  At a decimation of 3 the dither is
 inside the band, the ripple rule leaves the moves (12-33 % of the rows), and those are
-at the floor.  Recordings of the independent proving ground (`studies/proving/`), on
+at the floor (on 35 and 51 too, where a breakaway is still named at rest: the held force
+at each reference step's kick, docs/studies/2026-11-28-nulls-every-excitation.md).
+Recordings of the independent proving ground (`studies/proving/`), on
 development seeds (the second grid's nulls, offset 0).
 """
 import pytest
