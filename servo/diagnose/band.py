@@ -24,7 +24,9 @@ Among them, :func:`choose` tries ``q`` largest first (the most averaging and
 the fewest rows) and keeps the first whose rows are at least :data:`USABLE_MIN` usable
 with the friction sign the arm had (``Signals.usable_share``: where the ripple rule fell
 back to the noise rule's rows, those rows carry a wrong sign's misfit and do not count);
-failing that, the one with the most usable training rows; failing every one, it
+failing that, the one with the most usable rows, at least :data:`FALLBACK_MIN` or rows
+thinned by a dither alone (:func:`dithered`: a closed loop holding the arm between
+steps); failing every one, it
 refuses with the cause it measured (an arm that barely moves, or reversals too close
 together for any decimation, with their count and spacing).  The note says why: the
 power edge against the bands, the reversals' median spacing and the usable share.  An
