@@ -24,7 +24,9 @@ Among them, :func:`choose` tries ``q`` largest first (the most averaging and
 the fewest rows) and keeps the first whose rows are at least :data:`USABLE_MIN` usable
 with the friction sign the arm had (``Signals.usable_share``: where the ripple rule fell
 back to the noise rule's rows, those rows carry a wrong sign's misfit and do not count);
-failing that, the one with the most usable training rows; failing every one, it
+failing that, the one with the most usable rows, at least :data:`FALLBACK_MIN` or rows
+thinned by a dither alone (:func:`dithered`: a closed loop holding the arm between
+steps); failing every one, it
 refuses with the cause it measured (an arm that barely moves, or reversals too close
 together for any decimation, with their count and spacing).  The note says why: the
 power edge against the bands, the reversals' median spacing and the usable share.  An
@@ -165,7 +167,7 @@ def _by_reversals(cands: tuple, attempt, rec: Recording):
             return d, (f"{rev}: by {cands[0]} only {100 * _usable(tried, cands[0]):.0f} % of the rows were usable "
                        "(reversals within the decimation filter's reach)")  # fmt: skip
     default = next((d for q, d, _ in tried if q == cands[0] and d is not None), None)
-    ok = [(q, d) for q, d, _ in tried if d is not None and q != cands[0] and d.sig.usable_share >= FALLBACK_MIN]
+    ok = [(q, d) for q, d, _ in tried if d is not None and q != cands[0] and _enough(d.sig)]
     if ok:
         q, d = max(ok, key=lambda t: float(t[1].sig.usable_share))  # shares: the row counts differ with q
         if default is None or d.sig.usable_share >= GAIN_MIN * default.sig.usable_share:
@@ -177,6 +179,24 @@ def _by_reversals(cands: tuple, attempt, rec: Recording):
                          "gives many more usable rows")  # fmt: skip
     last_exc = next((e for _, _, e in reversed(tried) if e is not None), None)
     raise _refusal(rec, tried, last_exc or IdentificationError("too few usable rows"))
+
+
+def _enough(sig) -> bool:
+    """Whether a decimation's rows are enough for the fallback (module doc): at least
+    :data:`FALLBACK_MIN` usable, or thinned by a dither alone (:func:`dithered`)."""
+    return bool(sig.usable_share >= FALLBACK_MIN or dithered(sig))
+
+
+def dithered(sig) -> bool:
+    """Whether ``sig``'s rows are few only because the ripple rule thins them: the noise
+    rule alone leaves :data:`FALLBACK_MIN` of them (a closed loop's dither at rest, not
+    reversals within the filter's reach) and the ripple rule at least the share it is
+    applied down to (:data:`servo.diagnose.signals.RIPPLE_MIN_USABLE`).  Such rows are
+    diagnosed (``servo.diagnose.job.prepare`` refuses other rows under 20 %)."""
+    from servo.diagnose.signals import RIPPLE_MIN_USABLE
+
+    return bool(sig.v_ripple is not None and (sig.noise_share or 0.0) >= FALLBACK_MIN
+                and sig.usable_share >= RIPPLE_MIN_USABLE)  # fmt: skip
 
 
 def _usable(tried, q) -> float:
@@ -216,4 +236,4 @@ def _refusal(rec: Recording, tried: list, last_exc, settings: RobustSettings | N
                                                                          ", or try a smaller --decimate"))  # fmt: skip
 
 
-__all__ = ["CANDIDATES", "RULES", "USABLE_MIN", "band_hz", "choose", "power_decimation", "reversals", "settings_for"]
+__all__ = ["CANDIDATES", "RULES", "USABLE_MIN", "band_hz", "choose", "dithered", "power_decimation", "reversals", "settings_for"]

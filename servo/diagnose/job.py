@@ -44,7 +44,7 @@ from threadpoolctl import threadpool_limits
 from servo.diagnose import baseline as baseline_mod
 from servo.diagnose import breakaway as breakaway_mod
 from servo.diagnose import frf_modes
-from servo.diagnose.band import CANDIDATES
+from servo.diagnose.band import CANDIDATES, dithered
 from servo.diagnose.band import choose as choose_band
 from servo.diagnose import locate
 from servo.diagnose import partial
@@ -385,7 +385,7 @@ def prepare(rec: Recording, settings: RobustSettings, opt: Options) -> Design:
             f"recording too short to diagnose: {n_train} training and {n_test} test rows (decimation by "
             f"{settings.decimate}); need at least {MIN_ROWS_PER_BLOCK * opt.blocks} and {MIN_ROWS_PER_BLOCK}"
         )
-    if sig.valid.mean() < 0.2 or short:
+    if (sig.valid.mean() < 0.2 and not dithered(sig)) or short:  # a dither's rows: band.dithered
         raise OutOfDomain(
             f"too few usable rows: {n_train} training and {n_test} test rows where the direction of motion is "
             f"known ({100 * sig.valid.mean():.0f} % of {m} rows; elsewhere the speed is within its noise, "

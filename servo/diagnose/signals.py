@@ -50,10 +50,14 @@ DIRECTION_Z = 3.0
 #: (:func:`driven_ripple`): the direction is uncertain (the fitted inertia's error)
 RIPPLE_MARGIN = 1.5
 #: the ripple rule is not applied where it would leave fewer usable rows than this share
-#: (and the noise rule more): a closed loop's steps with a dithering force ripple
-#: everywhere, and with it no decimation left rows to diagnose (refused) where without
-#: it the diagnosis ran (docs/studies/2026-11-28-noise-floor.md)
-RIPPLE_MIN_USABLE = 0.2
+#: (and the noise rule more).  A closed loop holding the arm between steps dithers it
+#: with the sensor noise it feeds back: the true velocity reverses every few samples
+#: above the Butterworth while the filtered one does not, and the rows there carry a
+#: friction that switches with it, 12-28 x the floor on the development nulls.  At a
+#: decimation of 3 the dither is inside the band and the ripple rule leaves 12-33 % of
+#: the rows (the moves), at the floor; 20 % here refused or fell back on 3 nulls of 8
+#: (docs/studies/2026-11-28-nulls-every-excitation.md)
+RIPPLE_MIN_USABLE = 0.1
 #: the spectrum's direction threshold is kept only where it leaves at least this share of
 #: the rows the first estimate's threshold leaves (:func:`make_signals`)
 THRESHOLD_KEEP = 0.9
@@ -106,6 +110,9 @@ class Signals:
     #: ripple rule's included, whether or not that rule was applied (:func:`make_signals`
     #: falls back to the noise rule's rows where it leaves too few); None: not measured
     signed_share: float | None = None
+    #: the share of the rows clear of the noise rule's uncertain samples alone (``|vf|``
+    #: within ``v_threshold``); None: not measured
+    noise_share: float | None = None
 
     @property
     def usable_share(self) -> float:
@@ -528,6 +535,7 @@ def make_signals(rec: Recording, settings: RobustSettings | None = None) -> Sign
     out = Signals(t, u, x, xf, vf, af, dt, s, keep, valid, noise_x, noise_v, v_thr, spec, ripple)
     signed = rows_clear_of(keep, out.uncertain, reach)
     out.signed_share = float(signed.mean())
+    out.noise_share = float(valid.mean())
     if signed.mean() >= RIPPLE_MIN_USABLE or valid.mean() < RIPPLE_MIN_USABLE:
         out.valid = signed
     else:  # no rows could be signed: the noise rule's rows, with the misfit the ripple makes
