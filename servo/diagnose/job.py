@@ -357,6 +357,15 @@ def _scope_of(design: Design, fit: Fit) -> str:
     return verdict_mod.out_of_scope(fit.mass(None), fit.mass_std(), force_error_pct(design, fit, design.train_valid))
 
 
+def _proven_models(base: Model, findings: list) -> list:
+    """The models :func:`_sequence` fits, as given and refitted (whose rows the proof asks for)."""
+    models = [base]
+    for f in findings:
+        if not f.sensor:
+            models.append(models[-1].plus(f.term))
+    return models + [m.refitted() for m in models]
+
+
 def _sequence(design: Design, base: Model, findings: list) -> list:
     """Models baseline, +f1, +f1+f2, ... and their fits on the training part (a model
     file's terms as the file has them in the first, refitted once a finding is added:
@@ -721,6 +730,8 @@ def _diagnose(rec: Recording, opt: Options | None) -> Diagnosis:
     blocks = make_blocks(design.train_valid, opt.blocks)
     sel = Selector(design, blocks, opt.alpha)
     findings, rounds, not_testable, implausible = _select(sel, base, opt)
+    design.forget(keep=_proven_models(base, findings))  # the variants' rows: not asked for again
+
 
     progress.stage("held-out proof")
     starts_test = starts_in(design, ~design.train_rows, H)
