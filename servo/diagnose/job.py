@@ -725,6 +725,7 @@ def _diagnose(rec: Recording, opt: Options | None) -> Diagnosis:
     H = horizon_samples(design0, opt.horizon_s)
 
     qfind, design, lattice, qnote = _quantization(rec, opt, base, design0, H)
+    del design0  # a quantised sensor's other path: the first design's signals and rows not kept beside it
     sig = design.sig
     test_rows = ~design.train_rows & sig.valid
     blocks = make_blocks(design.train_valid, opt.blocks)
