@@ -40,24 +40,30 @@ def test_a_diagnosis_with_a_tiny_cache_reports_the_same(rec, monkeypatch):
     assert _report(job.diagnose(rec)) == whole
 
 
-def test_the_cache_keeps_its_budget_most_recent_first(design, monkeypatch):
+def test_the_cache_keeps_its_budget_dropping_the_entries_never_asked_for_again(design, monkeypatch):
     col = design.sig.m * 8
     monkeypatch.setattr(model_mod, "ROWS_BUDGET", 3 * col)
     made = []
 
-    def make(i):
-        made.append(i)
-        return np.full(design.sig.m, float(i))
+    def get(i):
+        def make():
+            made.append(i)
+            return np.full(design.sig.m, float(i))
 
-    for i in range(5):
-        design.cached_rows(("k", i), lambda i=i: make(i))
+        return design.cached_rows(("k", i), make)
+
+    for i in range(5):  # a scan: the newest entry never asked for again goes, the first ones stay
+        get(i)
     assert design._rows_bytes == sum(v.nbytes for v in design._rows.values()) <= 3 * col
-    assert list(design._rows) == [("k", 2), ("k", 3), ("k", 4)]
-    design.cached_rows(("k", 2), lambda: make(-1))  # a hit: not made again, now the most recent
-    design.cached_rows(("k", 5), lambda: make(5))  # drops ("k", 3), the least recent
-    assert made == [0, 1, 2, 3, 4, 5]
-    assert list(design._rows) == [("k", 4), ("k", 2), ("k", 5)]
-    assert design.cached_rows(("k", 0), lambda: make(0))[0] == 0.0 and made[-1] == 0  # dropped: made again
+    assert list(design._rows) == [("k", 0), ("k", 1), ("k", 4)]
+    get(0)  # found: not made again, now the most recent and asked for again
+    get(5)  # drops ("k", 4), the newest of those never asked for again
+    assert list(design._rows) == [("k", 1), ("k", 0), ("k", 5)]
+    get(1), get(5)  # every entry asked for again: the least recently used goes next
+    get(6)
+    assert list(design._rows) == [("k", 1), ("k", 5), ("k", 6)]
+    assert made == [0, 1, 2, 3, 4, 5, 6]
+    assert get(0)[0] == 0.0 and made[-1] == 0  # dropped: made again, the same
 
 
 def test_forget_keeps_the_rows_of_the_given_models(design):
