@@ -7,13 +7,15 @@ import pytest
 
 from servo.cli import main
 from servo.diagnose import job
+from servo.diagnose import model as model_mod
 from servo.diagnose.concealed import Scenario, concealed_recording
 from studies.memprobe import measure
 from servo.errors import ServoError
 
 SAMPLES = 200_000
 #: peak extra bytes per sample of a diagnosis (decimation by 10): measured 1100 before the
-#: rows stopped holding their full-rate columns, about 330 after
+#: rows stopped holding their full-rate columns, about 330 after; 366 on 2026-11-28 with
+#: the rows cache bounded (which drops nothing at this length; 309 at 1e6 samples)
 MAX_BYTES_PER_SAMPLE = 600
 
 @pytest.fixture(scope="module")
@@ -35,6 +37,9 @@ def test_estimate_is_linear_in_samples_and_rows():
     opt = job.Options()
     assert job.memory_estimate(2_000_000, opt) == pytest.approx(2 * job.memory_estimate(1_000_000, opt))
     assert job.memory_estimate(1_000_000, opt) < 1e9  # the benchmark's recording fits in well under 1 GB
+    # the rows cache's share stops at its bound (reached between 3e6 and 4e6 samples)
+    big = 10 * job.memory_estimate(10**7, opt) - job.memory_estimate(10**8, opt)
+    assert big == pytest.approx(9 * model_mod.ROWS_BUDGET)
 
 def test_available_memory_is_read_or_skipped():
     avail = job.available_memory()

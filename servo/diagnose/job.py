@@ -50,7 +50,7 @@ from servo.diagnose import locate
 from servo.diagnose import partial
 from servo.diagnose import verdict as verdict_mod
 from servo.diagnose.fit import Fit, fit_model, force_error_pct
-from servo.diagnose.model import Design, Model, Term
+from servo.diagnose.model import ROWS_BUDGET, Design, Model, Term
 from servo.diagnose.scope import OutOfDomain, Unscoped
 from servo.diagnose.quantization import (MIN_FRACTION, SHARE_MIN, Lattice, acceleration_share, attenuated_inertia,
                                          candidate_paths, error_share, heldout_on_lattice, improvement_test,
@@ -78,6 +78,10 @@ MIN_ROWS_PER_BLOCK = 20
 #: 79.3 MB; measured by ``tests/test_diagnose_memory.py``)
 BYTES_PER_SAMPLE = 224
 BYTES_PER_ROW = 2400
+#: of :data:`BYTES_PER_ROW`, the cached columns' share, which
+#: :data:`servo.diagnose.model.ROWS_BUDGET` bounds (1342 B a row measured at 1e6 samples
+#: and decimation by 10: 128 MB of rows at the end of the rounds)
+CACHE_BYTES_PER_ROW = 1400
 #: a finding may not raise the held-out output NRMSE by more than this fraction
 OUTPUT_TOLERANCE = 0.05
 #: on a baseline that passes every check of the verdict, a finding must remove at least
@@ -226,9 +230,12 @@ def heldout_residual(design: Design, model: Model, blocks, test_rows: np.ndarray
 
 def memory_estimate(n: int, opt: Options) -> float:
     """Bytes a diagnosis of ``n`` samples adds to the process (the recording excluded):
-    linear in the samples and in the rows (``n/decimate``)."""
+    linear in the samples and in the rows (``n/decimate``), the rows cache's share up to
+    its bound (:data:`servo.diagnose.model.ROWS_BUDGET`)."""
     q = max(int(opt.settings.decimate if opt.settings is not None else CANDIDATES[0]), 1)
-    return float(BYTES_PER_SAMPLE * n + BYTES_PER_ROW * (n / q))
+    rows = n / q
+    cache = min(CACHE_BYTES_PER_ROW * rows, ROWS_BUDGET)
+    return float(BYTES_PER_SAMPLE * n + (BYTES_PER_ROW - CACHE_BYTES_PER_ROW) * rows + cache)
 
 
 def check_memory(n: int, opt: Options) -> None:
@@ -356,6 +363,15 @@ def _scope_of(design: Design, fit: Fit) -> str:
     """Why the force balance of ``fit`` does not describe the recording ("" when it
     does; :func:`servo.diagnose.verdict.out_of_scope`)."""
     return verdict_mod.out_of_scope(fit.mass(None), fit.mass_std(), force_error_pct(design, fit, design.train_valid))
+
+
+def _proven_models(base: Model, findings: list) -> list:
+    """The models :func:`_sequence` fits, as given and refitted (whose rows the proof asks for)."""
+    models = [base]
+    for f in findings:
+        if not f.sensor:
+            models.append(models[-1].plus(f.term))
+    return models + [m.refitted() for m in models]
 
 
 def _sequence(design: Design, base: Model, findings: list) -> list:
@@ -719,11 +735,14 @@ def _diagnose(rec: Recording, opt: Options | None) -> Diagnosis:
     H = horizon_samples(design0, opt.horizon_s)
 
     qfind, design, lattice, qnote = _quantization(rec, opt, base, design0, H)
+    del design0  # a quantised sensor's other path: the first design's signals and rows not kept beside it
     sig = design.sig
     test_rows = ~design.train_rows & sig.valid
     blocks = make_blocks(design.train_valid, opt.blocks)
     sel = Selector(design, blocks, opt.alpha)
     findings, rounds, not_testable, implausible = _select(sel, base, opt)
+    design.forget(keep=_proven_models(base, findings))  # the variants' rows: not asked for again
+
 
     progress.stage("held-out proof")
     starts_test = starts_in(design, ~design.train_rows, H)

@@ -12,8 +12,9 @@ where ``u_eff`` is the recorded input after the model's *input* terms (saturatio
 delay, as in the drive) and the columns are functions of the filtered motion (and of
 ``u_eff`` for a position-dependent gain or a resonance).  :class:`Design` turns a model
 into rows: the target (aligned, filtered, decimated ``u_eff`` minus the fixed terms) and
-the matrix of free columns; it caches every column, since a diagnosis asks for the same
-ones many times.
+the matrix of free columns; it caches the columns, since a diagnosis asks for the same
+ones many times, up to :data:`ROWS_BUDGET` bytes (the least recently used dropped and
+computed again when asked for, to the bit).
 """
 from __future__ import annotations
 
@@ -117,6 +118,13 @@ GATE = "from_s"
 #: full-rate effective inputs a :class:`Design` keeps (each is ``8*n`` bytes)
 U_CACHE = 2
 
+#: bytes of cached rows a :class:`Design` keeps; beyond it some are dropped (and
+#: computed again if asked for: :meth:`Design.cached_rows`).  A diagnosis of 1e6 samples
+#: caches about 130 MB of rows (3e6: about 390 MB), so below 4e6 samples nothing is
+#: dropped and nothing is computed twice; at 1e7 the cache would be 1.3 GB, most of it
+#: the rows of the variants a round scores once and the next round scores again
+ROWS_BUDGET = 512 * 2**20
+
 
 class Design:
     """Rows of models on one recording's :class:`Signals`, with a column cache."""
@@ -129,7 +137,11 @@ class Design:
         #: (n,) full-rate samples up to the last training row
         last = sig.keep[np.flatnonzero(self.train_rows)[-1]] if self.train_rows.any() else 0
         self.train_samples = np.arange(sig.n) <= last
+        #: cached rows by key, least recently used first; ``_rows_bytes`` their size;
+        #: ``_asked_again`` the keys found in the cache at least once
         self._rows: dict = {}
+        self._rows_bytes = 0
+        self._asked_again: set = set()
         #: full-rate effective inputs, the most recent :data:`U_CACHE` only: a search over
         #: a delay or a saturation level makes one per variant, and their rows are cached
         self._u: dict = {}
@@ -164,10 +176,40 @@ class Design:
         return u
 
     def cached_rows(self, key, make) -> np.ndarray:
-        """Rows for ``key``, computed once by ``make()`` (a (m,) or (m, k) array)."""
-        if key not in self._rows:
-            self._rows[key] = make()
-        return self._rows[key]
+        """Rows for ``key``, computed by ``make()`` (a (m,) or (m, k) array) unless cached.
+        The cache holds at most :data:`ROWS_BUDGET` bytes.  Beyond it, the entries never
+        asked for again go first, the newest of them first: a round's variants come back
+        in the next round in the same order, and those it kept are found there (at 1e6
+        samples with the cache held to 51 MB, 226 columns built instead of 259 when the
+        least recently used went first; 149 with the whole cache); then the least
+        recently used."""
+        rows = self._rows.pop(key, None)
+        if rows is None:
+            rows = make()
+            self._rows_bytes += rows.nbytes
+        else:
+            self._asked_again.add(key)
+        self._rows[key] = rows  # most recent last
+        while self._rows_bytes > ROWS_BUDGET and len(self._rows) > 1:
+            cold = (k for k in reversed(self._rows) if k != key and k not in self._asked_again)
+            drop = next(cold, None)
+            if drop is None:
+                drop = next(iter(self._rows))
+            self._rows_bytes -= self._rows.pop(drop).nbytes
+            self._asked_again.discard(drop)
+        return rows
+
+    def forget(self, keep=()) -> None:
+        """Drop the cached rows, except the targets and the terms' rows of the models in
+        ``keep``: what a diagnosis asks for again once its rounds have chosen (the rows
+        of the variants it scored would otherwise stay until it ends)."""
+        kept = set()
+        for model in keep:
+            kept.add(("y",) + self.input_key(model))
+            kept.update(self._term_key(VOCABULARY[t.physics], t, model) for t in model.column_terms())
+        for key in [k for k in self._rows if k not in kept]:
+            self._rows_bytes -= self._rows.pop(key).nbytes
+            self._asked_again.discard(key)
 
     def target_raw(self, model: Model, extra: Term | None = None) -> np.ndarray:
         """Rows of the aligned effective force (m,).  A delay tried on top of a model
@@ -176,7 +218,7 @@ class Design:
         exact chain's rows to rounding); the exact chain serves every other case."""
         key = ("y",) + self.input_key(model) + ((extra.physics, extra.theta) if extra else ())
         if key in self._rows:
-            return self._rows[key]
+            return self.cached_rows(key, None)
         if extra is not None and not model.has(extra.physics):
             fast = VOCABULARY[extra.physics].screen_target(self, model, extra.params)
             if fast is not None:
@@ -233,10 +275,8 @@ class Design:
         models (its search gates the rows instead, an approximation within the
         decimation filter's reach of the onset)."""
         phys = VOCABULARY[term.physics]
-        key = (term.physics, term.theta) + (self.input_key(model) if phys.uses_input else ())
+        key = self._term_key(phys, term, model)
         d = self.column_design(phys, model)
-        if d is not self:
-            key += self.input_key(model)
         if GATE in term.params:
             p = term.params
             t0 = p.pop(GATE)
@@ -248,6 +288,13 @@ class Design:
             return self.cached_rows(key, make)
         return self.cached_rows(key, lambda: phys.rows(d, term.params, self.u_eff(model)))
 
+    def _term_key(self, phys, term: Term, model: Model) -> tuple:
+        """The cache key of :meth:`term_rows` of ``term`` (vocabulary entry ``phys``) under ``model``."""
+        key = (term.physics, term.theta) + (self.input_key(model) if phys.uses_input else ())
+        if self.column_design(phys, model) is not self:
+            key += self.input_key(model)
+        return key
+
     def variant_rows(self, physics: str, theta: dict, model: Model) -> np.ndarray:
         """:meth:`term_rows` of the vocabulary term ``physics`` at ``theta``."""
         return self.term_rows(Term.make(physics, theta), model)
@@ -256,17 +303,24 @@ class Design:
         """``(y, Phi, names)``: the target (force minus the fixed terms, (m,)), the free
         columns (m, p) and their ``(physics, coefficient)`` names.  ``extra`` is an input
         term tried on top of the model (the columns are not recomputed for it)."""
-        y = self.target_raw(model, extra).copy()
+        y = self.target(model, extra)
         cols, names = [], []
         for t in model.column_terms():
-            C = self.term_rows(t, model)
             if t.free:
-                cols.append(C)
+                cols.append(self.term_rows(t, model))
                 names += [(t.physics, c) for c in VOCABULARY[t.physics].coefs]
-            else:
-                y -= C @ np.asarray(t.coef)
         Phi = np.column_stack(cols) if cols else np.zeros((y.size, 0))
         return y, Phi, names
+
+    def target(self, model: Model, extra: Term | None = None) -> np.ndarray:
+        """The target of :meth:`matrix` alone (m,), a new array: the aligned effective
+        force minus the model's fixed terms (what an input variant changes; its free
+        columns are the model's)."""
+        y = self.target_raw(model, extra).copy()
+        for t in model.column_terms():
+            if not t.free:
+                y -= self.term_rows(t, model) @ np.asarray(t.coef)
+        return y
 
 
 __all__ = ["GATE", "Design", "Model", "Term"]

@@ -409,7 +409,7 @@ class Selector:
         th = thetas[max(range(len(keys)), key=keys.count)]
         term = Term.make(physics, th)
         if phys.kind == "input":
-            y, Z = self.d.matrix(model, extra=term)[0], Phi
+            y, Z = self.d.target(model, extra=term), Phi
         else:
             y, Z = y0, np.column_stack([Phi, self.d.term_rows(term, model)])
         w = self.blocks.weights > 0
@@ -419,7 +419,7 @@ class Selector:
         return max(self.n_eff, float(w.sum()) / tau)
 
     def _input_variant(self, model, physics, theta, Phi):
-        y, _, _ = self.d.matrix(model, extra=Term.make(physics, theta))
+        y = self.d.target(model, extra=Term.make(physics, theta))
         return Phi, y
 
     def _nested(self, variants) -> list:
