@@ -1,0 +1,54 @@
+"""Modes, delays and sensor lags on the proving ground's open-loop PRBS recordings
+(:mod:`studies.proving`, development seeds): a binary input's level is no dead zone, and
+a delay shorter than a tenth of a sample is still a delay."""
+import numpy as np
+import pytest
+
+from servo.diagnose.job import diagnose
+from servo.physics.dead_zone import DeadZone
+from studies.proving.cases import Case, recording
+
+
+@pytest.mark.parametrize("kind", ["half_normal", "uniform", "binary", "binary_with_edges", "single"])
+def test_the_widest_dead_zone_passes_its_share_of_the_input(kind):
+    """``DeadZone.widest`` is the half-width at which ``mean(max(|u| - w, 0))`` is exactly
+    ``PASS_MIN`` of ``mean(|u|)``: a binary input's half-width is at most 0.9 of its level."""
+    rng = np.random.default_rng(3)
+    au = {"half_normal": np.abs(rng.standard_normal(5000)), "uniform": rng.uniform(size=5000),
+          "binary": np.full(800, 2e-4), "binary_with_edges": np.r_[np.full(900, 1.0), rng.uniform(0, 1, 100)],
+          "single": np.array([3.0])}[kind]  # fmt: skip
+    w = DeadZone.widest(au)
+    assert 0 < w < au.max()
+    assert np.mean(np.maximum(au - w, 0)) == pytest.approx(DeadZone.PASS_MIN * au.mean(), rel=1e-9)
+    if kind == "binary":
+        assert w == pytest.approx(0.9 * 2e-4)
+    assert DeadZone.widest(np.zeros(10)) == 0.0
+
+
+def _diagnosed(family, size, seed, noise):
+    rec, truth = recording(Case(family, size, "force", "prbs", 5000.0, noise=noise), seed)
+    return diagnose(rec)
+
+
+@pytest.mark.parametrize("family,size,seed,noise", [("delay", 0.1, 310001, "white"), ("delay", 0.5, 310203, "pink")])
+def test_an_open_loop_prbs_delay_is_named_not_hidden_by_a_dead_zone(family, size, seed, noise):
+    """An open-loop PRBS's ``|u|`` is one value: a dead zone of that half-width zeroed the
+    input, the force balance was met by J = 0, and the delay was never named (the term was
+    then refused as out of scope).  Now the delay is named with its size."""
+    D = _diagnosed(family, size, seed, noise)
+    assert "dead_zone" not in D.implausible
+    f = [f for f in D.findings if f.physics == "time_delay"]
+    assert f, [(g.physics, g.params) for g in D.findings]
+    assert f[0].params["delay_s"] * 5000.0 == pytest.approx(size, rel=0.15)
+
+
+def test_a_sensor_lowpass_at_half_the_sample_rate_is_its_mean_delay():
+    """A one-pole low-pass at ``fs/2`` (``a = 1 - exp(-pi)``) delays by ``(1 - a)/a`` =
+    0.045 samples at low frequency; the rows cannot tell it from a delay (the proving
+    ground accepts either name there), and the delay grid now holds twentieths of a sample."""
+    D = _diagnosed("sensor_lowpass", 2.0, 310001, "white")
+    f = [f for f in D.findings if f.physics in ("time_delay", "sensor_lag")]
+    assert f, [(g.physics, g.params) for g in D.findings]
+    a = 1 - np.exp(-np.pi)
+    if f[0].physics == "time_delay":
+        assert f[0].params["delay_s"] * 5000.0 == pytest.approx((1 - a) / a, rel=0.3)
