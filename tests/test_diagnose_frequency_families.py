@@ -52,3 +52,43 @@ def test_a_sensor_lowpass_at_half_the_sample_rate_is_its_mean_delay():
     a = 1 - np.exp(-np.pi)
     if f[0].physics == "time_delay":
         assert f[0].params["delay_s"] * 5000.0 == pytest.approx((1 - a) / a, rel=0.3)
+
+
+def _swapped(family, size, seed, to):
+    """The closed-loop PRBS recording's diagnosis, its input-path term replaced by ``to``
+    (the parameter carried over), refitted, and held against the frequency response."""
+    from servo.diagnose import frf_modes
+    from servo.diagnose.fit import fit_model
+    from servo.diagnose.model import Model, Term
+
+    rec, _ = recording(Case(family, size, "pdi", "prbs", 5000.0, noise="white"), seed)
+    D = diagnose(rec)
+    m = D.final_fit.model
+    held = [t for t in m.terms if t.physics in ("time_delay", "sensor_lag")]
+    assert len(held) == 1, [(f.physics, f.params) for f in D.findings]
+    own = frf_modes.input_path(D.design, D.final_fit, 0.05, rec.r)
+    value = next(iter(held[0].params.values()))
+    alt = Term.make(to, {"delay_s" if to == "time_delay" else "time_constant_s": value})
+    forced = fit_model(D.design, Model([alt if t is held[0] else t for t in m.terms]))
+    return held[0].physics, own, frf_modes.input_path(D.design, forced, 0.05, rec.r)
+
+
+def test_the_frequency_response_tells_a_sensor_lag_from_a_delay():
+    """A first-order lag at fs/20 (cutoff 250 Hz): the rows name it; the response agrees
+    (no swap); a model given a delay in its place is told it is a lag, with the lag's
+    time constant (1/(2*pi*250 Hz) = 0.637 ms) to 5 %."""
+    named, own, swap = _swapped("sensor_lowpass", 20.0, 310302, "time_delay")
+    assert named == "sensor_lag" and own is None
+    assert swap is not None and swap["physics"] == "sensor_lag", swap
+    assert swap["theta"]["time_constant_s"] == pytest.approx(1 / (2 * np.pi * 250.0), rel=0.05)
+    ev = swap["evidence"]["terms"]
+    assert ev["sensor_lag"]["test_sse"] < ev["time_delay"]["test_sse"] - swap["evidence"]["bound"]
+
+
+def test_the_frequency_response_tells_a_delay_from_a_sensor_lag():
+    """A one-sample delay: the rows name it, the response agrees; a model given a lag in
+    its place is told it is a delay of one sample (0.2 ms) to 5 %."""
+    named, own, swap = _swapped("delay", 1.0, 310302, "sensor_lag")
+    assert named == "time_delay" and own is None
+    assert swap is not None and swap["physics"] == "time_delay", swap
+    assert swap["theta"]["delay_s"] == pytest.approx(2e-4, rel=0.05)

@@ -52,6 +52,16 @@ class TimeDelay(Term):
     def bounds(self, d, model):
         return {"delay_s": (*self._range(d), False)}
 
+    #: the frequency-domain path fits ``delay_s`` over this (log-spaced: no)
+    frf_param = "delay_s"
+
+    @staticmethod
+    def frf_factor(theta, f, dt):
+        """The delay's factor on the input-to-position response at ``f`` (k,) Hz:
+        ``exp(-j*2*pi*f*delay_s)``, flat magnitude and a phase linear in frequency (the
+        frequency-domain path's hook, :func:`servo.diagnose.frf_modes.input_path`)."""
+        return np.exp(-2j * np.pi * np.asarray(f, dtype=float) * theta["delay_s"])
+
 
 class TimeDelayDrive(DriveMap):
     """The time_delay term in the simulated drive's ``[drive]`` section."""
