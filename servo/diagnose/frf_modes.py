@@ -67,6 +67,10 @@ band with excitation (the **FRF band**, from :data:`LOW_BINS` bins of the Welch 
 7. **A mode the rows named** is held against the response (:func:`support`): kept
    where the response shows it, dropped where it contradicts it, and where the
    response cannot resolve it, kept only below the rows' band edge.
+8. **A delay or a sensor lag the rows named** is held against the response
+   (:func:`input_path`): each input-path term's factor comes from its own module's
+   hook (``frf_factor``, ``frf_param``: :func:`path_terms`), and the held-out response
+   chooses between them.
 
 Cost: 0.4 s of a 1 000 000-sample diagnosis (two high-pass filters, the friction's
 force at full rate, the spectra of both parts).  ``docs/verdict.md`` section 6b.
