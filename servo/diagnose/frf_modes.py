@@ -88,6 +88,12 @@ from scipy import optimize, signal, stats
 from servo.diagnose.band import band_hz
 from servo.frf.estimate import WelchSettings, estimate, frequencies, segment_starts, spectra, window_kernel
 from servo.diagnose.terms import VOCABULARY
+from servo.physics import diagnosed_by
+
+#: the vocabulary's term this path names (a flexible mode: the effect whose
+#: ``diagnosed_by`` is ``"frf"``), its response and its limits from its own module
+MODE = diagnosed_by("frf")
+MODE_TERM = VOCABULARY[MODE]
 
 #: a bin is usable where the coherence is at least this (the variance formula is first
 #: order; below ~0.5 the ratio of noisy spectra has heavier tails than it says)
@@ -147,7 +153,7 @@ TOP = 0.49
 LOW_BINS = 4
 LOW_SHARE = 0.125
 #: the bounds of the damping of a mode (the ``resonance`` term's)
-ZETA_BOUNDS = (0.001, VOCABULARY["resonance"].ZETA_MAX)
+ZETA_BOUNDS = (0.001, MODE_TERM.ZETA_MAX)
 #: equivalent noise bandwidth of the Hann window, bins: neighbouring bins are correlated
 ENBW = 1.5
 #: samples of the window's spectral kernel per bin, and its half-width in bins
@@ -318,7 +324,7 @@ def measure(u: np.ndarray, x: np.ndarray, moving: np.ndarray, dt: float, nperseg
 
 #: the terms whose force the response's linear part holds (every other column term's
 #: force is taken off the input first, :func:`linear_input`)
-LINEAR = ("inertia", "viscous_friction", "stiffness", "resonance")
+LINEAR = ("inertia", "viscous_friction", "stiffness", MODE)
 
 
 def linear_input(design, fit, inputs=None) -> np.ndarray:
@@ -377,7 +383,7 @@ class Plant:
         p = fit.combined()
         modes = []
         for i, t in enumerate(fit.model.terms):
-            if t.physics == "resonance":
+            if t.physics == MODE:
                 q = fit.term_params(i)
                 modes.append((q["frequency_hz"], q["zeta"], q["gain"]))
         return cls(p.get("inertia", {}).get("J", 0.0), p.get("viscous_friction", {}).get("B", 0.0),
@@ -389,20 +395,9 @@ def rigid_response(pl: Plant, f: np.ndarray, dt: float) -> np.ndarray:
 
 
 def mode_response(pl: Plant, hz: float, zeta: float, f: np.ndarray, dt: float) -> np.ndarray:
-    """Response of one mode of unit gain, ``1/(J (s^2 + 2 zeta w s + w^2))`` through a
-    zero-order hold (``zeta < 1``: distinct poles ``l``, ``sum r/l (p - 1)/(z - p)``
-    with ``p = exp(l*dt)``, the step-invariant transform in closed form)."""
-    w = 2 * math.pi * hz
-    wd = w * math.sqrt(max(1.0 - zeta * zeta, 1e-12))
-    l1 = complex(-zeta * w, wd)
-    l2 = l1.conjugate()
-    r1 = 1.0 / (pl.J * (l1 - l2))
-    z = np.exp(2j * np.pi * f * dt)
-    h = 0.0
-    for lam, r in ((l1, r1), (l2, -r1)):
-        p = np.exp(lam * dt)
-        h = h + (r / lam) * (p - 1.0) / (z - p)
-    return h * np.exp(-2j * np.pi * f * pl.delay_s)
+    """Response of one mode of unit gain (the mode term's hook,
+    :meth:`servo.physics.resonance.Resonance.frf_mode`), delayed by ``pl.delay_s``."""
+    return MODE_TERM.frf_mode(pl.J, hz, zeta, f, dt) * np.exp(-2j * np.pi * f * pl.delay_s)
 
 
 def _smooth(fun, f: np.ndarray, df: float, ker) -> np.ndarray:
@@ -798,7 +793,7 @@ def run(design, fit, alpha: float, instrument: np.ndarray | None = None, fit_mod
     res.model_before, res.usable_test = Hm_te, use_te
     kept: list = []
     for _ in range(MAX_MODES if fit_modes else 0):
-        if len(pl.modes) + len(kept) >= VOCABULARY["resonance"].MAX_MODES:
+        if len(pl.modes) + len(kept) >= MODE_TERM.MAX_MODES:
             break
         cur = plant_with(pl, kept)
         Hm = model_response(cur, tr.f, sig.dt, df, ker)
@@ -822,7 +817,7 @@ def run(design, fit, alpha: float, instrument: np.ndarray | None = None, fit_mod
                       "train_departure": public(dep), "train_after": public(departure(tr, Htr1, use_tr, alpha, noise_psd)),
                       "test_sse_before": d0["sse"], "test_sse_after": d1["sse"], "test_bins": d0["bins"],
                       "fit_chi2": chi2}  # fmt: skip
-        why = VOCABULARY["resonance"].implausible(m.params)  # at the damping bound: not a lightly damped mode
+        why = MODE_TERM.implausible(m.params)  # at the damping bound: not a lightly damped mode
         if why:
             m.reason = f"not a mode: {why}"
             res.dropped.append(m)
@@ -1006,7 +1001,7 @@ def support(design, fit, alpha: float, instrument: np.ndarray | None = None) -> 
 
     Every mode gets the second and third rule's verdict when the path cannot compare
     (``run``'s note says why).  Empty when ``fit`` has no mode."""
-    idx = [i for i, t in enumerate(fit.model.terms) if t.physics == "resonance"]
+    idx = [i for i, t in enumerate(fit.model.terms) if t.physics == MODE]
     if not idx:
         return []
     sig = design.sig
