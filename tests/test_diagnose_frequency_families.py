@@ -104,3 +104,27 @@ def test_a_response_neither_term_describes_keeps_the_rows_delay():
     names = [f.physics for f in D.findings]
     assert "time_delay" in names and "sensor_lag" not in names, [(f.physics, f.params) for f in D.findings]
     assert all(f.frf_path is None for f in D.findings)
+
+
+def test_a_term_the_response_chooses_replaces_the_rows_and_is_reported(monkeypatch):
+    """The diagnosis's wiring: where the frequency path returns another input-path term,
+    that term (with the path's parameter) stands in the finding's place, the model is
+    proven again with it, and ``report.json``'s evidence carries the path's record."""
+    from servo.diagnose import frf_modes
+    from servo.diagnose.report import _evidence
+
+    def chosen(design, fit, alpha, instrument=None):
+        held = [t for t in fit.model.terms if t.physics == "sensor_lag"]
+        if not held:
+            return None
+        return {"named": "sensor_lag", "physics": "time_delay", "theta": {"delay_s": 6e-4},
+                "evidence": {"reason": "chosen here", "named": "sensor_lag"}}
+
+    monkeypatch.setattr(frf_modes, "input_path", chosen)
+    rec, _ = recording(Case("sensor_lowpass", 20.0, "pdi", "prbs", 5000.0, noise="white"), 310302)
+    D = diagnose(rec)
+    f = [f for f in D.findings if f.physics == "time_delay"]
+    assert f and not any(g.physics == "sensor_lag" for g in D.findings)
+    assert f[0].params["delay_s"] == pytest.approx(6e-4)
+    assert D.final_fit.model.get("time_delay").params["delay_s"] == pytest.approx(6e-4)
+    assert _evidence(f[0])["frequency_response"]["reason"] == "chosen here"
