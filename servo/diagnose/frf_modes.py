@@ -67,6 +67,10 @@ band with excitation (the **FRF band**, from :data:`LOW_BINS` bins of the Welch 
 7. **A mode the rows named** is held against the response (:func:`support`): kept
    where the response shows it, dropped where it contradicts it, and where the
    response cannot resolve it, kept only below the rows' band edge.
+8. **A delay or a sensor lag the rows named** is held against the response
+   (:func:`input_path`): each input-path term's factor comes from its own module's
+   hook (``frf_factor``, ``frf_param``: :func:`path_terms`), and the held-out response
+   chooses between them.
 
 Cost: 0.4 s of a 1 000 000-sample diagnosis (two high-pass filters, the friction's
 force at full rate, the spectra of both parts).  ``docs/verdict.md`` section 6b.
@@ -84,6 +88,12 @@ from scipy import optimize, signal, stats
 from servo.diagnose.band import band_hz
 from servo.frf.estimate import WelchSettings, estimate, frequencies, segment_starts, spectra, window_kernel
 from servo.diagnose.terms import VOCABULARY
+from servo.physics import diagnosed_by
+
+#: the vocabulary's term this path names (a flexible mode: the effect whose
+#: ``diagnosed_by`` is ``"frf"``), its response and its limits from its own module
+MODE = diagnosed_by("frf")
+MODE_TERM = VOCABULARY[MODE]
 
 #: a bin is usable where the coherence is at least this (the variance formula is first
 #: order; below ~0.5 the ratio of noisy spectra has heavier tails than it says)
@@ -143,7 +153,7 @@ TOP = 0.49
 LOW_BINS = 4
 LOW_SHARE = 0.125
 #: the bounds of the damping of a mode (the ``resonance`` term's)
-ZETA_BOUNDS = (0.001, VOCABULARY["resonance"].ZETA_MAX)
+ZETA_BOUNDS = (0.001, MODE_TERM.ZETA_MAX)
 #: equivalent noise bandwidth of the Hann window, bins: neighbouring bins are correlated
 ENBW = 1.5
 #: samples of the window's spectral kernel per bin, and its half-width in bins
@@ -314,16 +324,18 @@ def measure(u: np.ndarray, x: np.ndarray, moving: np.ndarray, dt: float, nperseg
 
 #: the terms whose force the response's linear part holds (every other column term's
 #: force is taken off the input first, :func:`linear_input`)
-LINEAR = ("inertia", "viscous_friction", "stiffness", "resonance")
+LINEAR = ("inertia", "viscous_friction", "stiffness", MODE)
 
 
-def linear_input(design, fit) -> np.ndarray:
+def linear_input(design, fit, inputs=None) -> np.ndarray:
     """The force the linear part of ``fit`` sees (n,): the recorded input through the
     model's input terms (saturation, delay) less every other column term's force at full
     rate (friction, offset, hysteresis, cogging...).  In a loop the friction's force is
     fed back into the input, and ``H1`` from the recorded input reads it as a response
-    (on null recordings up to 25 % and 10 degrees off near the band edge)."""
-    u = design.u_eff(fit.model)
+    (on null recordings up to 25 % and 10 degrees off near the band edge).  ``inputs``:
+    the model whose input terms apply (default ``fit.model``; :func:`input_path` leaves
+    the term it weighs out)."""
+    u = design.u_eff(fit.model if inputs is None else inputs)
     d = np.zeros(u.size)
     for i, t in enumerate(fit.model.terms):
         phys = VOCABULARY[t.physics]
@@ -371,7 +383,7 @@ class Plant:
         p = fit.combined()
         modes = []
         for i, t in enumerate(fit.model.terms):
-            if t.physics == "resonance":
+            if t.physics == MODE:
                 q = fit.term_params(i)
                 modes.append((q["frequency_hz"], q["zeta"], q["gain"]))
         return cls(p.get("inertia", {}).get("J", 0.0), p.get("viscous_friction", {}).get("B", 0.0),
@@ -383,20 +395,9 @@ def rigid_response(pl: Plant, f: np.ndarray, dt: float) -> np.ndarray:
 
 
 def mode_response(pl: Plant, hz: float, zeta: float, f: np.ndarray, dt: float) -> np.ndarray:
-    """Response of one mode of unit gain, ``1/(J (s^2 + 2 zeta w s + w^2))`` through a
-    zero-order hold (``zeta < 1``: distinct poles ``l``, ``sum r/l (p - 1)/(z - p)``
-    with ``p = exp(l*dt)``, the step-invariant transform in closed form)."""
-    w = 2 * math.pi * hz
-    wd = w * math.sqrt(max(1.0 - zeta * zeta, 1e-12))
-    l1 = complex(-zeta * w, wd)
-    l2 = l1.conjugate()
-    r1 = 1.0 / (pl.J * (l1 - l2))
-    z = np.exp(2j * np.pi * f * dt)
-    h = 0.0
-    for lam, r in ((l1, r1), (l2, -r1)):
-        p = np.exp(lam * dt)
-        h = h + (r / lam) * (p - 1.0) / (z - p)
-    return h * np.exp(-2j * np.pi * f * pl.delay_s)
+    """Response of one mode of unit gain (the mode term's hook,
+    :meth:`servo.physics.resonance.Resonance.frf_mode`), delayed by ``pl.delay_s``."""
+    return MODE_TERM.frf_mode(pl.J, hz, zeta, f, dt) * np.exp(-2j * np.pi * f * pl.delay_s)
 
 
 def _smooth(fun, f: np.ndarray, df: float, ker) -> np.ndarray:
@@ -405,14 +406,16 @@ def _smooth(fun, f: np.ndarray, df: float, ker) -> np.ndarray:
     return (fun(ff).reshape(f.size, off.size) * wt[None, :]).sum(axis=1)
 
 
-def model_response(pl: Plant, f: np.ndarray, dt: float, df: float, ker) -> np.ndarray:
-    """What a Welch ``H1`` of the model would read in the bins ``f`` (module doc, step 2)."""
+def model_response(pl: Plant, f: np.ndarray, dt: float, df: float, ker, factor=None) -> np.ndarray:
+    """What a Welch ``H1`` of the model would read in the bins ``f`` (module doc, step 2);
+    ``factor(ff)``: an input-path term's factor on the whole response (a delay's, a
+    sensor lag's: :func:`input_path`)."""
 
     def fun(ff):
         h = rigid_response(pl, ff, dt)
         for hz, z, g in pl.modes:
             h = h + g * mode_response(pl, hz, z, ff, dt)
-        return h
+        return h if factor is None else h * factor(ff)
 
     return _smooth(fun, f, df, ker)
 
@@ -790,7 +793,7 @@ def run(design, fit, alpha: float, instrument: np.ndarray | None = None, fit_mod
     res.model_before, res.usable_test = Hm_te, use_te
     kept: list = []
     for _ in range(MAX_MODES if fit_modes else 0):
-        if len(pl.modes) + len(kept) >= VOCABULARY["resonance"].MAX_MODES:
+        if len(pl.modes) + len(kept) >= MODE_TERM.MAX_MODES:
             break
         cur = plant_with(pl, kept)
         Hm = model_response(cur, tr.f, sig.dt, df, ker)
@@ -814,7 +817,7 @@ def run(design, fit, alpha: float, instrument: np.ndarray | None = None, fit_mod
                       "train_departure": public(dep), "train_after": public(departure(tr, Htr1, use_tr, alpha, noise_psd)),
                       "test_sse_before": d0["sse"], "test_sse_after": d1["sse"], "test_bins": d0["bins"],
                       "fit_chi2": chi2}  # fmt: skip
-        why = VOCABULARY["resonance"].implausible(m.params)  # at the damping bound: not a lightly damped mode
+        why = MODE_TERM.implausible(m.params)  # at the damping bound: not a lightly damped mode
         if why:
             m.reason = f"not a mode: {why}"
             res.dropped.append(m)
@@ -830,6 +833,168 @@ def run(design, fit, alpha: float, instrument: np.ndarray | None = None, fit_mod
     res.after = public(departure(te, res.model_after, use_te, alpha, noise_psd))
     res.seconds = time.perf_counter() - t0
     return res
+
+
+# ------------------------------------------------------------------ the input path
+def path_terms() -> list:
+    """The vocabulary's input-path terms the frequency response can weigh: those with the
+    hook ``frf_factor(theta, f, dt)`` (their factor on the input-to-position response,
+    (k,) complex at ``f`` Hz) and ``frf_param`` (the one parameter fitted to it): the
+    delay (:mod:`servo.physics.time_delay`) and the sensor lag
+    (:mod:`servo.diagnose.sensor_lag`)."""
+    return [p for p in VOCABULARY.values() if getattr(p, "frf_factor", None) is not None and getattr(p, "frf_param", None)]
+
+
+def _weighed(resp: Response, Hm: np.ndarray, use: np.ndarray, noise_psd: float) -> float:
+    """The sum over ``use`` of ``|H - g*Hm|^2`` over :func:`deviation`'s variance, ``g``
+    the real gain that minimises it (an inertia a little off is not the question)."""
+    idx = np.flatnonzero(use)
+    sd = deviation(resp, Hm, noise_psd)[idx]
+    w2 = 1.0 / np.maximum(sd, 1e-300) ** 2
+    h, m = resp.H[idx], Hm[idx]
+    g = float(np.sum(w2 * (np.conj(m) * h).real) / max(np.sum(w2 * np.abs(m) ** 2), 1e-300))
+    return float(np.sum(w2 * np.abs(h - g * m) ** 2))
+
+
+#: the grid the one parameter of an input-path term is fitted over before refining (points)
+PATH_GRID = 48
+#: a term whose fitted parameter lies within this share of its range from a bound does
+#: not stand in another's place (a closed-loop multisine's half-sample delay, pink
+#: noise, neither term describing its response: the lag at its shortest lowered the
+#: held-out sum by 0.7 % and took the delay's place)
+PATH_EDGE = 0.01
+
+
+def input_path(design, fit, alpha: float, instrument: np.ndarray | None = None) -> dict | None:
+    """Which input-path term the recording's own frequency response prefers, where the
+    rows named one (a delay or a sensor lag, :func:`path_terms`): ``None`` where they
+    agree or the response cannot tell, else ``{"named", "physics", "theta", "evidence"}``
+    for the term that should stand in its place.
+
+    The rows tell a lag from a delay only by second-order terms in ``w*tau`` below their
+    band edge (``docs/diagnosis.md``, section 3); the response over the whole excited
+    band tells them by their shapes: a delay has a flat magnitude and a linear phase, a
+    first-order lag a magnitude that rolls off and a phase that saturates.  The response
+    is measured from the input *without* the named term (:func:`linear_input`) to the
+    position, on the training and the test part as in :func:`run` (steps 1 and 6), with
+    the recording's ``r`` as instrument where it has power in the band and otherwise the
+    recorded input itself (through the other input terms): the friction's force taken
+    off the input follows the motion, and where the input has no power of its own (an
+    open-loop chirp's test part, swept past the band) its harmonics alone are coherent
+    with the position (with ``H1`` they read as a response no input term shapes, and the
+    fitted delay came out negative); fewer than :data:`MIN_BINS` usable bins in either
+    part: the response cannot tell, and the rows' name stands.  Each
+    term's parameter is fitted to the training part's response (model: the fit's rigid
+    body and modes times the term's factor, times a real gain), over a log grid of
+    :data:`PATH_GRID` points in the term's bounds refined by ``minimize_scalar``; the
+    weighted sums of squares (:func:`deviation`'s variances, the closed-loop bias bound
+    counted) are compared on the test part.  Another term replaces the named one where
+    it lowers the held-out sum by more than the chi-square bound of one degree of freedom
+    at ``alpha``, scaled by the misfit it leaves per degree of freedom where that
+    exceeds 1 (a response neither term describes), lowers the training part's too, and
+    its parameter is not at a bound of its range (:data:`PATH_EDGE`)."""
+    names = {p.name: p for p in path_terms()}
+    held = [t for t in fit.model.terms if t.physics in names]
+    if len(held) != 1 or len(names) < 2:
+        return None
+    named = held[0]
+    inputs = fit.model.without(named.physics)
+    sig = design.sig
+    fs = 1.0 / sig.dt
+    edge = band_hz(sig.settings, fs)
+    pl = Plant.of(fit)
+    if not pl.J > 0:
+        return None
+    n_train = int(design.train_samples.sum())
+    moving = np.abs(sig.vf) > sig.v_threshold
+    shortest = max(NPERSEG_MIN, 1 << int(math.ceil(math.log2(4.0 * fs / edge))))
+    nper = choose_nperseg(moving[:n_train], moving[n_train:], shortest)
+    if nper == 0:
+        return None
+    f = frequencies(nper, sig.dt)
+    df = float(f[1] - f[0])
+    low = max(LOW_BINS * df, LOW_SHARE * edge)
+    band = (f >= low) & (f <= TOP * fs)
+    u = linear_input(design, fit, inputs)
+    ker = kernel(nper)
+    noise_psd = 2.0 * sig.noise_x**2 * sig.dt
+    Hm = model_response(pl, f, sig.dt, df, ker)
+
+    def parts(z):
+        zt, ze = (None, None) if z is None else (z[:n_train], z[n_train:])
+        tr = measure(u[:n_train], sig.x[:n_train], moving[:n_train], sig.dt, nper, 0.5 * low, zt)
+        te = measure(u[n_train:], sig.x[n_train:], moving[n_train:], sig.dt, nper, 0.5 * low, ze)
+        return tr, te, usable(tr, Hm, band, noise_psd), usable(te, Hm, band, noise_psd)
+
+    # the instrument: the recording's r if it has power in the band, else the recorded
+    # input itself (through the other input terms): the friction's force taken off ``u``
+    # follows the motion, and where the input has no power of its own (a chirp's test
+    # part, swept past a band) its harmonics alone are coherent with the position and
+    # read as a response that no input term shapes
+    tr = None
+    for z in ([] if instrument is None else [np.asarray(instrument, dtype=float)]) + [design.u_eff(inputs)]:
+        tr, te, use_tr, use_te = parts(z)
+        if min(use_tr.sum(), use_te.sum()) >= MIN_BINS:
+            break
+    if use_tr.sum() < MIN_BINS or use_te.sum() < MIN_BINS:
+        return None
+    noise_psd = white_level(noise_psd, tr, use_tr, Hm)
+
+    def response(phys, value):
+        theta = {phys.frf_param: value}
+        return model_response(pl, f, sig.dt, df, ker, lambda ff: phys.frf_factor(theta, ff, sig.dt))
+
+    fitted = {}
+    for name, phys in names.items():
+        lo, hi, logs = phys.bounds(design, inputs)[phys.frf_param]
+        if not hi > lo:
+            continue
+        grid = np.geomspace(lo, hi, PATH_GRID) if logs else np.linspace(lo, hi, PATH_GRID)
+        costs = [_weighed(tr, response(phys, v), use_tr, noise_psd) for v in grid]
+        k = int(np.argmin(costs))
+        a, b = grid[max(k - 1, 0)], grid[min(k + 1, grid.size - 1)]
+        best, cost = float(grid[k]), float(costs[k])
+        if b > a:
+            if logs:
+                sol = optimize.minimize_scalar(lambda z: _weighed(tr, response(phys, math.exp(z)), use_tr, noise_psd),
+                                               bounds=(math.log(a), math.log(b)), method="bounded",
+                                               options={"xatol": 1e-3})  # fmt: skip
+                v = math.exp(sol.x)
+            else:
+                sol = optimize.minimize_scalar(lambda z: _weighed(tr, response(phys, z), use_tr, noise_psd),
+                                               bounds=(a, b), method="bounded", options={"xatol": 1e-3 * (b - a)})
+                v = float(sol.x)
+            if sol.fun < cost:
+                best, cost = v, float(sol.fun)
+        fitted[name] = {"value": best, "train_sse": cost,
+                        "test_sse": _weighed(te, response(phys, best), use_te, noise_psd),
+                        "at_bound": bool(min(abs(best - lo), abs(hi - best)) <= PATH_EDGE * (hi - lo))}  # fmt: skip
+    if named.physics not in fitted:
+        return None
+    own = fitted[named.physics]
+    bound = float(stats.chi2.isf(alpha, 1))
+    others = [(v["test_sse"], k) for k, v in fitted.items() if k != named.physics]
+    if not others:
+        return None
+    sse, other = min(others)
+    alt = fitted[other]
+    evidence = {"test": "held-out frequency response, each input-path term fitted to the training part's (weighted sum "
+                        "of squares, chi-square bound of one degree of freedom)",
+                "named": named.physics, "bound": bound, "band_hz": [float(low), float(TOP * fs)],
+                "bins": [int(use_tr.sum()), int(use_te.sum())], "method": tr.method,
+                "terms": {k: {names[k].frf_param: v["value"], "train_sse": v["train_sse"], "test_sse": v["test_sse"]}
+                          for k, v in fitted.items()}}  # fmt: skip
+    # the misfit both leave, per degree of freedom (two per bin, less the gain and the
+    # parameter): a response neither term describes scales the difference up with it
+    scale = max(sse / max(2 * int(use_te.sum()) - 2, 1), 1.0)
+    evidence["scale"] = scale
+    if alt["at_bound"] or not ((own["test_sse"] - sse) / scale > bound and alt["train_sse"] < own["train_sse"]):
+        return None
+    evidence["reason"] = (f"the frequency response over {low:.4g}-{TOP * fs:.4g} Hz is a {other} rather than a "
+                          f"{named.physics}: held-out departure {sse:.4g} against {own['test_sse']:.4g} "
+                          f"(it must fall by more than {bound:.3g})")  # fmt: skip
+    return {"named": named.physics, "physics": other, "theta": {names[other].frf_param: alt["value"]},
+            "evidence": evidence}
 
 
 def support(design, fit, alpha: float, instrument: np.ndarray | None = None) -> list:
@@ -848,7 +1013,7 @@ def support(design, fit, alpha: float, instrument: np.ndarray | None = None) -> 
 
     Every mode gets the second and third rule's verdict when the path cannot compare
     (``run``'s note says why).  Empty when ``fit`` has no mode."""
-    idx = [i for i, t in enumerate(fit.model.terms) if t.physics == "resonance"]
+    idx = [i for i, t in enumerate(fit.model.terms) if t.physics == MODE]
     if not idx:
         return []
     sig = design.sig
@@ -904,4 +1069,5 @@ def support(design, fit, alpha: float, instrument: np.ndarray | None = None) -> 
 
 
 __all__ = ["COH_MIN", "MAX_MODES", "MIN_BINS", "Mode", "Plant", "REL_MARGIN", "Response", "Result",
-           "choose_nperseg", "departure", "measure", "model_response", "run", "sliding_segments", "support"]
+           "choose_nperseg", "departure", "input_path", "measure", "model_response", "path_terms", "run",
+           "sliding_segments", "support"]

@@ -140,6 +140,8 @@ class Finding:
     prediction: Prediction | None = None  # quantisation: the baseline's output on the default path
     frf: dict | None = None  # a mode of the frequency-domain path: its evidence (:mod:`servo.diagnose.frf_modes`)
     frf_support: dict | None = None  # a mode the rows named, held against the frequency response (_mode_support)
+    #: an input-path term the frequency response named in place of the rows' (_input_path)
+    frf_path: dict | None = None
     breakaway: dict | None = None  # a breakaway from the intervals at rest: its evidence (:mod:`servo.diagnose.breakaway`)
     #: the held-out sign-flip test against the model without it (:func:`servo.diagnose.select.heldout_signflip`):
     #: ``p`` its chance of being spurious, ``level`` the one it had to pass (None: the first finding)
@@ -633,6 +635,25 @@ def _mode_support(design, base, findings, fits, errs, nr, preds, unconfirmed, no
     return kept, fits, errs, nr, preds, unconfirmed + more, note
 
 
+def _input_path(design, base, findings, fits, errs, nr, preds, unconfirmed, note, test_rows, starts, H, alpha,
+                instrument=None):  # fmt: skip
+    """The input-path term the rows named (a delay or a sensor lag) held against the
+    recording's own frequency response (:func:`servo.diagnose.frf_modes.input_path`):
+    where the response prefers the other, that term stands in its place (its parameter
+    from the response), the findings are proven again, and the finding carries the
+    evidence (``Finding.frf_path``)."""
+    swap = frf_modes.input_path(design, fits[-1], alpha, instrument)
+    if swap is None:
+        return findings, fits, errs, nr, preds, unconfirmed, note
+    for f in findings:
+        if f.physics == swap["named"]:
+            f.term = Term.make(swap["physics"], swap["theta"])
+            f.theta_std = {}
+            f.frf_path = swap["evidence"]
+    fits, errs, nr, preds, more, note = _prove(design, base, findings, test_rows, starts, H, alpha)
+    return findings, fits, errs, nr, preds, unconfirmed + more, note
+
+
 def _frf_modes(design: Design, fits: list, errs: list, nr: list, preds: list, starts: np.ndarray, H: int,
                alpha: float, instrument: np.ndarray | None = None):  # fmt: skip
     """The frequency-domain path (:mod:`servo.diagnose.frf_modes`) on the final model of
@@ -763,6 +784,10 @@ def _diagnose(rec: Recording, opt: Options | None) -> Diagnosis:
         findings, fits, errs, nr, preds, unconfirmed, note = _mode_support(design, base, findings, fits, errs, nr, preds,
                                                                            unconfirmed, note, test_rows, starts_test,
                                                                            H, opt.alpha, rec.r)  # fmt: skip
+    if findings and not _scope_of(design, fits[-1]):  # a delay or a lag: the frequency response tells which
+        findings, fits, errs, nr, preds, unconfirmed, note = _input_path(design, base, findings, fits, errs, nr, preds,
+                                                                         unconfirmed, note, test_rows, starts_test, H,
+                                                                         opt.alpha, rec.r)  # fmt: skip
     variables = state_variables(sig, opt.position_unit)
     # a named quantum is sensor noise too: q^2/12 wherever the arm moves across steps
     # (the rows' estimate misses it where the arm rests on one step most of the time)

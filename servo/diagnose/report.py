@@ -71,11 +71,14 @@ def _evidence(f: Finding) -> dict:
         return {"test": "lattice + output improvement", "fraction_on_lattice": f.lattice.fraction,
                 "lattice_p": f.lattice.p, "output_t": f.quant_test[0], "output_p": f.quant_test[1], "level": f.level}  # fmt: skip
     s = f.score
-    return {
+    out = {
         "test": "blocked CV, sign-flip test on gain blocks + BIC", "t": s.t, "p": s.p, "level": f.level,
         "delta_ic": s.delta_ic, "delta_ic_refined": s.refined_ic, "cv_improvement_pct": s.improvement_pct,
         "blocks_improved": f"{int(np.sum(s.S1 < s.S0))}/{s.S0.size}", "cv_sse_before": s.S0, "cv_sse_after": s.S1,
     }  # fmt: skip
+    if f.frf_path is not None:  # the rows named another input-path term; the frequency response chose this one
+        out["frequency_response"] = f.frf_path
+    return out
 
 
 def finding_dict(f: Finding, fu: str, pu: str = "m") -> dict:

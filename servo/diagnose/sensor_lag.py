@@ -237,6 +237,21 @@ class SensorLag(Term):
     def bounds(self, d, model):
         return {"time_constant_s": (*self._range(d), True)}
 
+    #: the frequency-domain path fits ``time_constant_s`` over this (log-spaced)
+    frf_param = "time_constant_s"
+
+    @staticmethod
+    def frf_factor(theta, f, dt):
+        """The lag's factor on the input-to-position response at ``f`` (k,) Hz: the
+        one-pole ``a/(1 - (1 - a)*z^-1)``, ``z = exp(j*2*pi*f*dt)``: a magnitude that
+        rolls off above the cutoff and a phase that saturates (at -90 degrees for a
+        cutoff well below the Nyquist frequency), where a delay's magnitude is flat and its
+        phase linear (the frequency-domain path's hook,
+        :func:`servo.diagnose.frf_modes.input_path`)."""
+        a = lag_coefficient(theta["time_constant_s"], dt)
+        z = np.exp(2j * np.pi * np.asarray(f, dtype=float) * dt)
+        return a / (1.0 - (1.0 - a) / z)
+
     def physical(self, theta, coef):
         tau = float(theta["time_constant_s"])
         return {"time_constant_s": tau, "cutoff_hz": 1.0 / (2 * math.pi * tau)}

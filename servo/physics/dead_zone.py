@@ -28,6 +28,11 @@ class DeadZone(Term):
     #: the half-widths tried: these quantiles of the recorded |u| (training samples)
     QUANTILES = (0.01, 0.02, 0.05, 0.1, 0.15, 0.2, 0.3, 0.4, 0.5, 0.6)
     MIN_INSIDE = 10  # samples within the band
+    #: a half-width must pass at least this share of the recorded mean ``|u|``: a band as
+    #: wide as a binary input's level (a PRBS's ``|u|`` is one value) passes nothing, and
+    #: the force balance of a zero input is met by all-zero coefficients (an open-loop PRBS
+    #: lost its delay, lag and modes to a "dead zone" of its whole amplitude, J fitted 0)
+    PASS_MIN = 0.1
     path_order = 0.5  # after the amplifier's clipping, before the delay (as in the drive)
 
     @staticmethod
@@ -38,10 +43,26 @@ class DeadZone(Term):
     def idle(self, params, u):
         return not params["width"] > 0.0
 
+    @classmethod
+    def widest(cls, au: np.ndarray) -> float:
+        """The largest half-width that passes :data:`PASS_MIN` of the mean of ``au``
+        (``|u|``, (n,)): ``mean(max(au - w, 0))`` falls with ``w``; solved on the sorted
+        values (0 for an input that is all zero)."""
+        a = np.sort(np.asarray(au, dtype=float))[::-1]
+        n = a.size
+        if n == 0 or not a[0] > 0:
+            return 0.0
+        need = cls.PASS_MIN * a.sum()
+        c = np.cumsum(a)
+        above = c - np.arange(1, n + 1) * a  # the pass at w = a[i] (rising with i)
+        i = max(int(np.searchsorted(above, need)), 1)  # w in [a[i], a[i-1]], i values beyond it
+        return max(float((c[i - 1] - need) / i), 0.0)
+
     def _widths(self, d):
         au = np.abs(d.sig.u[d.train_samples])
         w = np.unique(np.quantile(au, self.QUANTILES))
-        return [float(v) for v in w if v > 0 and np.count_nonzero(au < v) >= self.MIN_INSIDE]
+        top = self.widest(au)
+        return [float(v) for v in w if 0 < v <= top and np.count_nonzero(au < v) >= self.MIN_INSIDE]
 
     def grid(self, d, model):
         return [{"width": w} for w in self._widths(d)]
@@ -49,7 +70,7 @@ class DeadZone(Term):
     def bounds(self, d, model):
         w = self._widths(d)
         au = np.abs(d.sig.u[d.train_samples])
-        return {"width": (0.5 * w[0] if w else 0.0, float(np.quantile(au, 0.7)), False)}
+        return {"width": (0.5 * w[0] if w else 0.0, min(float(np.quantile(au, 0.7)), self.widest(au)), False)}
 
 
 class DeadZoneDrive(DriveMap):

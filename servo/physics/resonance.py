@@ -84,6 +84,26 @@ class Resonance(Term):
         lo, hi = self._range(d)
         return {"frequency_hz": (lo, hi, True), "zeta": (0.001, self.ZETA_MAX, True)}
 
+    @staticmethod
+    def frf_mode(J: float, hz: float, zeta: float, f, dt: float):
+        """The mode's own response of unit gain at ``f`` (k,) Hz, ``1/(J (s^2 + 2 zeta w s
+        + w^2))`` through a zero-order hold sampled every ``dt`` (``zeta < 1``: distinct
+        poles ``l``, ``sum r/l (p - 1)/(z - p)`` with ``p = exp(l*dt)``, the
+        step-invariant transform in closed form); complex (k,).  The frequency-domain
+        path's hook (:mod:`servo.diagnose.frf_modes`): a measured response is the rigid
+        body plus ``gain`` times this per mode."""
+        w = 2 * math.pi * hz
+        wd = w * math.sqrt(max(1.0 - zeta * zeta, 1e-12))
+        l1 = complex(-zeta * w, wd)
+        l2 = l1.conjugate()
+        r1 = 1.0 / (J * (l1 - l2))
+        z = np.exp(2j * np.pi * np.asarray(f, dtype=float) * dt)
+        h = 0.0
+        for lam, r in ((l1, r1), (l2, -r1)):
+            p = np.exp(lam * dt)
+            h = h + (r / lam) * (p - 1.0) / (z - p)
+        return h
+
     def implausible(self, params: dict) -> str:
         if params["zeta"] >= 0.95 * self.ZETA_MAX:
             return (f"the best mode sits at the damping bound (zeta {params['zeta']:.3g}): what the data show is not a "

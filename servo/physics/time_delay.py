@@ -39,15 +39,28 @@ class TimeDelay(Term):
         return -q * d.sig.dt, 2 * q * d.sig.dt
 
     def grid(self, d, model):
-        """Tenths of a sample up to half a sample, quarter samples up to two either way,
-        whole samples beyond (a 0.1-sample delay on a lead-lag loop was missed with
-        quarter samples alone: 17/20 of the proving ground's delays, 20/20 with tenths)."""
+        """Twentieths of a sample up to half a sample, quarter samples up to two either
+        way, whole samples beyond (a 0.1-sample delay on a lead-lag loop was missed with
+        quarter samples alone: 17/20 of the proving ground's delays, 20/20 with tenths;
+        a sensor low-pass at ``fs/2``, a one-pole whose mean delay is 0.045 samples, lost
+        an open-loop PRBS's every fold to the no-delay variant with tenths, and a
+        heavily damped "mode" took its place).  The no-delay variant stays in the grid."""
         q = d.sig.settings.decimate
-        steps = sorted({j / 10 for j in range(-5, 6)} | {j / 4 for j in range(-8, 9)} | set(range(-q, 2 * q + 1)) - {0})
+        steps = sorted({j / 20 for j in range(-10, 11)} | {j / 4 for j in range(-8, 9)} | (set(range(-q, 2 * q + 1)) - {0}))
         return [{"delay_s": j * d.sig.dt} for j in steps]
 
     def bounds(self, d, model):
         return {"delay_s": (*self._range(d), False)}
+
+    #: the frequency-domain path fits ``delay_s`` over this (log-spaced: no)
+    frf_param = "delay_s"
+
+    @staticmethod
+    def frf_factor(theta, f, dt):
+        """The delay's factor on the input-to-position response at ``f`` (k,) Hz:
+        ``exp(-j*2*pi*f*delay_s)``, flat magnitude and a phase linear in frequency (the
+        frequency-domain path's hook, :func:`servo.diagnose.frf_modes.input_path`)."""
+        return np.exp(-2j * np.pi * np.asarray(f, dtype=float) * theta["delay_s"])
 
 
 class TimeDelayDrive(DriveMap):
