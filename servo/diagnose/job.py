@@ -520,7 +520,7 @@ def _prove(design: Design, base: Model, findings: list, test_rows: np.ndarray, s
         bad, why = None, ""
         for i in range(1, len(fits)):
             # the short-horizon simulation has no clock: a term whose course no past
-            # forecasts (a drift) is judged on its cross-fitted force error alone
+            # forecasts (a drift) is judged on its cross-fitted force error instead
             clock = bool(VOCABULARY[cols[i - 1].physics].follows)
             worse_out = (nr[i] is not None and nr[i - 1] is not None and nr[i] > nr[i - 1] * (1 + OUTPUT_TOLERANCE)
                          and not clock)  # fmt: skip
@@ -529,6 +529,13 @@ def _prove(design: Design, base: Model, findings: list, test_rows: np.ndarray, s
             unphysical = VOCABULARY[cols[i - 1].physics].implausible(final.term_params(len(base.terms) + i - 1))
             if not errs[i] < errs[i - 1] or worse_out:
                 bad = i
+                break
+            if clock and _gain(res[i - 1], res[i], test_rows) < MATERIAL:
+                # fitted on half the test part, judged on the rest: it must remove a
+                # material share (a switched-on force is followed a little too)
+                bad, why = i, (f"its course cross-fitted on the held-out part removes "
+                               f"{100 * _gain(res[i - 1], res[i], test_rows):.0f} % of the residual RMS there, "
+                               f"less than {100 * MATERIAL:.0f} %")  # fmt: skip
                 break
             if i > 1 and not p <= level:
                 bad, why = i, (f"a further finding that did not earn its place on the held-out part with the earlier "
