@@ -339,6 +339,10 @@ def _rounds(sel: Selector, model: Model, opt: Options, corrections: bool, findin
             term, tstd = sel.refine(model, best.physics, best.thetas)
             trial = fit_model(sel.d, model.plus(term).refitted())
             why = VOCABULARY[best.physics].implausible(trial.term_params(len(trial.model.terms) - 1))
+            if not why and _scope_of(sel.d, trial) and not _scope_of(sel.d, fit_model(sel.d, model.refitted())):
+                # a term that takes the model's inertia away (a dead zone that scales a
+                # two-level input down to nothing) is no physics; the next one is tried
+                why = f"with it the model is out of scope: {_scope_of(sel.d, trial)}"
             if why:
                 implausible[best.physics] = why
                 continue
