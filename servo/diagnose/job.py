@@ -571,6 +571,11 @@ def _breakaway(design: Design, fit: Fit, rounds: list, errs: list, nr: list, opt
         return None, None
     if _scope_of(design, fit):
         return None, None
+    hidden = [VOCABULARY[t.physics].rests for t in fit.model.terms if VOCABULARY[t.physics].rests]
+    if hidden:  # the rests are another term's (a play's dwells): they test no breakaway
+        if not_testable is not None:
+            not_testable[f"{BREAKAWAY} (breakaway at rest)"] = hidden[0]
+        return None, None
     level = shared[-1]
     res = breakaway_mod.test(design, fit, step)
     if not res.testable and not_testable is not None:  # say why it could not be tested

@@ -235,6 +235,8 @@ class Backlash(Term):
     doc = ("a play of half-gap b between the motor and the load the sensor reads: the motor's inertia J_gap times "
            "its acceleration across the gap, e'' with x = y + e (the half-gap from the dwells at reversals)")  # fmt: skip
     POSITIVE = {"J_gap": "the gap's column enters with the sign of an inertia: a negative one is no motor crossing it"}
+    rests = ("the sensor's load stands across each dwell while the motor crosses the gap, whatever the friction: "
+             "its intervals at rest are the play's")  # fmt: skip
 
     def full(self, d, theta, u_eff):
         s = d.sig

@@ -337,6 +337,9 @@ class Judging:
 
     #: what :meth:`followed` does to the verdict's held-out residual, for its text ("": nothing)
     follows = ""
+    #: why, with this term in the model, the arm's intervals at rest say nothing of a
+    #: breakaway (:mod:`servo.diagnose.breakaway`; "": they do)
+    rests = ""
 
     def followed(self, d, theta: dict, r: np.ndarray, rows: np.ndarray) -> np.ndarray:
         """The verdict's held-out residual (m,) of a model holding this term, on the test
