@@ -54,7 +54,7 @@ KNOTS = 6
 #: the time-scale grid: from the training span / (KNOTS * SPAN_RANGE) to span / KNOTS
 SPAN_RANGE = 2.0
 #: the proof's stretches of the test part, in time scales (:meth:`Drift.proven`)
-CROSS = 0.5
+CROSS = 1.0
 
 
 def _span(d) -> tuple[float, float]:
