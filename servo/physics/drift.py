@@ -20,18 +20,20 @@ drift's peak-to-peak over its knots and ``end_level`` where it stands at the end
 training part (:mod:`servo.diagnose.select` holds out the recording's last quarter);
 no smooth basis fitted on the past says where a random wander goes next, so the term
 predicts the test part with the level the drift reached at the end of training (the
-persistence forecast).  Its held-out proof is that this forecast beats the offset's
-average over the training part; where the drift turns back inside the test part, it
-does not, and the finding is not confirmed.  Inside the training part the blocked
-cross-validation interpolates a left-out block between its neighbours' knots.
+persistence forecast).  That forecast is no proof: the proving ground's drifts wander
+on through the last quarter, and it failed there on half of them.  The held-out proof
+(:meth:`Drift.proven`) therefore has the drift's course through the test part
+cross-fitted, fitted on every other time scale and judged on the rest, every physical
+coefficient as trained; ``servo.diagnose.job`` asks it to remove a material share of
+the residual there (a course so fitted follows a force that switches on a little).
+Inside the training part the blocked cross-validation interpolates a left-out block
+between its neighbours' knots.
 
-**The verdict's checks follow it through the test part** (:meth:`Drift.followed`).
-A wander goes on after the training part, so the forecast's residual on the test part
-holds the drift's change since, which says nothing about whether the physics explains
-the recording.  The verdict's held-out residual of a model with a drift therefore has
-the drift's course through the test part fitted there (knots ``time_scale`` apart
-continuing from the training part's last, a handful of coefficients against thousands of
-rows), every physical coefficient as trained; the report says so.
+**The verdict's checks follow it** (:meth:`Drift.followed`).  The verdict's held-out
+residual of a model with a drift has the drift's course fitted to it over the training
+and test rows together (the term's hats and knots ``time_scale`` apart after them, a
+handful of coefficients against thousands of rows), every physical coefficient as
+cross-validated or trained; the report says so.
 
 **The simulated drive does not carry it.**  Its plant (:mod:`kernels.plant`) has no
 clock: a drift is a record of this recording's past, not a property of the drive to
