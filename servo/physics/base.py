@@ -369,13 +369,23 @@ class Judging:
 
     #: what :meth:`followed` does to the verdict's held-out residual, for its text ("": nothing)
     follows = ""
+    #: why, with this term in the model, the arm's intervals at rest say nothing of a
+    #: breakaway (:mod:`servo.diagnose.breakaway`; "": they do)
+    rests = ""
 
     def followed(self, d, theta: dict, r: np.ndarray, rows: np.ndarray) -> np.ndarray:
         """The verdict's held-out residual (m,) of a model holding this term, on the test
         ``rows``: as predicted (the default), or, for a term that is a record of the
         recording's past rather than a property of the drive (a wandering offset,
         :mod:`servo.physics.drift`), with its course through the test part fitted there,
-        every other coefficient as trained; the term's own proof stays the prediction."""
+        every other coefficient as trained (its proof: :meth:`proven`)."""
+        return r
+
+    def proven(self, d, theta: dict, r: np.ndarray, rows: np.ndarray) -> np.ndarray:
+        """The held-out proof's residual (m,) of a model holding this term, on the test
+        ``rows``: as predicted (the default); a term whose course no past forecasts (a
+        wandering offset) has it cross-fitted on the test part, fitted on every other
+        stretch and judged on the rest, every other coefficient as trained."""
         return r
 
     def std_extra(self, params: dict, std: dict) -> dict:
