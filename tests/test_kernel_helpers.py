@@ -17,10 +17,12 @@ from kernels import _cache
 cfg = Config()
 drv = SimDriver(cfg, scenario_inputs(cfg))
 drv.configure()
-Controller(cfg).kernels.closed_loop
+ctl = Controller(cfg)
+ctl.warm_up()
 before = len(plant.rigid_advance.overloads)
+loop_before = len(ctl.kernels.closed_loop.overloads)
 y = plant.dead_zone(3, 1)                      # ints: converted to the one float64 signature, as before
-print(json.dumps({"rigid_advance_before": before, "dead_zone": y,
+print(json.dumps({"rigid_advance_before": before, "closed_loop_before": loop_before, "dead_zone": y,
                   "dead_zone_signatures": [str(s) for s in plant.dead_zone.signatures],
                   "deferred": len(_cache._DEFERRED)}))
 """
@@ -36,6 +38,7 @@ def test_a_cached_run_loads_no_helper_and_a_python_call_loads_its_one_signature(
     assert r.returncode == 0, r.stderr[-3000:]
     got = json.loads(r.stdout.strip().splitlines()[-1])
     assert got["rigid_advance_before"] == 0  # the plant step and the closed loop came from the cache with its code
+    assert got["closed_loop_before"] == 0  # the tick path's controller, warmed, does not load the fast path's loop
     assert got["deferred"] > 20
     assert got["dead_zone"] == 2.0 and got["dead_zone_signatures"] == ["(float64, float64)"]
 
