@@ -196,11 +196,14 @@ def _defer(dispatcher, signature, name: str, where: Path) -> None:
     state = {"loaded": False}
 
     def ensure():
-        if not state["loaded"]:
-            state["loaded"] = True
-            _DEFERRED.remove(dispatcher)
-            with keyed_cache(where):
-                _load(dispatcher, signature, name)
+        from numba.core.compiler_lock import global_compiler_lock  # re-entrant: a caller compiling holds it
+
+        with global_compiler_lock:  # two threads calling a helper first: one loads, the other waits
+            if not state["loaded"]:
+                with keyed_cache(where):
+                    _load(dispatcher, signature, name)
+                state["loaded"] = True
+                _DEFERRED.remove(dispatcher)
 
     def get_call_template(args, kws):  # a caller is being typed
         ensure()
