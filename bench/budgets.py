@@ -111,7 +111,8 @@ STARTUP_OVER_DEPENDENCIES_MAX = 3.0
 #: 2.42, 2.60, 2.36); at load 9-10 with the floor at 0.47-0.53 s (near its idle
 #: 0.3-0.5 s): 1.04-1.27 s, 2.11-2.57 per process, median 2.19 (the code before: 2.45).
 #: The issue's goal, under 1 s idle, is about 2.5x that floor: within reach, not shown
-#: idle.  The bound: the worst single process seen since (2.57) x ~1.15.
+#: idle.  Single processes vary (one at 3.17 at load 4, its median of 3 2.19); the bound
+#: is on the median of 3: the worst median seen since (2.26, beside two spinners) x ~1.3.
 STARTUP_OVER_IMPORT_FLOOR_MAX = 3.0
 #: ``servo diagnose``'s fixed cost, process start to its recording read
 #: (``bench/startprobe.py``), at most this multiple of ``import numpy, numba`` timed just
