@@ -4,7 +4,10 @@ Pure arithmetic on float64 scalars and preallocated arrays: no Python objects, n
 allocation in the per-sample path.  Every kernel has an explicit signature, so importing
 its module compiles (or loads from the on-disk cache) it before any loop runs; the
 kernels composed per controller kind (:mod:`kernels.compose`) are compiled when the kind
-is first used, before its loop starts.  Importing this package compiles nothing: a
+is first used, before its loop starts.  A helper only other kernels call (the plant's
+sub-step, the Dahl model, the compensator's terms, ...) is loaded only when a kernel
+calling it is compiled or Python first calls it (``kernel(..., helper=True)``,
+:mod:`kernels._cache`): a cached composed kernel carries its helpers' code.  Importing this package compiles nothing: a
 command compiles only the modules it imports (the names below are loaded on first use;
 importing every module, ``pkgutil.iter_modules(kernels.__path__)``, compiles them all).
 Imports numpy and numba only.  The compiled code is cached on disk in a directory keyed

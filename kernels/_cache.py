@@ -134,31 +134,95 @@ def keyed_cache(where: Path | None = None):
         config.CACHE_DIR = before
 
 
-def kernel(signature, **options):
-    """``numba.njit(signature, cache=True, **options)``, compiled (or loaded from the keyed
-    cache, :func:`keyed_cache`) at decoration: every kernel of this project is declared
-    with it, so it has an explicit signature and is ready before any loop runs.  A cache
-    that cannot be written (a full disk, a file-size limit) costs a compilation in the
-    next process, never the command."""
+def kernel(signature, *, helper: bool = False, **options):
+    """``numba.njit(signature, cache=True, **options)`` with its cache in the keyed
+    directory (:func:`keyed_cache`): every kernel of this project is declared with it, so
+    it has an explicit signature and is never specialised for other types.
+
+    A kernel is compiled (or loaded from the cache) at decoration, before any loop runs.
+    A ``helper`` (a kernel only other kernels call) is loaded when it is first needed:
+    when a kernel that calls it is compiled (a cached caller carries the helper's machine
+    code with it and never needs it), or at its first call from Python; it is loaded with
+    its one signature exactly as at decoration, so nothing else changes.  Loading a
+    kernel costs a few ms of LLVM work whether it is used or not: a command whose
+    composed kernels come from the cache loads none of their helpers
+    (:func:`load_helpers` loads them all, for ``servo warmup``).
+
+    A cache that cannot be written (a full disk, a file-size limit) costs a compilation
+    in the next process, never the command."""
     from numba import njit
 
     def decorate(fn):
         name = f"{fn.__module__}.{fn.__qualname__}"
-        for w in list(_watchers):
-            w(name, None, 0.0)
-        t0 = time.perf_counter()
         with keyed_cache(Path(inspect.getfile(fn)).resolve().parent):
-            try:
-                out = njit(signature, cache=True, **options)(fn)
-            except OSError:  # compiled, but its cache could not be written (a full disk): compile uncached
-                out = njit(signature, **options)(fn)
-        DECLARED.append(out)
-        compiled = sum(out.stats.cache_misses.values()) > 0
-        for w in list(_watchers):
-            w(name, compiled, time.perf_counter() - t0)
+            out = njit(cache=True, **options)(fn)  # the cache's location is fixed here; nothing compiled yet
+            if not helper:
+                _load(out, signature, name)
+                return out
+        _defer(out, signature, name, Path(inspect.getfile(fn)).resolve().parent)
         return out
 
     return decorate
+
+
+#: Helpers declared and not loaded yet (:func:`load_helpers`).
+_DEFERRED: list = []
+
+
+def _load(dispatcher, signature, name: str) -> None:
+    """Compile ``dispatcher`` for ``signature`` or load it from its cache, then allow no
+    other specialisation (what ``njit(signature)`` does), telling the watchers."""
+    for w in list(_watchers):
+        w(name, None, 0.0)
+    t0 = time.perf_counter()
+    try:
+        dispatcher.compile(signature)
+    except OSError:  # compiled, but its cache could not be written (a full disk): compile uncached
+        from numba.core.caching import NullCache
+
+        dispatcher._cache = NullCache()
+        dispatcher.compile(signature)
+    dispatcher.disable_compile()
+    DECLARED.append(dispatcher)
+    compiled = sum(dispatcher.stats.cache_misses.values()) > 0
+    for w in list(_watchers):
+        w(name, compiled, time.perf_counter() - t0)
+
+
+def _defer(dispatcher, signature, name: str, where: Path) -> None:
+    """Make ``dispatcher`` load itself (:func:`_load`) the first time Numba types a call
+    to it (a caller compiling) or Python calls it."""
+    cls = type(dispatcher)
+    state = {"loaded": False}
+
+    def ensure():
+        from numba.core.compiler_lock import global_compiler_lock  # re-entrant: a caller compiling holds it
+
+        with global_compiler_lock:  # two threads calling a helper first: one loads, the other waits
+            if not state["loaded"]:
+                with keyed_cache(where):
+                    _load(dispatcher, signature, name)
+                state["loaded"] = True
+                _DEFERRED.remove(dispatcher)
+
+    def get_call_template(args, kws):  # a caller is being typed
+        ensure()
+        return cls.get_call_template(dispatcher, args, kws)
+
+    def compile_for_args(*args, **kws):  # a call from Python found no overload: load, then dispatch as usual
+        ensure()
+        return dispatcher
+
+    dispatcher.get_call_template = get_call_template
+    dispatcher._compile_for_args = compile_for_args
+    dispatcher.load = ensure
+    _DEFERRED.append(dispatcher)
+
+
+def load_helpers() -> None:
+    """Load every helper declared so far and not loaded yet (``servo warmup``)."""
+    for d in list(_DEFERRED):
+        d.load()
 
 
 def entry_point(dispatcher, *scratch):

@@ -20,7 +20,7 @@ sos_t = NestedArray(float64, (MAX_SECTIONS, 6))
 zi_t = NestedArray(float64, (MAX_SECTIONS, 2))
 
 
-@kernel(float64(sos_t, zi_t, int64, float64))
+@kernel(float64(sos_t, zi_t, int64, float64), helper=True)
 def sos_cascade(sos, z, n, x):
     """One sample ``x`` through sections ``0..n-1`` of ``sos``, updating their states ``z``;
     returns the output (the unit of ``x`` times the cascade's gain)."""
@@ -32,7 +32,7 @@ def sos_cascade(sos, z, n, x):
     return x
 
 
-@kernel(float64(sos_t, zi_t, zi_t, int64, float64))
+@kernel(float64(sos_t, zi_t, zi_t, int64, float64), helper=True)
 def sos_cascade_try(sos, z, z_new, n, x):
     """:func:`sos_cascade` that leaves ``z`` as it is and writes the updated states into
     ``z_new`` (commit them with :func:`sos_commit`): for anti-windup."""
@@ -44,7 +44,7 @@ def sos_cascade_try(sos, z, z_new, n, x):
     return x
 
 
-@kernel(void(zi_t, zi_t, int64))
+@kernel(void(zi_t, zi_t, int64), helper=True)
 def sos_commit(z, z_new, n):
     """Copy the states of sections ``0..n-1`` from ``z_new`` into ``z``."""
     for i in range(n):

@@ -30,13 +30,13 @@ MAX_HARMONICS = 4
 harmonics_t = NestedArray(float64, (MAX_HARMONICS,))
 
 
-@kernel(float64(float64, float64, float64, float64))
+@kernel(float64(float64, float64, float64, float64), helper=True)
 def viscous_asymmetry(v, s, B, a):
     """``B*a*s*v`` (A): ``v`` m/s, ``s`` direction, ``B`` A*s/m, ``a`` asymmetry."""
     return B * a * s * v
 
 
-@kernel(float64(float64, float64, float64, float64, float64, float64))
+@kernel(float64(float64, float64, float64, float64, float64, float64), helper=True)
 def coulomb_stribeck(v, s, Fc, Fs, vs, a):
     """``s*(Fc' + (Fs' - Fc')*exp(-(v/vs)^2))`` (A): ``Fc``, ``Fs`` A, ``vs`` m/s."""
     fc = Fc * (1.0 + s * a)
@@ -44,7 +44,7 @@ def coulomb_stribeck(v, s, Fc, Fs, vs, a):
     return s * (fc + (fs - fc) * math.exp(-((v / vs) ** 2)))
 
 
-@kernel(float64(float64, harmonics_t, harmonics_t, int64, float64), inline="always")
+@kernel(float64(float64, harmonics_t, harmonics_t, int64, float64), inline="always", helper=True)
 def periodic(x, a, b, n, period):
     """``sum_{i<n} a[i]*sin((i+1)*th) + b[i]*cos((i+1)*th)`` (A), ``th = 2*pi*x/period``
     (``x``, ``period`` m): the force ``sum_i A_i*sin((i+1)*th + phi_i)`` with ``a_i =
@@ -78,20 +78,20 @@ def harmonic_coefficients(amplitudes, phases):
     return amp * np.cos(ph), amp * np.sin(ph)
 
 
-@kernel(float64(float64, float64, float64, float64))
+@kernel(float64(float64, float64, float64, float64), helper=True)
 def force_constant(x, k1, k2, stroke):
     """``kf(x)`` (dimensionless), as :func:`kernels.plant.force_constant`."""
     r = x / stroke
     return 1.0 + k1 * r + k2 * r * r
 
 
-@kernel(float64(float64, float64))
+@kernel(float64(float64, float64), helper=True)
 def cubic_spring(x, k3):
     """``k3*x^3`` (A): ``x`` m, ``k3`` A/m^3, as the drive's (:func:`kernels.plant.drive_force`)."""
     return k3 * x * x * x
 
 
-@kernel(float64(float64, float64))
+@kernel(float64(float64, float64), helper=True)
 def dead_zone_inverse(u, w):
     """``u + sgn(u)*w`` (A; ``u`` at 0): the command an input dead zone of half-width ``w``
     (A) turns into ``u`` (:func:`kernels.plant.dead_zone`)."""

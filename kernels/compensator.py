@@ -32,7 +32,7 @@ SLOW = 0
 FAST = 1
 
 
-@kernel(float64(float64, float64, float64, float64, float64))
+@kernel(float64(float64, float64, float64, float64, float64), helper=True)
 def velocity_estimate(v_prev, x, x_prev, dt, a):
     """Velocity (m/s) when the drive measures none: a backward difference of position
     passed through a first-order low-pass, ``v_k = a*v_{k-1} + (1-a)*(x_k - x_{k-1})/dt``
@@ -41,7 +41,7 @@ def velocity_estimate(v_prev, x, x_prev, dt, a):
     return a * v_prev + (1.0 - a) * (x - x_prev) / dt
 
 
-@kernel(float64(float64, float64, float64))
+@kernel(float64(float64, float64, float64), helper=True)
 def direction(s, v, deadband):
     """Direction of motion, +1 or -1, with a deadband (a Schmitt trigger): it changes only
     when the velocity ``v`` (m/s) crosses ``-+deadband`` (m/s), so sensor noise around a
@@ -53,7 +53,7 @@ def direction(s, v, deadband):
     return s
 
 
-@kernel(int64(int64, float64, float64, float64, float64, float64, float64))
+@kernel(int64(int64, float64, float64, float64, float64, float64, float64), helper=True)
 def regime_switch(regime, v, xi, s_changed, v_on, v_off, xi_on):
     """Next regime (``SLOW``/``FAST``) from the speed ``|v|`` (m/s), the distance ``xi``
     (m) since the latest turnaround and whether the direction just changed (0/1)."""
@@ -68,6 +68,7 @@ def regime_switch(regime, v, xi, s_changed, v_on, v_off, xi_on):
 
 @kernel(
     float64(int64, float64, float64, float64, float64, float64, float64, float64, float64),
+    helper=True,
 )
 def compensate(regime, x, v, s, H_dahl, B, Fc, K, h0):
     """Compensation current ``u_c`` (A), eq. (9).

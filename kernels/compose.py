@@ -204,9 +204,13 @@ def compose(name: str, tag: str, state_dtype, params_dtype, start, tick, log) ->
         _servo_start, f"servo_start_{base}", env,
         void(buf_t, float64, float64, float64),
     )  # fmt: skip
+    # servo_step is called by the other kernels only, and closed_loop by the fast path
+    # alone (which checks it on scratch copies before its loop): both load when first
+    # needed (kernels._cache.kernel's helpers), so a tick-path run does not pay for them.
     s_step = _specialise(
         _servo_step, f"servo_step_{base}", env,
         float64(stage_state_rec_t, stage_params_rec_t, c_t, p_t, float64, float64, float64, float64),
+        helper=True,
     )  # fmt: skip
     s_tick = _specialise(
         _servo_tick, f"servo_tick_{base}", {"servo_step": s_step},
@@ -227,6 +231,7 @@ def compose(name: str, tag: str, state_dtype, params_dtype, start, tick, log) ->
             float64[::1], uint8[::1], int64[::1],
         ),
         nogil=True,  # a block of ticks runs while the run log's writer thread journals the last
+        helper=True,
     )  # fmt: skip
     out = _COMPOSED[key] = Composed(dtype, s_start, s_tick, s_step, s_log, s_loop)
     return out

@@ -26,7 +26,7 @@ from numba.types import UniTuple
 from kernels._cache import kernel
 
 
-@kernel(float64(float64, float64, float64, float64, float64))
+@kernel(float64(float64, float64, float64, float64, float64), helper=True)
 def dahl_slope(H, s, sigma, Ha, alpha):
     """Right-hand side of eq. (6): dH/dx (A/m) at force ``H`` (A) moving in direction ``s``."""
     y = 1.0 - s * H / Ha
@@ -35,7 +35,7 @@ def dahl_slope(H, s, sigma, Ha, alpha):
     return sigma * y**alpha
 
 
-@kernel(float64(float64, float64, float64, float64, float64, float64))
+@kernel(float64(float64, float64, float64, float64, float64, float64), helper=True)
 def dahl_flow(H, dx, s, sigma, Ha, alpha):
     """Exact integral of eq. (6) from force ``H`` over a displacement ``dx`` (m).
 
@@ -76,7 +76,7 @@ def dahl_flow(H, dx, s, sigma, Ha, alpha):
     return s * Ha * (1.0 - y)
 
 
-@kernel(float64(float64, float64, float64, float64, float64, float64, float64))
+@kernel(float64(float64, float64, float64, float64, float64, float64, float64), helper=True)
 def dahl_closed(x, x_r, H_r, s, sigma, Ha, alpha):
     """Closed form of eq. (7): ``H(x)`` from the latest turnaround ``(x_r, H_r)``."""
     return dahl_flow(H_r, x - x_r, s, sigma, Ha, alpha)
@@ -86,6 +86,7 @@ def dahl_closed(x, x_r, H_r, s, sigma, Ha, alpha):
     UniTuple(float64, 5)(
         float64, float64, float64, float64, float64, float64, float64, float64, float64
     ),
+    helper=True,
 )
 def dahl_update(x, s_new, s, x_r, H_r, x_ext, sigma, Ha, alpha):
     """One sample of the Dahl hysteresis estimate ``H_hat`` (eq. 6-7).

@@ -27,6 +27,7 @@ from kernels._cache import kernel
         float64, float64, float64, float64, float64, float64, float64, float64, float64, float64,
         float64,
     ),
+    helper=True,
 )
 def holding_pi(e, e_p, v, integ, u_ff, kp, ki, kd, dt, lo, hi):
     """One sample of the holding loop.  Returns ``(u_n, integ)``: the output (A) clamped to
@@ -44,7 +45,7 @@ def holding_pi(e, e_p, v, integ, u_ff, kp, ki, kd, dt, lo, hi):
     return u, integ
 
 
-@kernel(float64(float64, float64, float64, float64, float64))
+@kernel(float64(float64, float64, float64, float64, float64), helper=True)
 def holding_pi_bumpless(u_now, e, v, kp, kd):
     """Integrator value (A) that makes the first output equal ``u_now`` (A), the current
     already applied when the loop takes over (no feed-forward at that instant)."""

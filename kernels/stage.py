@@ -97,7 +97,7 @@ stage_params_rec_t = from_dtype(STAGE_PARAMS)
 stage_state_rec_t = from_dtype(STAGE_STATE)
 
 
-@kernel(float64(stage_state_rec_t, stage_params_rec_t, float64))
+@kernel(float64(stage_state_rec_t, stage_params_rec_t, float64), helper=True)
 def _extras(c, p, x):
     """The terms beyond eq. (9) (:mod:`kernels.cancel`), A.  The Coulomb term (with its
     Stribeck rise and asymmetry) acts while the arm slides: in the large-motion regime
@@ -117,7 +117,7 @@ def _extras(c, p, x):
     return f
 
 
-@kernel(float64(stage_state_rec_t, stage_params_rec_t, float64))
+@kernel(float64(stage_state_rec_t, stage_params_rec_t, float64), helper=True)
 def _compensation(c, p, x):
     if p.comp_on == 0.0:
         return 0.0
@@ -127,13 +127,13 @@ def _compensation(c, p, x):
     return min(max(u_c, -p.uc_max), p.uc_max)  # the authority: a bounded input to the loop
 
 
-@kernel(float64(stage_params_rec_t, float64))
+@kernel(float64(stage_params_rec_t, float64), helper=True)
 def _kf(p, x):
     """The divisor ``kf(x)`` of the force-constant term, held within its authority."""
     return min(max(force_constant(x, p.kf1, p.kf2, p.kf_stroke), p.kf_lo), p.kf_hi)
 
 
-@kernel(float64(stage_state_rec_t, stage_params_rec_t, float64, float64, float64))
+@kernel(float64(stage_state_rec_t, stage_params_rec_t, float64, float64, float64), helper=True)
 def stage_start(c, p, x, v_meas, u_now):
     """Take over at position ``x`` (m), velocity ``v_meas`` (m/s, NaN if not measured) with
     ``u_now`` (A) applied: hold ``x``, reset the signals (the pivot's hysteresis state is
@@ -162,7 +162,7 @@ def stage_start(c, p, x, v_meas, u_now):
     return force - u_c
 
 
-@kernel(float64(stage_state_rec_t, stage_params_rec_t, float64, float64))
+@kernel(float64(stage_state_rec_t, stage_params_rec_t, float64, float64), helper=True)
 def stage_update(c, p, x, v_meas):
     """The signals of one sample at measured position ``x`` (m) and velocity ``v_meas``
     (m/s, NaN if not measured): velocity, direction, Dahl estimate (eq. 6-7), regime;
@@ -185,7 +185,7 @@ def stage_update(c, p, x, v_meas):
     return _compensation(c, p, x)  # eq. (9)
 
 
-@kernel(UniTuple(float64, 2)(stage_params_rec_t, float64, float64))
+@kernel(UniTuple(float64, 2)(stage_params_rec_t, float64, float64), helper=True)
 def stage_room(p, u_c, x):
     """``(lo, hi)`` (A): the range of ``u_n`` that keeps the command within the limit
     (``u_n + u_c``, divided by ``kf(x)`` when the force constant is cancelled, widened
@@ -199,7 +199,7 @@ def stage_room(p, u_c, x):
     return -u_max - u_c, u_max - u_c
 
 
-@kernel(float64(stage_state_rec_t, stage_params_rec_t, float64, float64, float64, float64))
+@kernel(float64(stage_state_rec_t, stage_params_rec_t, float64, float64, float64, float64), helper=True)
 def stage_output(c, p, x, r, u_n, u_c):
     """The command ``u = clip(u_n + u_c)`` (A, eq. 8) for the controller's ``u_n`` (A);
     records the error ``(r_base + r) - x`` (m) and the three currents."""

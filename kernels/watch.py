@@ -21,14 +21,14 @@ from kernels._cache import kernel
 CARRY_SIZE = 6
 
 
-@kernel(boolean(float64, float64))
+@kernel(boolean(float64, float64), helper=True)
 def outside(x, position):
     """Whether ``x`` (m) is not within ``+-position`` (NaN counts as outside)."""
     return not (abs(x) < position)
 
 
 # inlined into its callers: a call handed the arrays would count their references each row
-@kernel(int64(float64, float64, uint8[::1], int64[::1]), inline="always")
+@kernel(int64(float64, float64, uint8[::1], int64[::1]), inline="always", helper=True)
 def slide(u, limit, ring, carry):
     """Flag ``|u| >= limit`` (A) into ``ring`` (the last ``len(ring)`` flags, 0 or 1) and
     ``carry[:3]`` = [flags in the ring, rows seen, next slot].  Returns the flags in the
@@ -70,7 +70,7 @@ def first_over_share(rows, iu, limit, ring, carry, most):
     return -1, 0
 
 
-@kernel(void(float64, float64, int64, float64[::1], uint8[::1], int64[::1]), inline="always")
+@kernel(void(float64, float64, int64, float64[::1], uint8[::1], int64[::1]), inline="always", helper=True)
 def watch_row(x, u, row, watch, ring, carry):
     """Both tests on log row ``row`` (position ``x``, m, command ``u``, A) as the compiled
     loop logs it: ``watch`` = [position, limit, most] (``most`` infinite: no limit test).

@@ -33,13 +33,13 @@ STATE = np.dtype([("integ", "f8")])  # integrator, A
 _c_t, _p_t = from_dtype(STATE), from_dtype(PARAMS)  # the records (kernels.compose)
 
 
-@kernel(void(_c_t, _p_t, float64, float64, float64))
+@kernel(void(_c_t, _p_t, float64, float64, float64), helper=True)
 def pi_start(c, p, x, v, u_n):
     """Bumpless take-over: the integrator that makes the first output ``u_n`` (A)."""
     c.integ = holding_pi_bumpless(u_n, 0.0, v, p.kp, p.kd)
 
 
-@kernel(float64(_c_t, _p_t, float64, float64, float64, float64, float64, float64, float64))
+@kernel(float64(_c_t, _p_t, float64, float64, float64, float64, float64, float64, float64), helper=True)
 def pi_tick(c, p, x, v, r_base, r, u_exc, lo, hi):
     """One sample; returns ``u_n`` (A)."""
     e = (r_base + r) - x
@@ -49,7 +49,7 @@ def pi_tick(c, p, x, v, r_base, r, u_exc, lo, hi):
     return u_n
 
 
-@kernel(void(float64[::1], _c_t))
+@kernel(void(float64[::1], _c_t), helper=True)
 def pi_log(out, c):
     """No columns of its own."""
 

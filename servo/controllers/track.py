@@ -57,7 +57,7 @@ STATE = np.dtype(
 _c_t, _p_t = from_dtype(STATE), from_dtype(PARAMS)
 
 
-@kernel(void(_c_t, _p_t, float64, float64, float64))
+@kernel(void(_c_t, _p_t, float64, float64, float64), helper=True)
 def two_rate_start(c, p, x, v, u_n):
     """Cascades at rest; the output starts at ``u_n`` (A)."""
     c.phase = 0.0
@@ -72,7 +72,7 @@ def two_rate_start(c, p, x, v, u_n):
             c.z_fast[i, j] = 0.0
 
 
-@kernel(float64(_c_t, _p_t, float64, float64, float64, float64, float64, float64, float64))
+@kernel(float64(_c_t, _p_t, float64, float64, float64, float64, float64, float64, float64), helper=True)
 def two_rate_tick(c, p, x, v, r_base, r, u_exc, lo, hi):
     """One tick; returns ``u_n`` (A)."""
     if c.phase == 0.0:
@@ -99,7 +99,7 @@ def two_rate_tick(c, p, x, v, r_base, r, u_exc, lo, hi):
     return u
 
 
-@kernel(void(float64[::1], _c_t))
+@kernel(void(float64[::1], _c_t), helper=True)
 def two_rate_log(out, c):
     """``pes``: the latest PES sample (m)."""
     out[0] = c.pes

@@ -104,6 +104,7 @@ def compile_all() -> dict:
                 importlib.import_module(f"kernels.{m.name}")
         for kind in KINDS.values():
             kind.kernels()
+        _cache.load_helpers()  # those no composed kernel compiled here needed (all, when every caller was cached)
     return {**counts, "seconds": time.perf_counter() - t0, "cache": str(_cache.base_dir())}
 
 
