@@ -210,9 +210,10 @@ def test_round_trip_over_a_pty(benchmark, d, b, tmp_path):
           f"bare pty echo round trip {echo_us:.1f} us; median ratio of {PAIRS} adjacent pairs {ratio:.2f}")
     assert drv.board_stats is not None and drv.board_stats["faults"] == 0
     # budget: the median pair ratio measured 0.69-1.63 idle, 1.57-3.10 with one busy core
-    # and 1.47-4.90 with two (d = 0), 0.10-0.73 batched (bench/README.md).  It is set by
+    # and 1.47-4.90 with two (d = 0), 0.10-0.73 batched, 1.41-1.67 batched with two busy
+    # beside seven other sessions at load 19-27 (bench/README.md).  It is set by
     # the OS (wake-up of an idle core; a spinner sharing the pinned core preempts the side
     # with more Python work), so the bounds only catch a gross regression, 1.5x above the
     # worst loaded figure; the host's own cost is guarded precisely by
     # test_host_cost_per_frame (no system calls: 1.33-1.41 at every load)
-    assert ratio < (7.5 if b == 1 else 1.2)
+    assert ratio < (7.5 if b == 1 else 2.5)
