@@ -20,6 +20,9 @@ SHAPE_BOUNDS = (0.4, 3.0)
 #: the shape the drive kernel and the compensator hold (Gaussian), and a term's shape
 #: when none is given (a breakaway found at rest, a drive's fields)
 GAUSSIAN = 2.0
+#: bristle deflections at rest on the grid (with the Gaussian shape, LuGre's), per decade,
+#: up to this fraction of the stroke
+LENGTHS_PER_DECADE, LENGTH_MAX = 1.0, 0.01
 
 
 def curve(v: np.ndarray, vs: float, delta: float = GAUSSIAN) -> np.ndarray:
@@ -34,15 +37,44 @@ def gaussian_velocity(vs: float, delta: float) -> float:
     return float(vs * math.gamma(1.0 + 1.0 / delta) / math.gamma(1.5))
 
 
+def bristle_trace(d, vs: float, delta: float, length: float) -> np.ndarray:
+    """The normalised force of a Stribeck rise held by bristles (``kernels.stribeck``)
+    along the design's filtered motion, (n,)."""
+    from kernels.stribeck import stribeck_bristle_trace
+
+    out = np.empty(d.sig.n)
+    stribeck_bristle_trace(d.sig.xf, d.sig.vf, float(vs), float(delta), float(length), out)
+    return out
+
+
+def bristles(P: dict) -> tuple[float, float] | None:
+    """``(dFs, length)`` of a fitted Stribeck rise held by bristles in a model without a
+    Dahl element, None otherwise: the simulated drive, whose kernel holds no bristle
+    term, runs it as a Dahl element of level ``dFs`` and that length with the Coulomb
+    level lowered by ``dFs`` under the same Stribeck rise (``Fc - dFs + dFs*phi(v)`` plus
+    the saturated element's ``dFs``: the steady state ``Fc + dFs*phi(v)``, and the
+    bristles' pre-sliding at a reversal, where ``phi`` is 1)."""
+    st = P.get("stribeck_friction") or {}
+    if not (st.get("stribeck_length", 0.0) > 0 and st.get("dFs", 0.0) > 0):
+        return None
+    if (P.get("hysteresis") or {}).get("Ha", 0.0) > 0:
+        return None
+    return float(st["dFs"]), float(st["stribeck_length"])
+
+
 class Stribeck(Term):
-    name, coefs, thetas = "stribeck_friction", ("dFs",), ("stribeck_velocity", "stribeck_shape")
-    units = {"dFs": "F", "stribeck_velocity": "m/s", "stribeck_shape": "-", "Fs": "F"}  # Fs: a breakaway at rest
+    name, coefs = "stribeck_friction", ("dFs",)
+    thetas = ("stribeck_velocity", "stribeck_shape", "stribeck_length")
+    units = {"dFs": "F", "stribeck_velocity": "m/s", "stribeck_shape": "-", "stribeck_length": "m",
+             "Fs": "F"}  # Fs: a breakaway found at rest (breakaway.py)  # fmt: skip
     doc = ("Stribeck friction (Fs - Fc)*exp(-|x'/vs|^delta)*sgn(x'): higher friction at low speed; delta the "
-           "curve's shape (2 the paper's Gaussian, 1 exponential)")  # fmt: skip
+           "curve's shape (2 the paper's Gaussian, 1 exponential); held by bristles of deflection "
+           "stribeck_length at rest (LuGre), none at the length's lower bound")  # fmt: skip
     requires = ("coulomb_friction",)
 
     def from_physical(self, p: dict) -> tuple[dict, tuple]:
-        theta = {"stribeck_velocity": p["stribeck_velocity"], "stribeck_shape": p.get("stribeck_shape", GAUSSIAN)}
+        theta = {"stribeck_velocity": p["stribeck_velocity"], "stribeck_shape": p.get("stribeck_shape", GAUSSIAN),
+                 "stribeck_length": p.get("stribeck_length", 0.0)}  # fmt: skip
         return theta, (p["dFs"],)
 
     def implausible(self, params: dict) -> str:
@@ -52,17 +84,33 @@ class Stribeck(Term):
         return ""
 
     def full(self, d, theta, u_eff):
-        return d.sig.sign_v * curve(d.sig.vf, theta["stribeck_velocity"], theta.get("stribeck_shape", GAUSSIAN))
+        vs, delta = theta["stribeck_velocity"], theta.get("stribeck_shape", GAUSSIAN)
+        length = theta.get("stribeck_length", 0.0)
+        if not length > 0:  # no bristles: the curve's sign switches with the motion's
+            return d.sig.sign_v * curve(d.sig.vf, vs, delta)
+        return bristle_trace(d, vs, delta, length)
 
     def _range(self, d):
         v = valid_speed(d)
         return max(2.0 * d.sig.v_threshold, float(np.quantile(v, 0.02))), float(np.quantile(v, 0.75))
 
+    def _lengths(self, d):
+        """The bristle deflections on the grid (m): from what the sensor resolves (10 noise
+        std, a millionth of the stroke) to ``LENGTH_MAX`` of the stroke (0: no bristles)."""
+        span = float(np.ptp(d.sig.xf))
+        return max(10.0 * d.sig.noise_x, 1e-6 * span), LENGTH_MAX * span
+
     def grid(self, d, model):
-        return [{"stribeck_velocity": float(v), "stribeck_shape": s} for s in SHAPES for v in geom(*self._range(d), 5)]
+        lo, hi = self._lengths(d)
+        speeds = geom(*self._range(d), 5)
+        plain = [{"stribeck_velocity": float(v), "stribeck_shape": s, "stribeck_length": 0.0} for s in SHAPES for v in speeds]
+        held = [{"stribeck_velocity": float(v), "stribeck_shape": GAUSSIAN, "stribeck_length": float(L)}
+                for L in geom(lo, hi, LENGTHS_PER_DECADE)[1:] for v in speeds]  # fmt: skip
+        return plain + held
 
     def bounds(self, d, model):
-        return {"stribeck_velocity": (*self._range(d), True), "stribeck_shape": (*SHAPE_BOUNDS, True)}
+        return {"stribeck_velocity": (*self._range(d), True), "stribeck_shape": (*SHAPE_BOUNDS, True),
+                "stribeck_length": (0.0, self._lengths(d)[1], False)}  # fmt: skip
 
 
 class StribeckDrive(DriveMap):
@@ -75,9 +123,21 @@ class StribeckDrive(DriveMap):
         vs = gaussian_velocity(p["stribeck_velocity"], p.get("stribeck_shape", GAUSSIAN))
         return {"Fs": P.get("coulomb_friction", {}).get("Fc", 0.0) + p["dFs"], "stribeck_velocity": vs}
 
+    def state(self, design, theta, P, u, record):
+        """The Dahl element that runs a bristle-held rise in the simulation (:func:`bristles`):
+        its force at every sample, the rise's force beyond the lowered Coulomb level's."""
+        b = bristles(P)
+        if b is None:
+            return None
+        dFs, length = b
+        vs, delta = theta["stribeck_velocity"], theta.get("stribeck_shape", GAUSSIAN)
+        w = bristle_trace(design, vs, delta, length)
+        return dFs * np.clip(w + design.sig.sign_v * (1.0 - curve(design.sig.vf, vs, delta)), -1.0, 1.0)
+
     def from_drive(self, d):
         if d.Fs > d.Fc and d.Fs > 0:
-            return [({"stribeck_velocity": d.stribeck_velocity, "stribeck_shape": GAUSSIAN}, (d.Fs - d.Fc,))]
+            return [({"stribeck_velocity": d.stribeck_velocity, "stribeck_shape": GAUSSIAN, "stribeck_length": 0.0},
+                     (d.Fs - d.Fc,))]  # fmt: skip
         return []
 
 
@@ -87,6 +147,13 @@ _SLIDING = 1e-3
 
 def _conceal(size):
     return {"Fs": _SLIDING + size}
+
+
+def _simulated(d, sim):
+    b = bristles(sim.P)
+    if b is not None and d["Fc"] > 0:  # the Coulomb level lowered by the rise, which a Dahl element holds
+        return {"Fs": max(d["Fc"] - b[0], 0.0) + b[0], "stribeck_velocity": d.get("stribeck_velocity", 1.0)}
+    return {"Fs": max(d["Fs"], 0.0) if d["Fc"] > 0 else 0.0, "stribeck_velocity": d.get("stribeck_velocity", 1.0)}
 
 
 def _leave_out(d):
@@ -115,7 +182,6 @@ EFFECT = Effect(
     drive_map=StribeckDrive(),
     leave_out=_leave_out,
     study=_STUDY,
-    simulated=lambda d, sim: {"Fs": max(d["Fs"], 0.0) if d["Fc"] > 0 else 0.0,
-                              "stribeck_velocity": d.get("stribeck_velocity", 1.0)},
+    simulated=_simulated,
     diagnosed_by="breakaway",
 )  # fmt: skip
