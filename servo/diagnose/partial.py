@@ -233,7 +233,7 @@ def refine(sel: Selector, model: Model, physics: str, thetas: list) -> tuple[Ter
     best[GATE] = _exact_onset(sel, model, physics, best, y0, Phi, w)
     std: dict = {}
     if phys.thetas:  # each nonlinear parameter in turn, the others held (one sweep)
-        names = list(phys.thetas)
+        names = [n for n in phys.thetas if n not in phys.held(best)]
         bounds = phys.bounds(d, model)
         logs = [bounds[n][2] for n in names]
         for name, lg in zip(names, logs):

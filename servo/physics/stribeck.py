@@ -7,7 +7,9 @@ from __future__ import annotations
 
 import numpy as np
 
-import math
+from functools import lru_cache
+
+from scipy import optimize
 
 from servo.fields import P
 from servo.physics.base import Concealment, DriveMap, Effect, Term, geom, valid_speed
@@ -30,11 +32,28 @@ def curve(v: np.ndarray, vs: float, delta: float = GAUSSIAN) -> np.ndarray:
     return np.exp(-(np.abs(v / vs) ** delta))
 
 
-def gaussian_velocity(vs: float, delta: float) -> float:
-    """The Stribeck velocity (m/s) of the Gaussian curve with the same area under it as
-    ``exp(-|v/vs|^delta)`` (the same impulse over a sweep through the low speeds): what a
-    drive or compensator that holds only the Gaussian shape takes for another shape."""
-    return float(vs * math.gamma(1.0 + 1.0 / delta) / math.gamma(1.5))
+#: the speeds (in Stribeck velocities) over which the Gaussian stand-in matches a curve
+STAND_IN_SPAN = 4.0
+
+
+@lru_cache(maxsize=64)
+def gaussian_stand_in(delta: float) -> tuple[float, float]:
+    """``(a, b)``: the Gaussian ``a*exp(-(r/b)^2)`` nearest ``exp(-r^delta)`` in least
+    squares over ``r = v/vs`` in ``[0, STAND_IN_SPAN]`` (1, 1 for the Gaussian itself): what a
+    drive or compensator that holds only the Gaussian curve takes for another shape,
+    ``Fs = Fc + a*dFs`` and ``vs*b``."""
+    if delta == GAUSSIAN:
+        return 1.0, 1.0
+    r = np.linspace(0.0, STAND_IN_SPAN, 801)
+    y = curve(r, 1.0, delta)
+
+    def fit(log_b):
+        g = np.exp(-((r / np.exp(log_b)) ** 2))
+        a = float(g @ y / (g @ g))
+        return float(np.sum((y - a * g) ** 2)), a
+
+    res = optimize.minimize_scalar(lambda z: fit(z)[0], bounds=(-3.0, 3.0), method="bounded", options={"xatol": 1e-6})
+    return fit(res.x)[1], float(np.exp(res.x))
 
 
 def bristle_trace(d, vs: float, delta: float, length: float) -> np.ndarray:
@@ -108,9 +127,12 @@ class Stribeck(Term):
                 for L in geom(lo, hi, LENGTHS_PER_DECADE)[1:] for v in speeds]  # fmt: skip
         return plain + held
 
+    def held(self, theta):
+        return ("stribeck_length",) if not theta.get("stribeck_length", 0.0) > 0 else ()  # no bristles stay none
+
     def bounds(self, d, model):
         return {"stribeck_velocity": (*self._range(d), True), "stribeck_shape": (*SHAPE_BOUNDS, True),
-                "stribeck_length": (0.0, self._lengths(d)[1], False)}  # fmt: skip
+                "stribeck_length": (*self._lengths(d), True)}  # fmt: skip
 
 
 class StribeckDrive(DriveMap):
@@ -119,9 +141,10 @@ class StribeckDrive(DriveMap):
     name = "stribeck_friction"
 
     def to_drive(self, P, fit):
-        p = P[self.name]  # the drive's curve is Gaussian: another shape as the Gaussian of its area
-        vs = gaussian_velocity(p["stribeck_velocity"], p.get("stribeck_shape", GAUSSIAN))
-        return {"Fs": P.get("coulomb_friction", {}).get("Fc", 0.0) + p["dFs"], "stribeck_velocity": vs}
+        p = P[self.name]  # the drive's curve is Gaussian: another shape as its Gaussian stand-in
+        a, b = gaussian_stand_in(float(p.get("stribeck_shape", GAUSSIAN)))
+        return {"Fs": P.get("coulomb_friction", {}).get("Fc", 0.0) + a * p["dFs"],
+                "stribeck_velocity": b * p["stribeck_velocity"]}  # fmt: skip
 
     def state(self, design, theta, P, u, record):
         """The Dahl element that runs a bristle-held rise in the simulation (:func:`bristles`):
@@ -152,7 +175,8 @@ def _conceal(size):
 def _simulated(d, sim):
     b = bristles(sim.P)
     if b is not None and d["Fc"] > 0:  # the Coulomb level lowered by the rise, which a Dahl element holds
-        return {"Fs": max(d["Fc"] - b[0], 0.0) + b[0], "stribeck_velocity": d.get("stribeck_velocity", 1.0)}
+        rise = max(d["Fs"] - d["Fc"], 0.0)  # the Gaussian stand-in's (a*dFs)
+        return {"Fs": max(d["Fc"] - b[0], 0.0) + rise, "stribeck_velocity": d.get("stribeck_velocity", 1.0)}
     return {"Fs": max(d["Fs"], 0.0) if d["Fc"] > 0 else 0.0, "stribeck_velocity": d.get("stribeck_velocity", 1.0)}
 
 
