@@ -124,7 +124,7 @@ class Stribeck(Term):
         speeds = geom(*self._range(d), 5)
         plain = [{"stribeck_velocity": float(v), "stribeck_shape": s, "stribeck_length": 0.0} for s in SHAPES for v in speeds]
         held = [{"stribeck_velocity": float(v), "stribeck_shape": GAUSSIAN, "stribeck_length": float(L)}
-                for L in geom(lo, hi, LENGTHS_PER_DECADE)[1:] for v in speeds]  # fmt: skip
+                for L in geom(lo, hi, LENGTHS_PER_DECADE)[1:] for v in speeds[1::2]]  # fmt: skip
         return plain + held
 
     def held(self, theta):
