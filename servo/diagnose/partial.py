@@ -232,22 +232,30 @@ def refine(sel: Selector, model: Model, physics: str, thetas: list) -> tuple[Ter
     # force that steps at its onset leaves a residual spike where the gate is a row off
     best[GATE] = _exact_onset(sel, model, physics, best, y0, Phi, w)
     std: dict = {}
-    if len(phys.thetas) == 1:
-        name = phys.thetas[0]
+    if phys.thetas:  # each nonlinear parameter in turn, the others held (one sweep)
+        names = [n for n in phys.thetas if n not in phys.held(best)]
         bounds = phys.bounds(d, model)
-        lo_b, hi_b, lg = bounds[name]
-        span = sel._bracket(phys, best, name, lo_b, hi_b, lg)  # the ungated refinement's interval
-        to = np.exp if lg else float
+        logs = [bounds[n][2] for n in names]
+        for name, lg in zip(names, logs):
+            lo_b, hi_b, _ = bounds[name]
+            span = sel._bracket(phys, best, name, lo_b, hi_b, lg)  # the ungated refinement's interval
+            to = np.exp if lg else float
 
-        def f(z):
-            return sse({**best, name: float(to(z))})
+            def f1(z, name=name, to=to):
+                return sse({**best, name: float(to(z))})
 
-        if span[1] > span[0]:
-            res = optimize.minimize_scalar(f, bounds=span, method="bounded", options={"xatol": 1e-4 * (span[1] - span[0])})
-            if res.fun <= sse(best):
-                best[name] = float(to(res.x))
-        z = float(np.log(best[name]) if lg else best[name])
-        std = sel._theta_std(lambda zz: f(float(np.atleast_1d(zz)[0])), np.array([z]), [name], [lg], {name: best[name]})
+            if span[1] > span[0]:
+                res = optimize.minimize_scalar(f1, bounds=span, method="bounded",
+                                               options={"xatol": 1e-4 * (span[1] - span[0])})  # fmt: skip
+                if res.fun <= sse(best):
+                    best[name] = float(to(res.x))
+
+        def f(zz):
+            zz = np.atleast_1d(zz)
+            return sse({**best, **{n: float(np.exp(v) if lg else v) for n, v, lg in zip(names, zz, logs)}})
+
+        z = np.array([np.log(best[n]) if lg else best[n] for n, lg in zip(names, logs)])
+        std = sel._theta_std(f, z, names, logs, {n: best[n] for n in names})
     return Term.make(physics, best), std
 
 

@@ -494,11 +494,14 @@ class Selector:
         uniq = {tuple(sorted(th.items())): th for th in thetas}.values()
         best = min(uniq, key=lambda th: self.train_sse(model, Term.make(physics, th), approx))
         bounds = phys.bounds(self.d, model)
-        names = list(phys.thetas)
+        kept = {n: best[n] for n in phys.held(best)}
+        names = [n for n in phys.thetas if n not in kept]
+        if not names:
+            return Term.make(physics, best), {}
         logs = [bounds[n][2] for n in names]
 
         def to_theta(z):
-            return {n: float(np.exp(v) if lg else v) for n, v, lg in zip(names, z, logs)}
+            return {**kept, **{n: float(np.exp(v) if lg else v) for n, v, lg in zip(names, z, logs)}}
 
         def f(z):
             th = to_theta(np.atleast_1d(z))

@@ -337,6 +337,11 @@ class Search:
         """Refinement bounds per theta: name -> (lo, hi, log_scale)."""
         return {}
 
+    def held(self, theta: dict) -> tuple:
+        """The ``thetas`` the refinement keeps at the grid point ``theta``'s values (a
+        part of the term the grid switched off); default none."""
+        return ()
+
     def refine_width(self, d, name: str, value: float) -> float:
         """Half-width of the final refinement's interval around a grid point ``value`` of
         the linear-scale parameter ``name``: 15 % of the value."""

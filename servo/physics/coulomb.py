@@ -7,6 +7,7 @@ from __future__ import annotations
 
 from servo.fields import P
 from servo.physics.base import SLIDING, Concealment, DriveMap, Effect, Term, number, one_field
+from servo.physics.stribeck import bristles
 
 
 class Coulomb(Term):
@@ -38,6 +39,11 @@ class CoulombDrive(DriveMap):
 
 def _conceal(size):
     return {"Fc": size, "Fs": size}
+
+
+def _simulated(d, sim):
+    held = bristles(sim.P)  # a Stribeck rise held by bristles: the level beneath it (stribeck.bristles)
+    return {"Fc": max(d["Fc"] - held[0], 0.0) if held is not None else d["Fc"]}
 
 
 def _leave_out(d):
@@ -84,6 +90,7 @@ EFFECT = Effect(
     drive_map=CoulombDrive(),
     leave_out=_leave_out,
     study=_STUDY,
+    simulated=_simulated,
     cancel=_cancel,
     forces=lambda f, stroke, speed: {SLIDING: peak(f)},
 )  # fmt: skip

@@ -9,6 +9,7 @@ import numpy as np
 
 from servo.fields import P
 from servo.physics.base import SLIDING, Concealment, DriveMap, Effect, Term, geom, number
+from servo.physics.stribeck import bristles
 
 
 class Hysteresis(Term):
@@ -82,6 +83,9 @@ class HysteresisDrive(DriveMap):
 def _simulated(d, sim):
     if sim.P.get("hysteresis", {}).get("Ha", 0.0) > 0:
         return {"sigma": d["sigma"], "Ha": d["Ha"], "alpha": d.get("alpha", 1.0)}
+    held = bristles(sim.P)
+    if held is not None:  # a Stribeck rise held by bristles runs as a Dahl element (stribeck.bristles)
+        return {"sigma": held[0] / held[1], "Ha": held[0], "alpha": 1.0}
     # no Dahl element: a negligible one that never saturates (Dahl length 1 m), since
     # the plant's closed form overflows for a saturated element of vanishing length
     off = 1e-12 * sim.u_scale

@@ -7,15 +7,94 @@ from __future__ import annotations
 
 import numpy as np
 
+from functools import lru_cache
+
+from scipy import optimize
+
 from servo.fields import P
 from servo.physics.base import Concealment, DriveMap, Effect, Term, geom, valid_speed
 
+#: the Stribeck curve's shape exponent ``delta`` of ``exp(-|x'/vs|^delta)``: 2 the
+#: paper's Gaussian curve, 1 the exponential one, below 1 a cusp at rest; the grid's
+#: values and the refinement's bounds (a Lorentzian ``1/(1 + r^2)`` lies near 1.5)
+SHAPES = (0.6, 1.0, 2.0)
+SHAPE_BOUNDS = (0.4, 3.0)
+#: the shape the drive kernel and the compensator hold (Gaussian), and a term's shape
+#: when none is given (a breakaway found at rest, a drive's fields)
+GAUSSIAN = 2.0
+#: bristle deflections at rest on the grid (with the Gaussian shape, LuGre's), per decade,
+#: up to this fraction of the stroke
+LENGTHS_PER_DECADE, LENGTH_MAX = 1.0, 0.01
+
+
+def curve(v: np.ndarray, vs: float, delta: float = GAUSSIAN) -> np.ndarray:
+    """The Stribeck curve's fall with speed, ``exp(-|v/vs|^delta)`` (dimensionless, as ``v``)."""
+    return np.exp(-(np.abs(v / vs) ** delta))
+
+
+#: the speeds (in Stribeck velocities) over which the Gaussian stand-in matches a curve
+STAND_IN_SPAN = 4.0
+
+
+@lru_cache(maxsize=64)
+def gaussian_stand_in(delta: float) -> tuple[float, float]:
+    """``(a, b)``: the Gaussian ``a*exp(-(r/b)^2)`` nearest ``exp(-r^delta)`` in least
+    squares over ``r = v/vs`` in ``[0, STAND_IN_SPAN]`` (1, 1 for the Gaussian itself): what a
+    drive or compensator that holds only the Gaussian curve takes for another shape,
+    ``Fs = Fc + a*dFs`` and ``vs*b``."""
+    if delta == GAUSSIAN:
+        return 1.0, 1.0
+    r = np.linspace(0.0, STAND_IN_SPAN, 801)
+    y = curve(r, 1.0, delta)
+
+    def fit(log_b):
+        g = np.exp(-((r / np.exp(log_b)) ** 2))
+        a = float(g @ y / (g @ g))
+        return float(np.sum((y - a * g) ** 2)), a
+
+    res = optimize.minimize_scalar(lambda z: fit(z)[0], bounds=(-3.0, 3.0), method="bounded", options={"xatol": 1e-6})
+    return fit(res.x)[1], float(np.exp(res.x))
+
+
+def bristle_trace(d, vs: float, delta: float, length: float) -> np.ndarray:
+    """The normalised force of a Stribeck rise held by bristles (``kernels.stribeck``)
+    along the design's filtered motion, (n,)."""
+    from kernels.stribeck import stribeck_bristle_trace
+
+    out = np.empty(d.sig.n)
+    stribeck_bristle_trace(d.sig.xf, d.sig.vf, float(vs), float(delta), float(length), out)
+    return out
+
+
+def bristles(P: dict) -> tuple[float, float] | None:
+    """``(dFs, length)`` of a fitted Stribeck rise held by bristles in a model without a
+    Dahl element, None otherwise: the simulated drive, whose kernel holds no bristle
+    term, runs it as a Dahl element of level ``dFs`` and that length with the Coulomb
+    level lowered by ``dFs`` under the same Stribeck rise (``Fc - dFs + dFs*phi(v)`` plus
+    the saturated element's ``dFs``: the steady state ``Fc + dFs*phi(v)``, and the
+    bristles' pre-sliding at a reversal, where ``phi`` is 1)."""
+    st = P.get("stribeck_friction") or {}
+    if not (st.get("stribeck_length", 0.0) > 0 and st.get("dFs", 0.0) > 0):
+        return None
+    if (P.get("hysteresis") or {}).get("Ha", 0.0) > 0:
+        return None
+    return float(st["dFs"]), float(st["stribeck_length"])
+
 
 class Stribeck(Term):
-    name, coefs, thetas = "stribeck_friction", ("dFs",), ("stribeck_velocity",)
-    units = {"dFs": "F", "stribeck_velocity": "m/s", "Fs": "F"}  # Fs: a breakaway found at rest (breakaway.py)
-    doc = "Stribeck friction (Fs - Fc)*exp(-(x'/vs)^2)*sgn(x'): higher friction at low speed"
+    name, coefs = "stribeck_friction", ("dFs",)
+    thetas = ("stribeck_velocity", "stribeck_shape", "stribeck_length")
+    units = {"dFs": "F", "stribeck_velocity": "m/s", "stribeck_shape": "-", "stribeck_length": "m",
+             "Fs": "F"}  # Fs: a breakaway found at rest (breakaway.py)  # fmt: skip
+    doc = ("Stribeck friction (Fs - Fc)*exp(-|x'/vs|^delta)*sgn(x'): higher friction at low speed; delta the "
+           "curve's shape (2 the paper's Gaussian, 1 exponential); held by bristles of deflection "
+           "stribeck_length at rest (LuGre), none at the length's lower bound")  # fmt: skip
     requires = ("coulomb_friction",)
+
+    def from_physical(self, p: dict) -> tuple[dict, tuple]:
+        theta = {"stribeck_velocity": p["stribeck_velocity"], "stribeck_shape": p.get("stribeck_shape", GAUSSIAN),
+                 "stribeck_length": p.get("stribeck_length", 0.0)}  # fmt: skip
+        return theta, (p["dFs"],)
 
     def implausible(self, params: dict) -> str:
         if params["dFs"] < 0:
@@ -24,18 +103,36 @@ class Stribeck(Term):
         return ""
 
     def full(self, d, theta, u_eff):
-        v = d.sig.vf
-        return d.sig.sign_v * np.exp(-((v / theta["stribeck_velocity"]) ** 2))
+        vs, delta = theta["stribeck_velocity"], theta.get("stribeck_shape", GAUSSIAN)
+        length = theta.get("stribeck_length", 0.0)
+        if not length > 0:  # no bristles: the curve's sign switches with the motion's
+            return d.sig.sign_v * curve(d.sig.vf, vs, delta)
+        return bristle_trace(d, vs, delta, length)
 
     def _range(self, d):
         v = valid_speed(d)
         return max(2.0 * d.sig.v_threshold, float(np.quantile(v, 0.02))), float(np.quantile(v, 0.75))
 
+    def _lengths(self, d):
+        """The bristle deflections on the grid (m): from what the sensor resolves (10 noise
+        std, a millionth of the stroke) to ``LENGTH_MAX`` of the stroke (0: no bristles)."""
+        span = float(np.ptp(d.sig.xf))
+        return max(10.0 * d.sig.noise_x, 1e-6 * span), LENGTH_MAX * span
+
     def grid(self, d, model):
-        return [{"stribeck_velocity": float(v)} for v in geom(*self._range(d), 5)]
+        lo, hi = self._lengths(d)
+        speeds = geom(*self._range(d), 5)
+        plain = [{"stribeck_velocity": float(v), "stribeck_shape": s, "stribeck_length": 0.0} for s in SHAPES for v in speeds]
+        held = [{"stribeck_velocity": float(v), "stribeck_shape": GAUSSIAN, "stribeck_length": float(L)}
+                for L in geom(lo, hi, LENGTHS_PER_DECADE)[1:] for v in speeds[1::2]]  # fmt: skip
+        return plain + held
+
+    def held(self, theta):
+        return ("stribeck_length",) if not theta.get("stribeck_length", 0.0) > 0 else ()  # no bristles stay none
 
     def bounds(self, d, model):
-        return {"stribeck_velocity": (*self._range(d), True)}
+        return {"stribeck_velocity": (*self._range(d), True), "stribeck_shape": (*SHAPE_BOUNDS, True),
+                "stribeck_length": (*self._lengths(d), True)}  # fmt: skip
 
 
 class StribeckDrive(DriveMap):
@@ -44,12 +141,26 @@ class StribeckDrive(DriveMap):
     name = "stribeck_friction"
 
     def to_drive(self, P, fit):
-        p = P[self.name]
-        return {"Fs": P.get("coulomb_friction", {}).get("Fc", 0.0) + p["dFs"], "stribeck_velocity": p["stribeck_velocity"]}
+        p = P[self.name]  # the drive's curve is Gaussian: another shape as its Gaussian stand-in
+        a, b = gaussian_stand_in(float(p.get("stribeck_shape", GAUSSIAN)))
+        return {"Fs": P.get("coulomb_friction", {}).get("Fc", 0.0) + a * p["dFs"],
+                "stribeck_velocity": b * p["stribeck_velocity"]}  # fmt: skip
+
+    def state(self, design, theta, P, u, record):
+        """The Dahl element that runs a bristle-held rise in the simulation (:func:`bristles`):
+        its force at every sample, the rise's force beyond the lowered Coulomb level's."""
+        b = bristles(P)
+        if b is None:
+            return None
+        dFs, length = b
+        vs, delta = theta["stribeck_velocity"], theta.get("stribeck_shape", GAUSSIAN)
+        w = bristle_trace(design, vs, delta, length)
+        return dFs * np.clip(w + design.sig.sign_v * (1.0 - curve(design.sig.vf, vs, delta)), -1.0, 1.0)
 
     def from_drive(self, d):
         if d.Fs > d.Fc and d.Fs > 0:
-            return [({"stribeck_velocity": d.stribeck_velocity}, (d.Fs - d.Fc,))]
+            return [({"stribeck_velocity": d.stribeck_velocity, "stribeck_shape": GAUSSIAN, "stribeck_length": 0.0},
+                     (d.Fs - d.Fc,))]  # fmt: skip
         return []
 
 
@@ -59,6 +170,14 @@ _SLIDING = 1e-3
 
 def _conceal(size):
     return {"Fs": _SLIDING + size}
+
+
+def _simulated(d, sim):
+    b = bristles(sim.P)
+    if b is not None and d["Fc"] > 0:  # the Coulomb level lowered by the rise, which a Dahl element holds
+        rise = max(d["Fs"] - d["Fc"], 0.0)  # the Gaussian stand-in's (a*dFs)
+        return {"Fs": max(d["Fc"] - b[0], 0.0) + rise, "stribeck_velocity": d.get("stribeck_velocity", 1.0)}
+    return {"Fs": max(d["Fs"], 0.0) if d["Fc"] > 0 else 0.0, "stribeck_velocity": d.get("stribeck_velocity", 1.0)}
 
 
 def _leave_out(d):
@@ -87,7 +206,6 @@ EFFECT = Effect(
     drive_map=StribeckDrive(),
     leave_out=_leave_out,
     study=_STUDY,
-    simulated=lambda d, sim: {"Fs": max(d["Fs"], 0.0) if d["Fc"] > 0 else 0.0,
-                              "stribeck_velocity": d.get("stribeck_velocity", 1.0)},
+    simulated=_simulated,
     diagnosed_by="breakaway",
 )  # fmt: skip

@@ -132,7 +132,8 @@ def run_one(job: tuple) -> dict:
             out["effect"] = twin_effect(Case(family, size, ctl, exc, rate, noise=noise), seed, rec)
         except Exception as exc_:  # the twin refused: the table falls back to the floor's measure, and counts it
             out["twin_error"] = f"{type(exc_).__name__}: {str(exc_)[:200]}"
-    return {**out, "seconds": seconds, "findings": [f.physics for f in D.findings],
+    params = {f.physics: {k: float(x) for k, x in f.params.items() if isinstance(x, (int, float))} for f in D.findings}
+    return {**out, "seconds": seconds, "findings": [f.physics for f in D.findings], "params": params,
             "verdict": v["verdict"], "expect": truth["expect"], "verdicts": truth["verdicts"],
             **levels(D),
             "frf_ran": bool(D.frf is not None and D.frf.ran),
