@@ -76,7 +76,7 @@ def bristles(P: dict) -> tuple[float, float] | None:
     st = P.get("stribeck_friction") or {}
     if not (st.get("stribeck_length", 0.0) > 0 and st.get("dFs", 0.0) > 0):
         return None
-    if (P.get("hysteresis") or {}).get("Ha", 0.0) > 0:
+    if P.get("hysteresis"):  # the model's own Dahl element carries the pre-sliding
         return None
     return float(st["dFs"]), float(st["stribeck_length"])
 
