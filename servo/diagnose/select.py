@@ -363,12 +363,38 @@ class Selector:
         self.alpha = alpha
         self.n_eff = float(blocks.weights.sum())
         self.tau = 1.0
+        #: (model, current(model), its Grams' shared blocks, its held-out SSE): a round
+        #: scores every candidate on top of the same model object
+        self._base = None
 
     # ---- the current model ---------------------------------------------------------
     def current(self, model: Model):
-        y, Phi, names = self.d.matrix(model)
-        w = self.blocks.weights > 0
-        return y, Phi, names, fit_rows(y, Phi, w)
+        """``(y, Phi, names, c)`` of ``model``: its target and free columns
+        (:meth:`Design.matrix`) and their coefficients fitted on the training rows; the
+        arrays are read-only and shared by the calls with the same model object."""
+        return self._baseline(model)[1]
+
+    def _baseline(self, model: Model) -> tuple:
+        if self._base is None or self._base[0] is not model:
+            y, Phi, names = self.d.matrix(model)
+            w = self.blocks.weights > 0
+            c = fit_rows(y, Phi, w)
+            for a in (y, Phi, c):
+                a.setflags(write=False)
+            self._base = (model, (y, Phi, names, c), {}, None)
+        return self._base
+
+    def _baseline_cv(self, model: Model) -> tuple[dict, np.ndarray]:
+        """The Grams' shared blocks of ``model``'s columns (:meth:`Grams.of`'s ``same_Z``)
+        and the held-out SSE of every gain block under ``model`` (read-only), computed
+        once per model object."""
+        m, cur, same, S0 = self._baseline(model)
+        if S0 is None:
+            y0, Phi = cur[0], cur[1]
+            S0 = Grams.of(Phi, y0, self.blocks, same).cv()
+            S0.setflags(write=False)
+            self._base = (m, cur, same, S0)
+        return same, S0
 
     def set_noise(self, model: Model) -> None:
         """Effective sample size from the model's training residual."""
@@ -392,9 +418,7 @@ class Selector:
             sc.note = "not testable on these data (no parameter range the rows can see)"
             return sc
         y0, Phi, _, _ = self.current(model)
-        same_Phi = {}  # an input term's variants change the target only: Phi's blocks computed once
-        base = Grams.of(Phi, y0, self.blocks, same_Phi)
-        S0 = base.cv()
+        same_Phi, S0 = self._baseline_cv(model)  # an input term's variants change the target only
         K = self.blocks.K
         if phys.kind == "input":
             variants = [(th, *self._input_variant(model, physics, th, Phi)) for th in grid]
