@@ -169,15 +169,32 @@ class Grams:
     s: np.ndarray
 
     @classmethod
-    def of(cls, Z: np.ndarray, y: np.ndarray, blocks: Blocks) -> "Grams":
+    def of(cls, Z: np.ndarray, y: np.ndarray, blocks: Blocks, same_Z: dict | None = None) -> "Grams":
+        """The Grams of columns ``Z`` (m, q) and target ``y`` (m,) over ``blocks``.
+        ``same_Z``: a dict shared by the calls that pass this very ``Z`` with other
+        targets (an input term's variants change the target only): the first fills it
+        with ``Z``'s used rows per gain block and their ``Z_j'Z_j``, the others reuse
+        them (the same products of the same rows, to the bit)."""
         N, K, q = blocks.N, blocks.K, Z.shape[1]
-        Gs, gs, ss = np.zeros((N, q, q)), np.zeros((N, q)), np.zeros(N)
+        if same_Z is not None and same_Z.get("Z") is Z:
+            Zbs, ws, Gs, G = same_Z["Zbs"], same_Z["ws"], same_Z["Gs"], same_Z["G"]
+        else:
+            Gs, Zbs, ws = np.zeros((N, q, q)), [], []
+            for j, sl in enumerate(blocks.subs):
+                w = blocks.weights[sl] > 0
+                Zb = Z[sl][w]
+                Gs[j] = Zb.T @ Zb
+                Zbs.append(Zb)
+                ws.append(w)
+            G = np.zeros((K, q, q))
+            np.add.at(G, blocks.sub_fold, Gs)
+            if same_Z is not None:
+                same_Z.update(Z=Z, Zbs=Zbs, ws=ws, Gs=Gs, G=G)
+        gs, ss = np.zeros((N, q)), np.zeros(N)
         for j, sl in enumerate(blocks.subs):
-            w = blocks.weights[sl] > 0
-            Zb, yb = Z[sl][w], y[sl][w]
-            Gs[j], gs[j], ss[j] = Zb.T @ Zb, Zb.T @ yb, yb @ yb
-        G, g, s = np.zeros((K, q, q)), np.zeros((K, q)), np.zeros(K)
-        np.add.at(G, blocks.sub_fold, Gs)
+            yb = y[sl][ws[j]]
+            gs[j], ss[j] = Zbs[j].T @ yb, yb @ yb
+        g, s = np.zeros((K, q)), np.zeros(K)
         np.add.at(g, blocks.sub_fold, gs)
         np.add.at(s, blocks.sub_fold, ss)
         return cls(Gs, gs, ss, blocks.sub_fold, G, g, s)
@@ -346,12 +363,38 @@ class Selector:
         self.alpha = alpha
         self.n_eff = float(blocks.weights.sum())
         self.tau = 1.0
+        #: (model, current(model), its Grams' shared blocks, its held-out SSE): a round
+        #: scores every candidate on top of the same model object
+        self._base = None
 
     # ---- the current model ---------------------------------------------------------
     def current(self, model: Model):
-        y, Phi, names = self.d.matrix(model)
-        w = self.blocks.weights > 0
-        return y, Phi, names, fit_rows(y, Phi, w)
+        """``(y, Phi, names, c)`` of ``model``: its target and free columns
+        (:meth:`Design.matrix`) and their coefficients fitted on the training rows; the
+        arrays are read-only and shared by the calls with the same model object."""
+        return self._baseline(model)[1]
+
+    def _baseline(self, model: Model) -> tuple:
+        if self._base is None or self._base[0] is not model:
+            y, Phi, names = self.d.matrix(model)
+            w = self.blocks.weights > 0
+            c = fit_rows(y, Phi, w)
+            for a in (y, Phi, c):
+                a.setflags(write=False)
+            self._base = (model, (y, Phi, names, c), {}, None)
+        return self._base
+
+    def _baseline_cv(self, model: Model) -> tuple[dict, np.ndarray]:
+        """The Grams' shared blocks of ``model``'s columns (:meth:`Grams.of`'s ``same_Z``)
+        and the held-out SSE of every gain block under ``model`` (read-only), computed
+        once per model object."""
+        m, cur, same, S0 = self._baseline(model)
+        if S0 is None:
+            y0, Phi = cur[0], cur[1]
+            S0 = Grams.of(Phi, y0, self.blocks, same).cv()
+            S0.setflags(write=False)
+            self._base = (m, cur, same, S0)
+        return same, S0
 
     def set_noise(self, model: Model) -> None:
         """Effective sample size from the model's training residual."""
@@ -375,12 +418,11 @@ class Selector:
             sc.note = "not testable on these data (no parameter range the rows can see)"
             return sc
         y0, Phi, _, _ = self.current(model)
-        base = Grams.of(Phi, y0, self.blocks)
-        S0 = base.cv()
+        same_Phi, S0 = self._baseline_cv(model)  # an input term's variants change the target only
         K = self.blocks.K
         if phys.kind == "input":
             variants = [(th, *self._input_variant(model, physics, th, Phi)) for th in grid]
-            choice = self._nested(variants)
+            choice = self._nested(variants, same_Phi)
         elif phys.screening and len(grid) > 1:
             choice = self._screened(model, physics, grid, y0, Phi)
         else:
@@ -422,10 +464,10 @@ class Selector:
         y = self.d.target(model, extra=Term.make(physics, theta))
         return Phi, y
 
-    def _nested(self, variants) -> list:
+    def _nested(self, variants, same_Z: dict | None = None) -> list:
         """Per fold: the variant with the lowest training SSE, and the held-out SSE of
-        its gain blocks."""
-        grams = [(th, Grams.of(Z, y, self.blocks)) for th, Z, y in variants]
+        its gain blocks (``same_Z``: :meth:`Grams.of`'s, for variants that share their columns)."""
+        grams = [(th, Grams.of(Z, y, self.blocks, same_Z)) for th, Z, y in variants]
         out = []
         for b in range(self.blocks.K):
             best = None

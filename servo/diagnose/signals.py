@@ -203,8 +203,21 @@ class Signals:
         """The force at full rate as the rows see it (n,): aligned with the acceleration
         and passed through the position's Butterworth filter (parallel filtering: the
         acceleration is a difference of the filtered position, so the force must be
-        filtered alike for ``J*x'' = u`` to hold exactly)."""
-        return self.butter(align(self.u if u_eff is None else u_eff))
+        filtered alike for ``J*x'' = u`` to hold exactly).  The recorded input's
+        (``u_eff`` None or the recording's own ``u``) is filtered once and shared, read-only
+        (:attr:`recorded_force`)."""
+        if u_eff is None or u_eff is self.u:
+            return self.recorded_force
+        return self.butter(align(u_eff))
+
+    @cached_property
+    def recorded_force(self) -> np.ndarray:
+        """:meth:`force` of the recorded input (n,), read-only: the signals, the sign, the
+        ripple, the baseline's target and the input terms' columns all ask for it (13
+        full-rate Butterworth passes of the same input at 1e6 samples before it was kept)."""
+        f = self.butter(align(self.u))
+        f.setflags(write=False)
+        return f
 
     def butter(self, z: np.ndarray) -> np.ndarray:
         """``z`` through the zero-phase Butterworth applied to the position."""
@@ -569,7 +582,7 @@ def driven_ripple(sig: Signals, J: float) -> np.ndarray:
     proving ground) and the zero-phase filter's pre-ringing before a closed loop's step
     otherwise left 60-100 % of the rows with a friction sign the arm did not have."""
     ua = align(sig.u)
-    hp = ua - sig.butter(ua)
+    hp = ua - sig.force()  # the Butterworth of the aligned input
     w = np.cumsum(hp) * (sig.dt / J)
     w = w - sig.butter(w)
     return RIPPLE_MARGIN * np.abs(w)

@@ -49,18 +49,22 @@ def colors(name: str, values):
     return colormaps[name](values)
 
 
-def save_figure(fig: Figure, path: str | Path, dpi: int = 110) -> Path:
-    """Write ``fig`` as PNG to ``path`` atomically (never half a file); returns the path."""
+def save_figure(fig: Figure, path: str | Path, dpi: int = 110, tight: bool = True) -> Path:
+    """Write ``fig`` as PNG to ``path`` atomically (never half a file); returns the path.
+    ``tight``: cropped to what is drawn (``bbox_inches="tight"``, which draws the figure
+    twice); False for a figure whose margins are fixed (``subplots_adjust``): drawn once,
+    a third less work."""
     path = Path(path)
-    atomic_write(path, lambda tmp: fig.savefig(tmp, dpi=dpi, format="png", bbox_inches="tight"))
+    bbox = "tight" if tight else None
+    atomic_write(path, lambda tmp: fig.savefig(tmp, dpi=dpi, format="png", bbox_inches=bbox))
     return path
 
 
-def finish(fig: Figure, path: str | Path | None = None, dpi: int = 110) -> Figure:
-    """The end of every plot function: write ``fig`` to ``path`` when one is given, and
-    return the figure either way."""
+def finish(fig: Figure, path: str | Path | None = None, dpi: int = 110, tight: bool = True) -> Figure:
+    """The end of every plot function: write ``fig`` to ``path`` when one is given
+    (:func:`save_figure`), and return the figure either way."""
     if path is not None:
-        save_figure(fig, path, dpi)
+        save_figure(fig, path, dpi, tight)
     return fig
 
 
