@@ -369,6 +369,11 @@ class Judging:
         they do): then the term is not named, whatever the test said."""
         return ""
 
+    def implausible_on(self, params: dict, d) -> str:
+        """:meth:`implausible`, and why the parameters are beyond what the recording of
+        design ``d`` resolves (a length below its position noise): "" if neither."""
+        return self.implausible(params)
+
     def unit(self, name: str, force_unit: str) -> str:
         return self.units.get(name, "-").replace("F", force_unit)
 
