@@ -55,7 +55,7 @@ cover, or a rate of the rigid body     plausibility and the compensator's
   motion: ``kind``, ``requires``, ``path_order``, ``gated``, ``idle``,
   ``column_design``, ``eligible``, ...), :class:`Search` (what only the screening and
   refinement machinery asks, for speed: ``screen*``, ``bounds``, ``refine_width``) and
-  :class:`Judging` (how the report judges a fit: ``POSITIVE``, ``implausible``,
+  :class:`Judging` (how the report judges a fit: ``POSITIVE``, ``implausible``, ``implausible_on``,
   ``std_extra``).  :class:`OneField` is a term that is one coefficient linear in the
   motion, :class:`OneFieldDrive` its drive map.
 * :class:`DriveMap`: ``in_drive`` (whether a drive holds the term, from
