@@ -348,7 +348,7 @@ def _rounds(sel: Selector, model: Model, opt: Options, corrections: bool, findin
         for best in ok:
             term, tstd = sel.refine(model, best.physics, best.thetas)
             trial = fit_model(sel.d, model.plus(term).refitted())
-            why = VOCABULARY[best.physics].implausible(trial.term_params(len(trial.model.terms) - 1))
+            why = VOCABULARY[best.physics].implausible_on(trial.term_params(len(trial.model.terms) - 1), sel.d)
             if not why and _scope_of(sel.d, trial) and not _scope_of(sel.d, fit_model(sel.d, model.refitted())):
                 # a term that takes the model's inertia away (a dead zone that scales a
                 # two-level input down to nothing) is no physics; the next one is tried
@@ -551,7 +551,7 @@ def _prove(design: Design, base: Model, findings: list, test_rows: np.ndarray, s
                          and not clock)  # fmt: skip
             t, p, nb = heldout_signflip(res[i - 1], res[i], test_rows)
             cols[i - 1].heldout = {"p": p, "t": t, "blocks": nb, "level": level if i > 1 else None}
-            unphysical = VOCABULARY[cols[i - 1].physics].implausible(final.term_params(len(base.terms) + i - 1))
+            unphysical = VOCABULARY[cols[i - 1].physics].implausible_on(final.term_params(len(base.terms) + i - 1), design)
             if not errs[i] < errs[i - 1] or worse_out:
                 bad = i
                 break

@@ -317,7 +317,7 @@ def rounds(sel: Selector, model: Model, alpha: float, counted: int, room: int, l
             if not best.passes(level):  # the criterion, with the refined term
                 continue
             trial = fit_model(sel.d, model.plus(term).refitted())
-            why = VOCABULARY[best.physics].implausible(trial.term_params(len(trial.model.terms) - 1))
+            why = VOCABULARY[best.physics].implausible_on(trial.term_params(len(trial.model.terms) - 1), sel.d)
             if why:
                 implausible[f"{best.physics} (gated in time)"] = why
                 continue

@@ -55,7 +55,7 @@ cover, or a rate of the rigid body     plausibility and the compensator's
   motion: ``kind``, ``requires``, ``path_order``, ``gated``, ``idle``,
   ``column_design``, ``eligible``, ...), :class:`Search` (what only the screening and
   refinement machinery asks, for speed: ``screen*``, ``bounds``, ``refine_width``) and
-  :class:`Judging` (how the report judges a fit: ``POSITIVE``, ``implausible``,
+  :class:`Judging` (how the report judges a fit: ``POSITIVE``, ``implausible``, ``implausible_on``,
   ``std_extra``).  :class:`OneField` is a term that is one coefficient linear in the
   motion, :class:`OneFieldDrive` its drive map.
 * :class:`DriveMap`: ``in_drive`` (whether a drive holds the term, from
@@ -368,6 +368,11 @@ class Judging:
         """Why fitted parameters (:meth:`physical`) do not describe this physics ("" if
         they do): then the term is not named, whatever the test said."""
         return ""
+
+    def implausible_on(self, params: dict, d) -> str:
+        """:meth:`implausible`, and why the parameters are beyond what the recording of
+        design ``d`` resolves (a length below its position noise): "" if neither."""
+        return self.implausible(params)
 
     def unit(self, name: str, force_unit: str) -> str:
         return self.units.get(name, "-").replace("F", force_unit)

@@ -9,7 +9,12 @@ import numpy as np
 
 from servo.fields import P
 from servo.physics.base import SLIDING, Concealment, DriveMap, Effect, Term, geom, number
-from servo.physics.stribeck import bristles
+from servo.physics.stribeck import bristles, resolvable_length
+
+
+#: a fitted Dahl length at most this factor above the search's floor (the shortest
+#: length the position noise resolves) is not resolved (:meth:`Hysteresis.implausible_on`)
+UNRESOLVED = 2.0
 
 
 class Hysteresis(Term):
@@ -29,6 +34,19 @@ class Hysteresis(Term):
             return f"the best fit has Ha = {params['Ha']:.3g} < 0: a force released after a reversal, not a Dahl friction"
         return ""
 
+    def implausible_on(self, params: dict, d) -> str:
+        """Also unphysical: a Dahl length within :data:`UNRESOLVED` of the shortest the
+        search allows (:meth:`_range`: 10 std of the position noise, a millionth of the
+        stroke).  The fit wants a rise shorter than the noise resolves, a force that
+        switches at the reversal within the noise: not a Dahl element (low-pass-noise
+        nulls got 2.4-2.8 nm with 1 nm of noise, the floor of the search)."""
+        why = self.implausible(params)
+        lo = self._range(d)[0]
+        if not why and params["dahl_length"] <= UNRESOLVED * lo:
+            why = (f"the best fit's Dahl length {params['dahl_length']:.3g} m is within {UNRESOLVED:g} x the shortest the "
+                   f"position noise resolves ({lo:.3g} m): a switch at the reversal within the noise, not a Dahl element")
+        return why
+
     def full(self, d, theta, u_eff):
         s = d.sig
         out = np.empty(s.n)
@@ -41,7 +59,7 @@ class Hysteresis(Term):
     def _range(self, d):
         s = d.sig
         span = float(np.ptp(s.xf))
-        return max(10.0 * s.noise_x, 1e-6 * span), 0.1 * span
+        return max(resolvable_length(s), 1e-6 * span), 0.1 * span
 
     def grid(self, d, model):
         return [{"dahl_length": float(v)} for v in geom(*self._range(d), 3)]

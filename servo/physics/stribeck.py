@@ -27,6 +27,39 @@ GAUSSIAN = 2.0
 LENGTHS_PER_DECADE, LENGTH_MAX = 1.0, 0.01
 
 
+#: a deflection (a Dahl length, a bristle's) below this many std of the position noise is
+#: not resolved: the noise moves the filtered position by a tenth of it at every reversal
+RESOLVE_Z = 10.0
+
+
+@lru_cache(maxsize=16)
+def _butter_impulse(order: int, wn: float) -> np.ndarray:
+    """(N,) the zero-phase Butterworth's impulse response (``wn`` of Nyquist)."""
+    from scipy import signal
+
+    b, a = signal.butter(order, wn)
+    n = int(40 / wn) + 101
+    z = np.zeros(2 * n + 1)
+    z[n] = 1.0
+    return signal.filtfilt(b, a, z, padlen=3 * order)
+
+
+def resolvable_length(sig) -> float:
+    """The smallest deflection (m) the position resolves: :data:`RESOLVE_Z` times the
+    larger of ``sig.noise_x`` and the std of the noise spectrum ``sig.noise`` through the
+    position's Butterworth.  A low-frequency (low-pass, pink) noise passes the filter
+    whole, while ``noise_x``, its white equivalent through the rows' acceleration, reads
+    a fraction of it (a fourth to a seventh on the proving ground's low-pass nulls, where
+    a Dahl length of 2.4 nm, two noise std, was named on a null)."""
+    s = float(sig.noise_x)
+    spec = getattr(sig, "noise", None)
+    if spec is not None:
+        fs = 1.0 / sig.dt
+        h = _butter_impulse(int(sig.settings.butter_order), float(sig.settings.cutoff(fs) / (fs / 2)))
+        s = max(s, float(spec.std_through(h, fs)))
+    return RESOLVE_Z * s
+
+
 def curve(v: np.ndarray, vs: float, delta: float = GAUSSIAN) -> np.ndarray:
     """The Stribeck curve's fall with speed, ``exp(-|v/vs|^delta)`` (dimensionless, as ``v``)."""
     return np.exp(-(np.abs(v / vs) ** delta))
@@ -114,10 +147,11 @@ class Stribeck(Term):
         return max(2.0 * d.sig.v_threshold, float(np.quantile(v, 0.02))), float(np.quantile(v, 0.75))
 
     def _lengths(self, d):
-        """The bristle deflections on the grid (m): from what the sensor resolves (10 noise
-        std, a millionth of the stroke) to ``LENGTH_MAX`` of the stroke (0: no bristles)."""
+        """The bristle deflections on the grid (m): from what the sensor resolves
+        (:func:`resolvable_length`, a millionth of the stroke) to ``LENGTH_MAX`` of the
+        stroke (0: no bristles)."""
         span = float(np.ptp(d.sig.xf))
-        return max(10.0 * d.sig.noise_x, 1e-6 * span), LENGTH_MAX * span
+        return max(resolvable_length(d.sig), 1e-6 * span), LENGTH_MAX * span
 
     def grid(self, d, model):
         lo, hi = self._lengths(d)
