@@ -426,7 +426,8 @@ class Selector:
         elif phys.screening and len(grid) > 1:
             choice = self._screened(model, physics, grid, y0, Phi)
         else:
-            variants = [(th, np.column_stack([Phi, self.d.term_rows(Term.make(physics, th), model)]), y0) for th in grid]
+            # one variant's columns at a time: a grid of 20 would otherwise hold 20 (m, q) matrices
+            variants = ((th, np.column_stack([Phi, self.d.term_rows(Term.make(physics, th), model)]), y0) for th in grid)
             choice = self._nested(variants)
         S1 = np.concatenate([choice[b][1] for b in range(K)])
         sc.thetas = [choice[b][0] for b in range(K)]
@@ -466,7 +467,9 @@ class Selector:
 
     def _nested(self, variants, same_Z: dict | None = None) -> list:
         """Per fold: the variant with the lowest training SSE, and the held-out SSE of
-        its gain blocks (``same_Z``: :meth:`Grams.of`'s, for variants that share their columns)."""
+        its gain blocks (``same_Z``: :meth:`Grams.of`'s, for variants that share their columns).
+        ``variants`` is read once, in order: an iterator of ``(theta, Z, y)`` keeps one
+        ``Z`` alive at a time."""
         grams = [(th, Grams.of(Z, y, self.blocks, same_Z)) for th, Z, y in variants]
         out = []
         for b in range(self.blocks.K):
