@@ -43,7 +43,6 @@ EXPECTED = {
 #: the saturation; what fails is the verdict, or a name too many)
 KNOWN_GAPS = {
     "null": ((), "unexplained"),
-    "null_seek": (("resonance", "resonance"), "explained"),
     "hysteresis": (("hysteresis",), "unexplained"),
     "hyst_small": (("hysteresis", "stribeck_friction"), "explained"),
     "resonance_mid": (("resonance",), "unexplained"),
