@@ -5,11 +5,9 @@ documentation entry (:class:`~servo.physics.base.Effect`).
 """
 from __future__ import annotations
 
-import numpy as np
-
 from functools import lru_cache
 
-from scipy import optimize
+import numpy as np
 
 from servo.fields import P
 from servo.physics.base import Concealment, DriveMap, Effect, Term, geom, valid_speed
@@ -84,6 +82,8 @@ def gaussian_stand_in(delta: float) -> tuple[float, float]:
         g = np.exp(-((r / np.exp(log_b)) ** 2))
         a = float(g @ y / (g @ g))
         return float(np.sum((y - a * g) ** 2)), a
+
+    from scipy import optimize  # here, not at import: reading a config imports no scipy
 
     res = optimize.minimize_scalar(lambda z: fit(z)[0], bounds=(-3.0, 3.0), method="bounded", options={"xatol": 1e-6})
     return fit(res.x)[1], float(np.exp(res.x))
