@@ -148,12 +148,36 @@ class Signals:
     @cached_property
     def sign_v(self) -> np.ndarray:
         """``sgn(x')`` as the rows see it (n,): :func:`held_sign` of the filtered velocity
-        with its reversals placed by :func:`reversal_times` (with the recorded force, whose
-        variation near a reversal the crossing's fit must not read as a kink)."""
-        force = self.force()
-        J = self.inertia_estimate(force)
-        t0 = reversal_times(self.vf, self.settings, 1.0 / self.dt, self.v_threshold, force if J else None, J)
+        with its reversals placed by :func:`reversal_times` (with the force that is not
+        the friction's, whose variation near a reversal the crossing's fit must not read
+        as a kink: :meth:`known_force`)."""
+        force, J = self.known_force()
+        t0 = reversal_times(self.vf, self.settings, 1.0 / self.dt, self.v_threshold, force, J)
         return held_sign(self.vf, t0)
+
+    def known_force(self) -> tuple[np.ndarray | None, float | None]:
+        """The force near a reversal that is not the friction's switch (n,), and the
+        inertia (F s^2/m) it drives, from eq. (3) fitted on the usable rows with the
+        sign at the samples (:meth:`balance_fit`): the recorded force (through the
+        position's Butterworth) less the viscous, spring and offset forces of that fit.
+        ``(None, None)`` where the fit has no positive inertia.
+
+        The viscous force counts where the speed changes fast on either side of a
+        reversal: a closed loop settling after a step reverses 10-30 samples after its
+        kick, where ``B*v`` changes by more than the friction's switch within the
+        crossing's window and not linearly in time (the fit's cubic covers only that).
+        With the input alone taken out, the crossing was placed 0.18 sample early on
+        average on a closed-loop steps null (68 settling reversals, against the
+        integrator's own crossings), and the rows beside every reversal left
+        1.2-1.45 x the floor where the sensor's low-pass noise sets a low one; with the
+        viscous force out too, 0.05 sample
+        (docs/studies/2026-11-28-closed-step-nulls.md)."""
+        force = self.force()
+        coef = self.balance_fit(force, held_sign(self.vf))
+        if coef is None or not (coef[0] > 0 and np.isfinite(coef).all()):
+            return None, None
+        J, B, K, h0 = (float(c) for c in coef[:4])
+        return force - B * self.vf - K * self.xf - h0, J
 
     def inertia_estimate(self, force: np.ndarray) -> float | None:
         """The inertia (F s^2/m) of eq. (3) fitted on the usable rows with the sign at
@@ -415,8 +439,9 @@ def reversal_times(vf: np.ndarray, settings, fs: float, fast: float, force: np.n
     elsewhere, and when the best candidate is at the edge of the grid, linear
     interpolation of ``vf``.
 
-    ``force`` (n,), the recorded force through the position's Butterworth
-    (:meth:`Signals.force`), and ``inertia`` (F s^2/m, :meth:`Signals.inertia_estimate`):
+    ``force`` (n,), the force that is not the friction's, through the position's
+    Butterworth (:meth:`Signals.known_force`: the recorded one less the viscous, spring
+    and offset forces of a first fit), and ``inertia`` (F s^2/m, the same fit's):
     the velocity the force drives in that inertia (:func:`force_velocity`) is taken out
     of the filtered velocity before the kinked and the smooth motion are fitted: the
     input changes the acceleration near a reversal too (a multisine, an open loop's
