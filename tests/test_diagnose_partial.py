@@ -172,8 +172,8 @@ def test_of_two_gated_terms_that_pay_the_one_whose_refined_fit_predicts_better_i
 def test_a_drift_the_proof_drops_does_not_leave_the_gated_stage_conditioned_on_it(late_lugre_500hz):
     """The same recording: the vocabulary stage adds a ``drift`` (the change half-way
     looks like a wander), the held-out proof drops it (its course cross-fitted on the
-    test part removes a few % of the residual there, not a material share), and the
-    gated stage is run again on the model
+    test part across the motion's direction predicts the hysteresis's force with the
+    wrong sign: the held-out error grows), and the gated stage is run again on the model
     the proof keeps: its round scores the candidates against the model without the drift,
     so the gated hysteresis is named (docs/diagnosis.md, 4a)."""
     rec, truth, D = late_lugre_500hz
@@ -181,8 +181,7 @@ def test_a_drift_the_proof_drops_does_not_leave_the_gated_stage_conditioned_on_i
     assert vocab[0]["scores"] and min(vocab[0]["scores"], key=lambda s: s.delta_ic).physics == "drift"
     dropped = {f.physics: (a, b) for f, a, b in D.unconfirmed}
     assert "drift" in dropped
-    assert dropped["drift"][1]["force_rel_pct"] > 0.8 * dropped["drift"][0]["force_rel_pct"]
-    assert "less than 20 %" in next(f.why for f, _, _ in D.unconfirmed if f.physics == "drift")
+    assert dropped["drift"][1]["force_rel_pct"] > dropped["drift"][0]["force_rel_pct"]
     gated = [r for r in D.rounds if r.get("gated")]
     assert len(gated) == 1  # the rerun replaced the round conditioned on the drift
     # its baseline is the model without the drift: the pooled SSE every candidate starts from

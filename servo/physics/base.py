@@ -394,8 +394,9 @@ class Judging:
     def proven(self, d, theta: dict, r: np.ndarray, rows: np.ndarray) -> np.ndarray:
         """The held-out proof's residual (m,) of a model holding this term, on the test
         ``rows``: as predicted (the default); a term whose course no past forecasts (a
-        wandering offset) has it cross-fitted on the test part, fitted on every other
-        stretch and judged on the rest, every other coefficient as trained."""
+        wandering offset) has it cross-fitted on the test part, fitted on some of its
+        rows and judged on the others (a drift: across the motion's direction), every
+        other coefficient as trained."""
         return r
 
     def std_extra(self, params: dict, std: dict) -> dict:

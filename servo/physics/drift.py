@@ -23,9 +23,12 @@ predicts the test part with the level the drift reached at the end of training (
 persistence forecast).  That forecast is no proof: the proving ground's drifts wander
 on through the last quarter, and it failed there on half of them.  The held-out proof
 (:meth:`Drift.proven`) therefore has the drift's course through the test part
-cross-fitted, fitted on every other time scale and judged on the rest, every physical
-coefficient as trained; ``servo.diagnose.job`` asks it to remove a material share of
-the residual there (a course so fitted follows a force that switches on a little).
+cross-fitted across the motion's direction, fitted on the rows moving one way and
+judged on those moving the other, every physical coefficient as trained;
+``servo.diagnose.job`` asks it to remove a material share of the residual there.  A
+drift does not depend on the direction; a force that switches on with the direction
+in it (a hysteresis from some time on), which a course fitted in time follows as a
+level, is predicted with the wrong sign.
 Inside the training part the blocked cross-validation interpolates a left-out block
 between its neighbours' knots.
 
@@ -55,8 +58,6 @@ from servo.physics.base import DriveMap, Effect, Term, geom
 KNOTS = 6
 #: the time-scale grid: from the training span / (KNOTS * SPAN_RANGE) to span / KNOTS
 SPAN_RANGE = 2.0
-#: the proof's stretches of the test part, in time scales (:meth:`Drift.proven`)
-CROSS = 1.0
 
 
 def _span(d) -> tuple[float, float]:
@@ -165,20 +166,24 @@ class Drift(Term):
 
     def proven(self, d, theta, r, rows):
         """The held-out proof's residual: the course (:meth:`_course`) cross-fitted on the
-        test ``rows``, cut into stretches of :data:`CROSS` time scales, fitted on the odd
-        ones and judged on the even ones and the other way round.  A wander has no
-        forecast (module doc), but a real one is smooth across a stretch, so the course
-        its neighbours set predicts it; a null's residual gains nothing from it.  The
-        persistence forecast alone failed the proof on half the proving ground's drifts
-        (the drift wanders on through the last quarter)."""
+        test ``rows`` across the motion's direction, fitted on the rows moving one way
+        (the filtered speed's sign at the row) and judged on those moving the other way,
+        and the other way round.  A drift is a force whatever the motion does, so the
+        course one direction's rows set predicts the other's, interleaved with them
+        through the whole test part; a force that switches on with the motion's
+        direction in it (a hysteresis element from some time on, which a smooth course
+        otherwise follows as a level) is predicted with the wrong sign, and a null's
+        residual gains nothing.  The persistence forecast alone failed the proof on half
+        the proving ground's drifts (the drift wanders on through the last quarter);
+        stretches of the test part in time, the version before, were confirmed by such
+        an onset once their edges stood on the knots."""
         Z = self._course(d, theta)
         idx = np.flatnonzero(rows)
         if not Z.shape[1] or idx.size < 2 * Z.shape[1]:
             return r
-        t = row_times(d)[idx]
-        odd = ((t - t[0]) // (CROSS * theta["time_scale"])).astype(int) % 2 == 1
+        up = d.sig.v_rows[idx] >= 0.0
         out = r.copy()
-        for fit_on in (odd, ~odd):
+        for fit_on in (up, ~up):
             if not fit_on.any() or fit_on.all():
                 return r
             c, *_ = np.linalg.lstsq(Z[idx[fit_on]], r[idx[fit_on]], rcond=None)
