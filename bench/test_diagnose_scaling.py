@@ -52,9 +52,9 @@ null drive sticks exactly, worth 0.06-0.09 % of the held-out SSE: too little for
 samples to show), so their refinement and a second round run there and not at 1e5
 (``rounds`` in the record: 1, 2, 2); the held-out proof then drops the term.  CI's
 clean run of 2026-11-28 measured 1.152 (0.71, 9.75, 30.49 s of CPU); with the Stribeck
-bristle trace computed a block at a time, 1.119 and 1.120 against the code before's
-1.139 in the same hour (load 20-25; 0.91-0.92, 9.95-10.05, 29.1-29.3 s against 0.92,
-11.27, 33.22 s).  The bound, 1.2, leaves 0.08 above those for a busy neighbour's
+bristle trace computed a block at a time, 1.119, 1.120 and 1.084 against the code
+before's 1.139 in the same hour (load 20-25; 0.76-0.92, 9.10-10.05, 29.1-29.3 s against
+0.92, 11.27, 33.22 s).  The bound, 1.2, leaves 0.08 above the worst for a busy neighbour's
 spread (the exponent of one code read 1.08 to 1.15 across loads on 2026-11-28;
 docs/studies/2026-11-28-diagnose-scaling-round5.md)."""
 
