@@ -27,6 +27,9 @@ is in the slow tier.
 At these lengths it does not catch the quadratic ``_toward`` it was written after: that
 stage was ~12 % of the time at 3e6 samples, and the fixed costs at 1e5 pull the fitted
 exponent below 1 (0.95 measured); it guards against a stage that grows faster than that.
+Nor is the exponent the algorithm's alone: a candidate that passes the selection test
+only on the longer prefixes brings its refinement and another round with it (the
+number of rounds at each length is recorded and printed beside the times).
 """
 import time
 
@@ -40,15 +43,20 @@ from servo.io.allocator import keep_freed_memory
 from servo.io.recording import Recording
 
 SIZES = (100_000, 1_000_000, 3_000_000)
-EXPONENT_MAX = 1.25
-"""The issue's goal is 1.1 (a diagnosis linear in the samples, within 10 %), which the
-merged code of 2026-11-28 does not meet: CI's clean run measured 1.152 (0.71, 9.75,
-30.49 s of CPU at 1e5, 1e6, 3e6; the same null recording gave 0.68, 6.83, 20.55 s and
-1.055 before that day's friction, null and frequency work merged).  The ratio to the
-reference rises from 101 at 1e5 to 160 at 1e6 and stays there (164 at 3e6): work that
-engages on the longer recordings, not yet found, rather than a stage that grows
-faster than the samples over the whole range.  Until it is found the bound guards a
-growth beyond this (1.25); the regression is open (issue 29, docs/diagnosis-speed.md)."""
+EXPONENT_MAX = 1.2
+"""The issue's goal is 1.1 (a diagnosis linear in the samples, within 10 %), which this
+recording does not meet, and not for a stage that grows faster than the samples: every
+stage's CPU a sample is flat from 1e6 to 3e6.  From 1e6 samples on, two candidates pass
+the selection test on this null (a switch of the friction at the reversals, where the
+null drive sticks exactly, worth 0.06-0.09 % of the held-out SSE: too little for 1e5
+samples to show), so their refinement and a second round run there and not at 1e5
+(``rounds`` in the record: 1, 2, 2); the held-out proof then drops the term.  CI's
+clean run of 2026-11-28 measured 1.152 (0.71, 9.75, 30.49 s of CPU); with the Stribeck
+bristle trace computed a block at a time, 1.119, 1.120 and 1.084 against the code
+before's 1.139 in the same hour (load 20-25; 0.76-0.92, 9.10-10.05, 29.1-29.3 s against
+0.92, 11.27, 33.22 s).  The bound, 1.2, leaves 0.08 above the worst for a busy neighbour's
+spread (the exponent of one code read 1.08 to 1.15 across loads on 2026-11-28;
+docs/studies/2026-11-28-diagnose-scaling-round5.md)."""
 
 
 @pytest.fixture(scope="module")
@@ -92,18 +100,19 @@ def test_exponent_of_a_linear_and_a_quadratic_cost():
 def test_diagnosis_is_linear_in_the_samples(recording, record):
     keep_freed_memory()  # as servo diagnose does: large arrays reused, not faulted in afresh
     diagnose(_prefix(recording, 20_000))  # the first call's one-time costs (filter designs, kernels) out of the way
-    seconds, reference = [], []
+    seconds, reference, rounds = [], [], []
     for n in SIZES:
         rec = _prefix(recording, n)
         before = _reference_s(rec)
         t0 = time.process_time()
-        diagnose(rec)
+        D = diagnose(rec)
         seconds.append(time.process_time() - t0)
         reference.append(0.5 * (before + _reference_s(rec)))
+        rounds.append(len(D.rounds))  # the selection's rounds: more work where a candidate passes (module doc)
     k = exponent(SIZES, seconds, reference)
     record.check("diagnose_exponent", exponent=k, exponent_max=EXPONENT_MAX, samples=list(SIZES), seconds=seconds,
-                 reference_s=reference)  # fmt: skip
-    print("\ndiagnose: " + ", ".join(f"{n:.0e} samples {s:.2f} s (reference {r:.3f} s)"
-                                     for n, s, r in zip(SIZES, seconds, reference))
+                 reference_s=reference, rounds=rounds)  # fmt: skip
+    print("\ndiagnose: " + ", ".join(f"{n:.0e} samples {s:.2f} s (reference {r:.3f} s, {q} rounds)"
+                                     for n, s, r, q in zip(SIZES, seconds, reference, rounds))
           + f"; exponent {k:.3f} (bound {EXPONENT_MAX:g})")  # fmt: skip
     assert k <= EXPONENT_MAX, f"the diagnosis grows as samples^{k:.2f}"

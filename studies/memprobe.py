@@ -4,7 +4,8 @@ For each sample count ``N`` a concealed-hysteresis recording (the benchmark's: a
 pivot of 0.2 mA, long-stroke scenario, ``N/50000`` s at 50 kHz) is built once, saved as
 ``.npz`` and diagnosed in a fresh Python process.  That process loads the recording,
 notes its resident memory, runs :func:`servo.diagnose.job.diagnose` (not the plots or
-the files) and reports the peak resident memory (``VmHWM``, its high-water mark reset
+the files; with the allocator setting the command makes for a recording of
+:data:`servo.io.allocator.LARGE_SAMPLES` samples or more) and reports the peak resident memory (``VmHWM``, its high-water mark reset
 just before; ``ru_maxrss`` where that is missing) less the memory before
 the diagnosis: what the diagnosis itself adds.  It also prints what
 :func:`servo.diagnose.job.memory_estimate` predicted, the figure the diagnosis compares
@@ -57,8 +58,14 @@ try:
 except ImportError:  # a version without the estimate
     memory_estimate = lambda n, opt: float("nan")
 from servo.identify.regressors import RobustSettings
+try:
+    from servo.io.allocator import LARGE_SAMPLES, keep_freed_memory
+except ImportError:  # a version without the setting
+    LARGE_SAMPLES, keep_freed_memory = float("inf"), None
 z = np.load(sys.argv[1])
 rec = Recording(z["t"], z["u"], z["x"], None, source="memprobe")
+if rec.n >= LARGE_SAMPLES:  # the allocator setting servo diagnose makes once the recording is loaded
+    keep_freed_memory()
 opt = Options(settings=RobustSettings(decimate=int(sys.argv[2])))
 reset_peak()
 before = rss_mb()

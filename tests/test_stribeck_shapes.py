@@ -41,6 +41,39 @@ def _trace(x, v, vs, delta, length):
     return out
 
 
+def _trace_sample_by_sample(x, v, vs, delta, length):
+    """The recursion of kernels/stribeck.py's module doc, one sample at a time in Python."""
+    out = np.zeros(x.size)
+    w = 0.0
+    for k in range(1, x.size):
+        dx = x[k] - x[k - 1]
+        if dx != 0.0:
+            phi = max(math.exp(-(abs(v[k] / vs) ** delta)), 1e-12)
+            w_ss = math.copysign(phi, dx)
+            w = w_ss + (w - w_ss) * math.exp(-abs(dx) / (length * phi))
+        out[k] = w
+    return out
+
+
+@pytest.mark.parametrize("delta", [0.6, 1.0, 2.0, 2.7])
+def test_the_blockwise_trace_is_the_recursion_sample_by_sample(delta):
+    """The curve computed a block at a time by numpy (``kernels.stribeck.BLOCK``), the
+    state carried across blocks: the same trace as the recursion run sample by sample,
+    over two block boundaries, with rests (``dx = 0``, ``v = 0``) and both directions."""
+    from kernels.stribeck import BLOCK
+
+    rng = np.random.default_rng(7)
+    n = 2 * BLOCK + 1234
+    v = np.cumsum(rng.standard_normal(n)) * 2e-5
+    v[rng.random(n) < 0.05] = 0.0
+    x = np.cumsum(v) * 1e-4
+    for vs, length in ((1e-3, 3e-8), (3e-4, 1e-6)):
+        got = _trace(x, v, vs, delta, length)
+        ref = _trace_sample_by_sample(x, v, vs, delta, length)
+        assert np.abs(got - ref).max() <= 1e-12
+        assert np.abs(ref).max() > 0.1  # the state moves: the comparison is not of zeros
+
+
 @pytest.mark.parametrize("speed", [2e-4, 1e-3, 3e-3])
 def test_bristles_settle_on_the_stribeck_curve_at_a_held_speed(speed):
     """LuGre's steady state: the bristle force is phi(v)*sgn(v), either way."""
