@@ -328,6 +328,21 @@ class Search:
         the columns in chunks."""
         return None
 
+    def coarse_batch(self, d, thetas: list, model) -> np.ndarray | None:
+        """Cheap approximate rows of several variants, (J, k, m), that rank them among
+        themselves before their exact columns are built (the full-rate formula read at
+        the rows' instants, without the rows' filter): the selection builds exactly only
+        the variants each fold ranks near the top of those
+        (:meth:`servo.diagnose.select.Selector.score`), and every variant
+        :meth:`coarse_ranks` leaves out.  None (the default): every variant is built
+        exactly."""
+        return None
+
+    def coarse_ranks(self, theta: dict) -> bool:
+        """Whether :meth:`coarse_batch` ranks the variant ``theta`` faithfully among the
+        others it says so of (the default: none; such a variant is always built exactly)."""
+        return False
+
     def screen_target(self, d, model, theta: dict) -> np.ndarray | None:
         """An input term's target rows (m,) tried on top of ``model`` (which lacks the
         term), computed faster than the exact chain; None: use the exact chain."""
