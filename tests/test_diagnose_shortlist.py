@@ -21,9 +21,8 @@ def _selector(effect: str, size: float, seed: int) -> Selector:
     return Selector(d, make_blocks(d.train_valid, opt.blocks), opt.alpha)
 
 
-CASES = [("hysteresis", 5e-4, 21, "hysteresis"), ("hysteresis", 5e-4, 21, "stribeck_friction"),
-         ("stribeck_friction", 2e-4, 3, "stribeck_friction"), ("stribeck_friction", 2e-4, 3, "hysteresis"),
-         (None, 0.0, 5, "stribeck_friction"), (None, 0.0, 5, "hysteresis")]  # fmt: skip
+CASES = [("hysteresis", 5e-4, 21, "stribeck_friction"), ("stribeck_friction", 2e-4, 3, "stribeck_friction"),
+         (None, 0.0, 5, "stribeck_friction")]  # fmt: skip
 
 
 @pytest.mark.parametrize("effect,size,seed,physics", CASES)
@@ -50,15 +49,16 @@ def test_the_shortlist_chooses_what_the_whole_grid_chooses(effect, size, seed, p
 
 def test_coarse_rows_of_the_ranked_variants():
     """One approximate column per variant, at the rows; the Stribeck curves without
-    bristles are not ranked by them (always built exactly)."""
+    bristles and the Dahl lengths are not ranked by them (always built exactly)."""
     sel = _selector("hysteresis", 5e-4, 21)
     base = from_terms(None)
-    for physics in ("hysteresis", "stribeck_friction"):
-        phys = VOCABULARY[physics]
-        grid = [th for th in phys.grid(sel.d, base) if phys.coarse_ranks(th)]
-        C = phys.coarse_batch(sel.d, grid, base)
-        assert C.shape == (len(grid), 1, sel.d.sig.m) and np.isfinite(C).all()
     st = VOCABULARY["stribeck_friction"]
+    grid = [th for th in st.grid(sel.d, base) if st.coarse_ranks(th)]
+    C = st.coarse_batch(sel.d, grid, base)
+    assert len(grid) > 4 and C.shape == (len(grid), 1, sel.d.sig.m) and np.isfinite(C).all()
     assert not st.coarse_ranks({"stribeck_velocity": 1e-3, "stribeck_shape": 0.6, "stribeck_length": 0.0})
     assert st.coarse_ranks({"stribeck_velocity": 1e-3, "stribeck_shape": 2.0, "stribeck_length": 1e-6})
     assert not VOCABULARY["cubic_spring"].coarse_ranks({})  # the default: every variant built exactly
+    # the Dahl lengths are not ranked by traces over the rows: that missed the exact choice
+    # of 16 of 870 folds on development seeds
+    assert not VOCABULARY["hysteresis"].coarse_ranks({"dahl_length": 1e-6})

@@ -56,25 +56,6 @@ class Hysteresis(Term):
         dahl_trace(s.xf, s.vf, s.v_threshold, 1.0 / lam, 1.0, float(theta.get("alpha", 1.0)), 0.0, out)
         return out
 
-    def coarse_ranks(self, theta):
-        """Every Dahl length of the grid is ranked by its trace over the rows."""
-        return True
-
-    def coarse_batch(self, d, thetas, model):
-        """The Dahl traces run over the rows' positions and speeds (J, 1, m), a tenth of
-        the samples, without the rows' filter: what ranks the grid before its exact
-        columns are built (:meth:`servo.physics.base.Search.coarse_batch`)."""
-        if d.column_design(self, model) is not d:  # the arm's motion through a lag: every variant built exactly
-            return None
-        from kernels.hysteresis import dahl_trace
-
-        s = d.sig
-        x, v = np.ascontiguousarray(s.x_rows), np.ascontiguousarray(s.v_rows)
-        C = np.empty((len(thetas), 1, v.size))
-        for j, th in enumerate(thetas):
-            dahl_trace(x, v, s.v_threshold, 1.0 / th["dahl_length"], 1.0, float(th.get("alpha", 1.0)), 0.0, C[j, 0])
-        return C
-
     def _range(self, d):
         s = d.sig
         span = float(np.ptp(s.xf))
