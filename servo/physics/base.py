@@ -54,7 +54,7 @@ cover, or a rate of the rigid body     plausibility and the compensator's
   ``from_physical`` the same names), :class:`SignalPath` (a column term of the measured
   motion: ``kind``, ``requires``, ``path_order``, ``gated``, ``idle``,
   ``column_design``, ``eligible``, ...), :class:`Search` (what only the screening and
-  refinement machinery asks, for speed: ``screen*``, ``bounds``, ``refine_width``) and
+  refinement machinery asks, for speed: ``screen*``, ``coarse_*``, ``bounds``, ``refine_width``) and
   :class:`Judging` (how the report judges a fit: ``POSITIVE``, ``implausible``, ``implausible_on``,
   ``std_extra``).  :class:`OneField` is a term that is one coefficient linear in the
   motion, :class:`OneFieldDrive` its drive map.
