@@ -41,7 +41,10 @@ change (the candidates sharing the current model's fit) read 87.8 at load 2-5 (9
 91.2 and 83.1 beside the busy processes.  The merged code before this round's
 speed-ups read 100.4 near idle (6.2 s, load 1.6; 80-82 before the round's new stages).
 History: 57.9-98.8 from 2026-11-23 to 2026-11-28 (bound 148, then 135); the code before
-the compiled screens and the delay screen of 2026-11-23 measured 147.7-192.8."""
+the compiled screens and the delay screen of 2026-11-23 measured 147.7-192.8.  Round 5
+(the decimation filter's states in registers, the Stribeck bristle variants shortlisted;
+docs/studies/2026-11-28-diagnose-speed-round5.md): 97.2-106.3 against the base's
+100.0-113.7, alternated at load 4-26, where one code spreads by 10-25 %: not tightened."""
 
 
 RATIO_COMMAND_MAX = 165.0
@@ -56,7 +59,8 @@ without them): the figures are drawn on two processes, which a busy neighbour
 serialises, so the command's ratio is worst under a light load.  The merged code before
 this round read 143.8 near idle (8.8 s, load 1.6).  It fails when the figures cost as
 much again as the diagnosis (drawn one after the other from every sample, they took 26 %
-of the command before); the goal is not met."""
+of the command before); the goal is not met.  Round 5: 105.3-146.5 against the base's
+76.9-135.4, alternated at load 4-26 (one code spreads by 40 % there; not tightened)."""
 
 
 @pytest.fixture(scope="module")

@@ -54,7 +54,7 @@ cover, or a rate of the rigid body     plausibility and the compensator's
   ``from_physical`` the same names), :class:`SignalPath` (a column term of the measured
   motion: ``kind``, ``requires``, ``path_order``, ``gated``, ``idle``,
   ``column_design``, ``eligible``, ...), :class:`Search` (what only the screening and
-  refinement machinery asks, for speed: ``screen*``, ``bounds``, ``refine_width``) and
+  refinement machinery asks, for speed: ``screen*``, ``coarse_*``, ``bounds``, ``refine_width``) and
   :class:`Judging` (how the report judges a fit: ``POSITIVE``, ``implausible``, ``implausible_on``,
   ``std_extra``).  :class:`OneField` is a term that is one coefficient linear in the
   motion, :class:`OneFieldDrive` its drive map.
@@ -327,6 +327,21 @@ class Search:
         without the columns (a compiled kernel); None: not available, the caller builds
         the columns in chunks."""
         return None
+
+    def coarse_batch(self, d, thetas: list, model) -> np.ndarray | None:
+        """Cheap approximate rows of several variants, (J, k, m), that rank them among
+        themselves before their exact columns are built (the full-rate formula read at
+        the rows' instants, without the rows' filter): the selection builds exactly only
+        the variants each fold ranks near the top of those
+        (:meth:`servo.diagnose.select.Selector.score`), and every variant
+        :meth:`coarse_ranks` leaves out.  None (the default): every variant is built
+        exactly."""
+        return None
+
+    def coarse_ranks(self, theta: dict) -> bool:
+        """Whether :meth:`coarse_batch` ranks the variant ``theta`` faithfully among the
+        others it says so of (the default: none; such a variant is always built exactly)."""
+        return False
 
     def screen_target(self, d, model, theta: dict) -> np.ndarray | None:
         """An input term's target rows (m,) tried on top of ``model`` (which lacks the

@@ -161,6 +161,36 @@ class Stribeck(Term):
                 for L in geom(lo, hi, LENGTHS_PER_DECADE)[1:] for v in speeds[1::2]]  # fmt: skip
         return plain + held
 
+    def coarse_ranks(self, theta):
+        """The bristles' variants (one shape, the Gaussian) are ranked among themselves by
+        their traces over the rows; the curves without bristles are always built exactly
+        (a cusp at rest, shape 0.6, read at the rows' instants ranked below the smoother
+        shapes where its filtered column was the best: 3 of about 60 scores on the
+        proving ground's development seeds)."""
+        return theta.get("stribeck_length", 0.0) > 0
+
+    def coarse_batch(self, d, thetas, model):
+        """The variants' columns read at the rows' instants (J, 1, m), without the rows'
+        filter: the curve at each row's speed, the bristles' state run over the rows'
+        positions (a tenth of the samples); what ranks the grid before its exact
+        columns are built (:meth:`servo.physics.base.Search.coarse_batch`)."""
+        if d.column_design(self, model) is not d:  # the arm's motion through a lag: every variant built exactly
+            return None
+        from kernels.stribeck import stribeck_bristle_trace
+
+        sig = d.sig
+        x, v = np.ascontiguousarray(sig.x_rows), np.ascontiguousarray(sig.v_rows)
+        s = np.ascontiguousarray(sig.sign_v[sig.keep], dtype=float)
+        C = np.empty((len(thetas), 1, v.size))
+        for j, th in enumerate(thetas):
+            vs, delta = th["stribeck_velocity"], th.get("stribeck_shape", GAUSSIAN)
+            length = th.get("stribeck_length", 0.0)
+            if length > 0:
+                stribeck_bristle_trace(x, v, float(vs), float(delta), float(length), C[j, 0])
+            else:
+                C[j, 0] = s * curve(v, vs, delta)
+        return C
+
     def held(self, theta):
         return ("stribeck_length",) if not theta.get("stribeck_length", 0.0) > 0 else ()  # no bristles stay none
 
