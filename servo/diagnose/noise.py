@@ -27,16 +27,28 @@ spectrum is read there: the Welch PSD of ``e`` (the project's estimator,
 :func:`servo.frf.estimate.psd`) over ``J^2 |D2(f)|^2``, and a power law
 ``S(f) = S0 (f/f0)^beta`` fitted to its logarithm: the slope by Theil-Sen (a median of
 slopes: a lightly damped mode, a reversal's burst or a tone's harmonic in a few bins
-does not move it) over the read band's first two octaves, the level by the median over
-its first octave (where the rows' chains weigh it; a sampled low-pass noise bends away
-from a power law towards Nyquist).  The spectrum is read on the first difference of
+does not move it) over the whole read band (its bins are linear in ``f``: the misfit
+that rises towards the band's bottom weighs little), the level by the median over its
+first octave (where the rows' chains weigh it), in the frequency ``f`` or in the
+sampled frequency ``phi(f) = fs/pi sin(pi f/fs)`` (:func:`sampled_frequency`: a power
+law aliased by sampling, or a first-order low-pass noise made at the sample rate, bends
+towards Nyquist as ``phi^beta``), whichever the read band's shape follows better
+(:func:`_law`).  At decimation 3-4, the band read from 500-667 Hz up, a law in ``f``
+read a proving-ground low-pass noise's ``-2`` as -1.4 to -1.6, and the noise carried
+into the band through the position's Butterworth came out at 0.26-0.45 x the truth
+(docs/studies/2026-11-28-coloured-nulls.md).  The spectrum is read on the first difference of
 ``e`` (a low-frequency misfit falls by ``f^2`` before the gate's edges could spread
 it) with the samples near a direction-uncertain one or a sign change gated out
 (:func:`gate`: a stuck arm's constraint force, a reversal's switch).  White noise is
 ``beta = 0``, pink ``-1``, a first-order low-pass above its corner ``-2``.  The power law is then carried through each chain the diagnosis
 applies to the position (the rows' acceleration: Butterworth, second difference,
 decimation filter; the velocity: Butterworth, derivative), whose gain falls to zero
-at DC, so that the extrapolation into the band weighs mostly near the band's edge.
+at DC, so that the extrapolation into the band weighs mostly near the band's edge;
+and the position's Butterworth (the bristle and Dahl lengths' floor), whose gain at DC
+weighs a steep spectrum's lowest frequencies: every chain is integrated from the
+lowest frequency the Welch estimate resolves, ``fs/nperseg`` (slower wander is not
+counted; a low-pass noise flat below a corner under that is counted as ``f^beta``
+down to it, 1.2-1.8 x its truth on the proving ground's nulls).
 
 One Welch pass and one regression on the rows: linear in the samples.  Checked on
 recordings of the independent proving generator with white, pink and low-pass noise,
@@ -59,9 +71,13 @@ F_HIGH = 0.45
 #: the read band starts at most here (a fraction of the sample rate), for a small
 #: decimation whose band reaches far up
 F_LOW_MAX = 0.2
-#: the power law's exponent is kept within these (a noise steeper than ``f^-3`` or
-#: rising faster than ``f`` is not a sensor's; the fit's extrapolation stays tame)
-BETA_RANGE = (-3.0, 1.0)
+#: the power law's exponent is kept within these: a sensor's noise falls no steeper
+#: than ``f^-2`` (a first-order low-pass above its corner, a random walk) nor rises
+#: faster than ``f``.  Read steeper, the force balance's misfit, which rises towards
+#: the read band's bottom (2-7 x the noise at 200-500 Hz on an open-loop PRBS at
+#: decimation 10), has tilted it; carried two decades down into the position's
+#: Butterworth, -2.4 for -2 put that in-band figure at 3.4 x the truth
+BETA_RANGE = (-2.0, 1.0)
 #: Welch segments: at least this many, of a power of two between these lengths
 MIN_SEGMENTS = 16
 NPERSEG_RANGE = (256, 4096)
@@ -79,7 +95,8 @@ GRID = 1 << 15
 
 METHOD = ("the force balance at the full sample rate (J*x'' + B*x' + K*x + h0 + Fc*sgn(x') - u) above the rows' band, "
           "where the input's motion cancels and the sensor noise rises as f^4: its Welch spectrum over J^2 |D2(f)|^2, "
-          "a power law S0*(f/f0)^beta fitted by Theil-Sen and carried into the band through the rows' filters")
+          "a power law S0*(f/f0)^beta (f or the sampled frequency) fitted by Theil-Sen and carried into the band through "
+          "the rows' filters")
 
 
 @dataclass(frozen=True)
@@ -158,8 +175,9 @@ def describe_text(d: dict) -> str:
     if "beta" not in d:
         return f"{d['white_equivalent_m']:.3g} m RMS, white, from {d['method']}"
     lo, hi = d["read_band_hz"]
+    var = "phi" if d.get("law_in") == "sampled frequency" else "f"  # phi: the sampled frequency
     return (f"{d['white_equivalent_m']:.3g} m RMS white-equivalent through the rows' filters; spectrum "
-            f"~ f^{d['beta']:.2g}, read at {lo:.4g}-{hi:.4g} Hz from the force balance at the full rate (the input's "
+            f"~ {var}^{d['beta']:.2g}{' (phi = fs/pi sin(pi f/fs), the sampled frequency)' if var == 'phi' else ''}, read at {lo:.4g}-{hi:.4g} Hz from the force balance at the full rate (the input's "
             "motion cancels there)")  # fmt: skip
 
 
@@ -225,14 +243,11 @@ def estimate(e: np.ndarray, J: float, fs: float, f_edge: float, uncertain: np.nd
     fb = f[sel]
     S = P[sel] / (J * J * second_difference_gain(fb, fs) ** 2 * (2.0 - 2.0 * np.cos(2 * np.pi * fb / fs)))
     ly = np.log(S)
-    # the slope over the read band's first two octaves (where the rows' chains weigh
-    # it), the level over its first octave; in the frequency f or in the sampled
-    # frequency phi(f) (a noise shaped before or after sampling: a first-order
-    # low-pass's f^-2 is phi^-2, bending towards Nyquist), whichever the spectrum's
-    # shape over those octaves follows better (:func:`_law`)
-    near = fb <= 4.0 * fb[0]
-    if near.sum() < MIN_BINS:
-        near = np.ones(fb.size, bool)
+    # the slope over the whole read band, the level over its first octave (where the
+    # rows' chains weigh it); in the frequency f or in the sampled frequency phi(f) (a
+    # noise shaped before or after sampling: a first-order low-pass's f^-2 is phi^-2,
+    # bending towards Nyquist), whichever the spectrum's shape follows better (:func:`_law`)
+    near = np.ones(fb.size, bool)
     first = fb <= 2.0 * fb[0]
     if first.sum() < MIN_BINS // 2:
         first = np.arange(fb.size) < MIN_BINS // 2
@@ -257,21 +272,23 @@ def sampled_frequency(f: np.ndarray, fs: float) -> np.ndarray:
     return fs / math.pi * np.sin(np.pi * np.asarray(f, dtype=float) / fs)
 
 
-#: groups of the read band's first two octaves whose mean log-spectrum judges a law's shape
+#: groups of the read band whose mean log-spectrum judges a law's shape
 SHAPE_GROUPS = 8
 
 
 def _law(lx: np.ndarray, ly: np.ndarray, near: np.ndarray, first: np.ndarray, lx0: float) -> tuple:
     """``(beta, log level at lx0, misfit)`` of a power law in the variable ``exp(lx)``:
-    the Theil-Sen slope over ``near``, the median level over ``first``, and the sum of
-    squares of the mean residual in :data:`SHAPE_GROUPS` equal groups of ``near`` (a
-    spectrum's curvature against the law; the Welch scatter averages out)."""
+    the Theil-Sen slope over ``near`` (within :data:`BETA_RANGE`), the median level over
+    ``first``, and the sum of squares of the mean residual about the slope as read in
+    :data:`SHAPE_GROUPS` equal groups of ``near`` (a spectrum's curvature against the
+    law; the Welch scatter averages out)."""
     lxn, lyn = lx[near], ly[near]
-    beta = float(stats.theilslopes(lyn, lxn)[0]) if lxn.size <= 600 else _thinned_theil(lxn, lyn)
-    beta = float(np.clip(beta, *BETA_RANGE))
+    raw = float(stats.theilslopes(lyn, lxn)[0]) if lxn.size <= 600 else _thinned_theil(lxn, lyn)
+    # the shape judged on the slope as read, the law kept within BETA_RANGE
+    r = lyn - raw * lxn
+    groups = np.array_split(r - np.median(r), min(SHAPE_GROUPS, r.size))
+    beta = float(np.clip(raw, *BETA_RANGE))
     c = float(np.median(ly[first] - beta * (lx[first] - lx0)))
-    r = lyn - (c + beta * (lxn - lx0))
-    groups = np.array_split(r, min(SHAPE_GROUPS, r.size))
     return beta, c, float(sum(g.mean() ** 2 for g in groups))
 
 
