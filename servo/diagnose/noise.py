@@ -96,8 +96,8 @@ GRID = 1 << 15
 
 METHOD = ("the force balance at the full sample rate (J*x'' + B*x' + K*x + h0 + Fc*sgn(x') - u) above the rows' band, "
           "where the input's motion cancels and the sensor noise rises as f^4: its Welch spectrum over J^2 |D2(f)|^2, "
-          "a power law S0*(f/f0)^beta (f or the sampled frequency) fitted by Theil-Sen and carried into the band through "
-          "the rows' filters")
+          "a power law S0*(f/f0)^beta (f or the sampled frequency) fitted by Theil-Sen and carried into the band "
+          "through the rows' filters")
 
 
 @dataclass(frozen=True)
@@ -125,7 +125,8 @@ class NoiseSpectrum:
         pos = f > 0
         if self.sampled_at > 0:
             fp = np.minimum(f[pos], self.sampled_at / 2)
-            out[pos] = self.s0 * (sampled_frequency(fp, self.sampled_at) / sampled_frequency(self.f0, self.sampled_at)) ** self.beta
+            ratio = sampled_frequency(fp, self.sampled_at) / sampled_frequency(self.f0, self.sampled_at)
+            out[pos] = self.s0 * ratio**self.beta
         else:
             out[pos] = self.s0 * (f[pos] / self.f0) ** self.beta
         return out
@@ -176,9 +177,11 @@ def describe_text(d: dict) -> str:
     if "beta" not in d:
         return f"{d['white_equivalent_m']:.3g} m RMS, white, from {d['method']}"
     lo, hi = d["read_band_hz"]
-    var = "phi" if d.get("law_in") == "sampled frequency" else "f"  # phi: the sampled frequency
+    law = f"f^{d['beta']:.2g}"
+    if d.get("law_in") == "sampled frequency":
+        law = f"phi^{d['beta']:.2g} (phi = fs/pi sin(pi f/fs), the sampled frequency)"
     return (f"{d['white_equivalent_m']:.3g} m RMS white-equivalent through the rows' filters; spectrum "
-            f"~ {var}^{d['beta']:.2g}{' (phi = fs/pi sin(pi f/fs), the sampled frequency)' if var == 'phi' else ''}, read at {lo:.4g}-{hi:.4g} Hz from the force balance at the full rate (the input's "
+            f"~ {law}, read at {lo:.4g}-{hi:.4g} Hz from the force balance at the full rate (the input's "
             "motion cancels there)")  # fmt: skip
 
 
@@ -245,9 +248,10 @@ def estimate(e: np.ndarray, J: float, fs: float, f_edge: float, uncertain: np.nd
     S = P[sel] / (J * J * second_difference_gain(fb, fs) ** 2 * (2.0 - 2.0 * np.cos(2 * np.pi * fb / fs)))
     ly = np.log(S)
     # the slope over the read band's first two octaves, the level over its first
-    # octave (where the rows' chains weigh it); in the frequency f or in the sampled frequency phi(f) (a
-    # noise shaped before or after sampling: a first-order low-pass's f^-2 is phi^-2,
-    # bending towards Nyquist), whichever the spectrum's shape follows better (:func:`_law`)
+    # octave (where the rows' chains weigh it); in the frequency f or in the sampled
+    # frequency phi(f) (a noise shaped before or after sampling: a first-order
+    # low-pass's f^-2 is phi^-2, bending towards Nyquist), whichever the spectrum's
+    # shape follows better (:func:`_law`)
     near = fb <= 4.0 * fb[0]
     if near.sum() < MIN_BINS:
         near = np.ones(fb.size, bool)
