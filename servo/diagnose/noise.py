@@ -49,7 +49,7 @@ and the position's Butterworth (the bristle and Dahl lengths' floor), whose gain
 weighs a steep spectrum's lowest frequencies: every chain is integrated from the
 lowest frequency the Welch estimate resolves, ``fs/nperseg`` (slower wander is not
 counted; a low-pass noise flat below a corner under that is counted as ``f^beta``
-down to it, 1.2-1.8 x its truth on the proving ground's nulls).
+down to it: 0.9-1.5 x its truth on the proving ground's low-pass nulls).
 
 One Welch pass and one regression on the rows: linear in the samples.  Checked on
 recordings of the independent proving generator with white, pink and low-pass noise,
