@@ -9,6 +9,7 @@ was read; the seeds here are not the ones the method was developed on.
 from __future__ import annotations
 
 import json
+import math
 
 import numpy as np
 import pytest
@@ -39,6 +40,25 @@ def floors(loop: str, excitation: str, colour: str, seed: int) -> tuple[float, f
     return force_floor(sig, J), true, sig.noise
 
 
+def in_band(loop: str, excitation: str, colour: str, seed: int, q: int) -> tuple[float, float, object]:
+    """(estimated, true) std (m) of the sensor noise through the position's Butterworth
+    (the in-band figure the bristle and Dahl lengths' floor reads,
+    :func:`servo.physics.stribeck.resolvable_length`) at decimation ``q``, and the
+    estimated spectrum: the truth is the recording's own noise sequence through the
+    filter, all of it (what the spectrum does not resolve below ``f_min`` included)."""
+    from servo.physics.stribeck import _butter_impulse
+
+    case = Case("null", 0.0, loop, excitation, FS, 30000, colour)
+    rec, _ = recording(case, seed)
+    tr = trajectories(case, seed)
+    sig = make_signals(rec, settings_for(q, FS, None))
+    s = sig.settings
+    n = tr["p"][ig.P_NOISE] * tr["noise"]
+    true = float(np.std(sig.butter(n)[s.trim_start : sig.n - s.trim_end]))
+    h = _butter_impulse(int(s.butter_order), float(s.cutoff(FS) / (FS / 2)))
+    return sig.noise.std_through(h, FS), true, sig.noise
+
+
 GRID = [(loop, exc, colour) for loop in ("pdi", "force") for exc in ("multisine", "prbs", "chirp", "steps")
         for colour in ("white", "pink", "lowpass")]  # fmt: skip
 
@@ -64,6 +84,53 @@ def test_the_floor_is_within_two_of_the_truth_on_every_kind(loop, excitation, co
     for seed in (11, 12):
         est, true, spec = floors(loop, excitation, colour, seed)
         assert 1 / FACTOR < est / true < FACTOR, (seed, est, true, spec)
+        for q in (10, 3):  # the default decimation and the smallest the band chooser tries
+            est, true, spec = in_band(loop, excitation, colour, seed, q)
+            assert 1 / FACTOR < est / true < FACTOR, (seed, q, est, true, spec)
+
+
+@pytest.mark.parametrize("loop,excitation,seed", [("pdi", "steps", 7), ("force", "prbs", 7), ("pdi", "multisine", 11)])
+def test_the_in_band_figure_holds_a_low_pass_noise_read_near_nyquist(loop, excitation, seed):
+    """At decimation 3 the spectrum is read from 667 Hz up, where a sampled first-order
+    low-pass noise bends from ``f^-2`` towards Nyquist: a power law in ``f`` read a
+    slope of -1.4 to -1.6 there and put the noise through the position's Butterworth
+    at 0.26-0.45 x the truth (a closed-loop step null's Stribeck bristles of 5-15 nm
+    passed a floor of 2.5-2.8 nm); in the sampled frequency the law is -2 again."""
+    q = 4 if excitation == "prbs" else 3
+    est, true, spec = in_band(loop, excitation, "lowpass", seed, q)
+    assert 1 / FACTOR < est / true < FACTOR, (est, true, spec)
+    assert spec.sampled_at > 0 and -2.4 < spec.beta < -1.7, spec
+
+
+def test_the_sampled_law_is_an_aliased_power_law():
+    """``phi(f)^-2`` is the spectrum of an ``f^-2`` noise sampled at ``fs``: the sum of
+    its aliases, ``sum_k 1/(f + k fs)^2``; at low frequencies ``phi`` is ``f``."""
+    fs = 1000.0
+    f = np.array([5.0, 100.0, 300.0, 450.0])
+    k = np.arange(-20000, 20001)
+    aliased = np.array([np.sum(1.0 / (x + k * fs) ** 2) for x in f])
+    assert noise.sampled_frequency(f, fs) ** -2 == pytest.approx(aliased, rel=1e-3)
+    assert noise.sampled_frequency(np.array([1.0]), fs)[0] == pytest.approx(1.0, rel=1e-5)
+
+
+def test_a_chain_with_gain_at_dc_counts_the_noise_above_the_lowest_resolved_frequency():
+    """Through a low-pass (gain 1 at DC) an ``f^-2`` spectrum's std is set by where the
+    integral starts: from ``f_min`` whatever the impulse response's length (the grid of
+    a short response started at its first bin, 4 Hz for the position's Butterworth)."""
+    from scipy import signal as sg
+
+    fs, f_min = 1000.0, 0.5
+    spec = noise.NoiseSpectrum(1e-18, 10.0, -2.0, (100.0, 450.0), 100, f_min=f_min)
+    b, a = sg.butter(4, 0.2)
+    stds = []
+    for n in (201, 4001):
+        z = np.zeros(n)
+        z[n // 2] = 1.0
+        stds.append(spec.std_through(sg.filtfilt(b, a, z), fs))
+    # int_{f_min}^inf s0 (f/f0)^-2 df = s0 f0^2 / f_min, the filter's gain ~1 below 50 Hz
+    expect = math.sqrt(1e-18 * 100.0 / f_min)
+    assert stds[0] == pytest.approx(stds[1], rel=0.02)
+    assert stds[1] == pytest.approx(expect, rel=0.05)
 
 
 def test_a_broadband_input_does_not_inflate_the_noise_of_a_mass():
