@@ -333,11 +333,18 @@ def held_sign(v: np.ndarray, crossings: np.ndarray | None = None) -> np.ndarray:
         return out
     t0 = cross + v[cross] / (v[cross] - v[cross + 1]) if crossings is None else np.asarray(crossings, float)
     before, after = np.sign(v[cross]), np.sign(v[cross + 1])
-    base = np.floor(t0).astype(int)
-    for off in (-1, 0, 1, 2):  # the samples within one sample of the crossing
-        idx = base + off
-        pos = t0 - idx  # the crossing relative to the sample, in samples
-        ok = (idx >= 0) & (idx < n) & (np.abs(pos) < 1)
+    # a crossing placed away from where v changes sign moves the samples between the two
+    # to the side of the placed one: every sample from the one before the earlier of the
+    # two to the one after the later, and none past a neighbouring sign change of v
+    lo = np.minimum(np.floor(t0).astype(int) - 1, cross)
+    hi = np.maximum(np.floor(t0).astype(int) + 2, cross + 1)
+    prev = np.concatenate([[-1], cross[:-1]])  # the neighbouring sign changes
+    nxt = np.concatenate([cross[1:] + 1, [n]])
+    lo, hi = np.maximum(lo, prev + 1), np.minimum(hi, nxt - 1)
+    for off in range(int((hi - lo).max(initial=0)) + 1):
+        idx = lo + off
+        pos = np.clip(t0 - idx, -1.0, 1.0)  # the crossing relative to the sample, in samples
+        ok = (idx <= hi) & (idx >= 0) & (idx < n)
         W = np.where(pos <= 0, 0.5 * (1 + pos) ** 2, 1 - 0.5 * (1 - pos) ** 2)  # weight before the crossing
         out[idx[ok]] = (before * W + after * (1 - W))[ok]
     # two crossings within two samples of each other: the sign at the sample (a crossing
