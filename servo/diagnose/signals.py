@@ -61,6 +61,8 @@ RIPPLE_MIN_USABLE = 0.1
 #: the spectrum's direction threshold is kept only where it leaves at least this share of
 #: the rows the first estimate's threshold leaves (:func:`make_signals`)
 THRESHOLD_KEEP = 0.9
+#: the effective inputs whose sign column :meth:`Signals.sign_for` keeps (the most recent)
+SIGN_CACHE = 2
 #: a row is unusable if its decimation filter's response to a sample there exceeds this
 #: fraction of the response's peak (the filter's reach: 15 rows with the default settings)
 REACH_LEVEL = 0.01
@@ -150,7 +152,32 @@ class Signals:
         """``sgn(x')`` as the rows see it (n,): :func:`held_sign` of the filtered velocity
         with its reversals placed by :func:`reversal_times` (with the recorded force, whose
         variation near a reversal the crossing's fit must not read as a kink)."""
-        force = self.force()
+        return self._placed_sign(self.force())
+
+    def sign_for(self, u_eff: np.ndarray | None = None) -> np.ndarray:
+        """:attr:`sign_v` with the reversals placed with the force of the effective input
+        ``u_eff`` (n,) that reaches the arm (a model's delay or saturation,
+        :meth:`servo.diagnose.model.Design.u_eff`; None or the recorded input:
+        :attr:`sign_v`).  The crossing's fit takes the input's velocity out of the
+        filtered velocity; with the recorded input where the arm feels it three samples
+        later (the outside suite's ``delay``), every fast reversal was placed off and
+        the rows there carried an impulse, the held-out residual structured against the
+        distance since reversal (z 7.4 in its first bin).  The :data:`SIGN_CACHE` most
+        recent inputs' signs are kept (a term's grid asks for the same one many times)."""
+        if u_eff is None or u_eff is self.u:
+            return self.sign_v
+        held = self.__dict__.setdefault("_signs_by_input", [])
+        for u, sign in held:
+            if u is u_eff:
+                return sign
+        sign = self._placed_sign(self.force(u_eff))
+        held.append((u_eff, sign))
+        del held[:-SIGN_CACHE]
+        return sign
+
+    def _placed_sign(self, force: np.ndarray) -> np.ndarray:
+        """:func:`held_sign` of the filtered velocity, its reversals placed with ``force``
+        (n, through the position's Butterworth) and the inertia fitted with it."""
         J = self.inertia_estimate(force)
         t0 = reversal_times(self.vf, self.settings, 1.0 / self.dt, self.v_threshold, force if J else None, J)
         return held_sign(self.vf, t0)
