@@ -152,7 +152,10 @@ class Signals:
         """``sgn(x')`` as the rows see it (n,): :func:`held_sign` of the filtered velocity
         with its reversals placed by :func:`reversal_times` (with the recorded force, whose
         variation near a reversal the crossing's fit must not read as a kink)."""
-        return self._placed_sign(self.force())
+        force = self.force()
+        J = self.recorded_inertia
+        t0 = reversal_times(self.vf, self.settings, 1.0 / self.dt, self.v_threshold, force if J else None, J)
+        return held_sign(self.vf, t0)
 
     def sign_for(self, u_eff: np.ndarray | None = None) -> np.ndarray:
         """:attr:`sign_v` with the reversals placed with the force of the effective input
@@ -170,17 +173,21 @@ class Signals:
         for u, sign in held:
             if u is u_eff:
                 return sign
-        sign = self._placed_sign(self.force(u_eff))
+        force = self.force(u_eff)
+        J = self.recorded_inertia
+        t0 = reversal_times(self.vf, self.settings, 1.0 / self.dt, self.v_threshold, force if J else None, J)
+        sign = held_sign(self.vf, t0)
         held.append((u_eff, sign))
         del held[:-SIGN_CACHE]
         return sign
 
-    def _placed_sign(self, force: np.ndarray) -> np.ndarray:
-        """:func:`held_sign` of the filtered velocity, its reversals placed with ``force``
-        (n, through the position's Butterworth) and the inertia fitted with it."""
-        J = self.inertia_estimate(force)
-        t0 = reversal_times(self.vf, self.settings, 1.0 / self.dt, self.v_threshold, force if J else None, J)
-        return held_sign(self.vf, t0)
+    @cached_property
+    def recorded_inertia(self) -> float | None:
+        """:meth:`inertia_estimate` with the recorded input, fitted once: the inertia
+        every input's crossings are placed with (:meth:`sign_for`; a delay moves it by
+        a fraction of a per cent, and a fit per input cost a tenth of a diagnosis on the
+        outside suite's recordings, which try two dozen)."""
+        return self.inertia_estimate(self.force())
 
     def inertia_estimate(self, force: np.ndarray) -> float | None:
         """The inertia (F s^2/m) of eq. (3) fitted on the usable rows with the sign at
@@ -232,10 +239,19 @@ class Signals:
         acceleration is a difference of the filtered position, so the force must be
         filtered alike for ``J*x'' = u`` to hold exactly).  The recorded input's
         (``u_eff`` None or the recording's own ``u``) is filtered once and shared, read-only
-        (:attr:`recorded_force`)."""
+        (:attr:`recorded_force`); the :data:`SIGN_CACHE` most recent other inputs' are kept
+        (the target, the sign column and the input-reading terms ask for the same one).
+        Callers must not write into the result."""
         if u_eff is None or u_eff is self.u:
             return self.recorded_force
-        return self.butter(align(u_eff))
+        held = self.__dict__.setdefault("_forces_by_input", [])
+        for u, f in held:
+            if u is u_eff:
+                return f
+        f = self.butter(align(u_eff))
+        held.append((u_eff, f))
+        del held[:-SIGN_CACHE]
+        return f
 
     @cached_property
     def recorded_force(self) -> np.ndarray:
