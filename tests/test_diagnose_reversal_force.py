@@ -84,3 +84,53 @@ def test_the_inertia_the_crossings_use_is_the_plants():
     rec, truth = recording(Case("null", 0.0, "pdi", "chirp", 1000.0), 90023)
     sig = make_signals(rec, settings_for(10, 1000.0))
     assert sig.inertia_estimate(sig.force()) == pytest.approx(truth["J"], rel=0.02)
+
+
+@pytest.mark.parametrize("phase", [0.0, 2.6, 4.0])
+def test_the_crossing_is_placed_with_the_force_that_reaches_the_arm(phase):
+    """An input that reaches the arm three samples late: the crossing placed with the
+    delayed force is where the friction switches; with the recorded force it is off
+    by a tenth of a sample or more (the outside suite's ``delay``: its held-out
+    residual structured against the distance since reversal until the model's delay
+    placed its crossings)."""
+    s = RobustSettings()
+    fs = 1.0
+    k = np.arange(600)
+    u = 0.02 + 0.015 * np.sin(2 * np.pi * k / 30 + phase)
+    late = np.concatenate([np.full(3, u[0]), u[:-3]])
+    x, t_rev = _coulomb_mass(late, Fc=0.004, v0=-3.0)
+    b, a = signal.butter(s.butter_order, s.cutoff(fs) / (fs / 2))
+    vf = derivative(signal.filtfilt(b, a, x, padlen=3 * s.butter_order), 1.0)
+
+    def force(z):
+        return signal.filtfilt(b, a, align(z), padlen=3 * s.butter_order)
+
+    assert reversal_times(vf, s, fs, 1e-9, force(late), 1.0)[0] == pytest.approx(t_rev, abs=0.01)
+    assert abs(reversal_times(vf, s, fs, 1e-9, force(u), 1.0)[0] - t_rev) > 0.1
+
+
+def test_a_models_coulomb_column_follows_its_effective_input():
+    """The Coulomb and Stribeck columns of a model with a delay are placed with the
+    delayed input (:meth:`Signals.sign_for`), cached per input; without an input term
+    they are the recorded input's (:attr:`Signals.sign_v`)."""
+    from servo.diagnose.band import settings_for
+    from servo.diagnose.model import Design, Model, Term
+    from servo.diagnose.signals import make_signals
+    from studies.proving.cases import Case, recording
+
+    rec, _ = recording(Case("null", 0.0, "pdi", "multisine", 1000.0), 90023)
+    sig = make_signals(rec, settings_for(10, 1000.0))
+    d = Design(sig)
+    coulomb = Term.make("coulomb_friction")
+    plain = Model([coulomb])
+    late = Model([coulomb, Term.make("time_delay", {"delay_s": 2.5 / 1000.0})])
+    u_late = d.u_eff(late)
+    assert u_late is not sig.u
+    assert np.array_equal(d.full_columns(coulomb, plain)[:, 0], sig.sign_v)
+    placed = sig.sign_for(u_late)
+    assert sig.sign_for(u_late) is placed  # kept for the input
+    assert not np.array_equal(placed, sig.sign_v)
+    assert np.array_equal(d.full_columns(coulomb, late)[:, 0], placed)
+    assert not np.array_equal(d.term_rows(coulomb, late), d.term_rows(coulomb, plain))  # cached per input
+    stribeck = Term.make("stribeck_friction", {"stribeck_velocity": 0.01})
+    assert not np.array_equal(d.term_rows(stribeck, late), d.term_rows(stribeck, plain))

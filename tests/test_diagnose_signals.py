@@ -141,6 +141,28 @@ def test_the_sign_column_is_the_triangular_average_the_acceleration_sees():
             assert hs[k] == pytest.approx(exact, abs=1e-5)
 
 
+@pytest.mark.parametrize("placed", [-1.9, -1.2, -0.6, 0.2, 0.95, 1.4])
+def test_a_crossing_placed_away_from_the_sign_change_moves_every_sample_between(placed):
+    """The reversal's fit may place the friction's switch up to two samples from where
+    the filtered velocity changes sign (a fast reversal of the outside suite's null: 1.0-1.4
+    samples before it).  Every sample between the two takes the placed crossing's side,
+    not only those within one sample of it: a sample left with the filtered velocity's
+    sign carried a wrong Coulomb force (2 Fc over one sample, the null's rows at 19-25 x
+    their noise floor)."""
+    from servo.diagnose.signals import held_sign
+
+    v = np.arange(-8.0, 9.0) - 0.4  # the sign changes between samples 8 and 9
+    t0 = 8.0 + placed  # samples from the last one before the sign change
+    hs = held_sign(v, np.array([t0]))
+    s = np.linspace(-1, 1, 200001)
+    w = 1 - np.abs(s)
+    for k in range(v.size):
+        exact = np.trapezoid(w * np.sign(k + s - t0), s) / np.trapezoid(w, s)
+        assert hs[k] == pytest.approx(exact, abs=1e-5), k
+    # the column's integral is the Coulomb force's impulse with the switch at t0
+    assert hs[1:-1].sum() == pytest.approx(v.size - 1 - 2 * t0, abs=1e-5)
+
+
 def test_a_reversal_is_placed_where_the_velocity_crosses_zero_not_where_the_filtered_one_does():
     """Friction that flips at a reversal makes the acceleration jump there; the
     zero-phase filter spreads the kink and the filtered velocity crosses zero late.

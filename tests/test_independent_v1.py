@@ -42,15 +42,11 @@ EXPECTED = {
 #: is a known gap of docs/verdict.md (the right names are found on every effect case but
 #: the saturation; what fails is the verdict, or a name too many)
 KNOWN_GAPS = {
-    "null": ((), "unexplained"),
     "hysteresis": (("hysteresis",), "unexplained"),
     "hyst_small": (("hysteresis", "stribeck_friction"), "explained"),
-    "resonance_mid": (("resonance",), "unexplained"),
-    "delay": (("time_delay",), "unexplained"),
     "stribeck": (("stribeck_friction",), "unexplained"),
     "gain": (("position_dependent_gain",), "unexplained"),
-    "cogging": (("cogging",), "unexplained"),
-    "asym": (("asymmetric_friction",), "unexplained"),
+    "asym": (("asymmetric_friction", "position_dependent_gain"), "unexplained"),
 }
 
 

@@ -290,7 +290,7 @@ class Design:
 
     def _term_key(self, phys, term: Term, model: Model) -> tuple:
         """The cache key of :meth:`term_rows` of ``term`` (vocabulary entry ``phys``) under ``model``."""
-        key = (term.physics, term.theta) + (self.input_key(model) if phys.uses_input else ())
+        key = (term.physics, term.theta) + (self.input_key(model) if phys.uses_input or phys.signs_by_input else ())
         if self.column_design(phys, model) is not self:
             key += self.input_key(model)
         return key

@@ -163,6 +163,12 @@ class LaggedSignals(Signals):
     def rows(self, z: np.ndarray) -> np.ndarray:
         return super().rows(lowpass(z, self.lag_a))
 
+    def sign_for(self, u_eff: np.ndarray | None = None) -> np.ndarray:
+        """:attr:`sign_v`, placed with the recorded force: the effective input of a model
+        with a lag is the input through the sensor's low-pass, not the force the arm
+        made this motion with."""
+        return self.sign_v
+
     def seen(self, F: np.ndarray) -> np.ndarray:
         """Full-rate columns ``F`` (n, k) of the arm's forces as the measured motion's force
         balance sees them: through the sensor's low-pass."""

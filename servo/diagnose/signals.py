@@ -61,6 +61,8 @@ RIPPLE_MIN_USABLE = 0.1
 #: the spectrum's direction threshold is kept only where it leaves at least this share of
 #: the rows the first estimate's threshold leaves (:func:`make_signals`)
 THRESHOLD_KEEP = 0.9
+#: the effective inputs whose sign column :meth:`Signals.sign_for` keeps (the most recent)
+SIGN_CACHE = 2
 #: a row is unusable if its decimation filter's response to a sample there exceeds this
 #: fraction of the response's peak (the filter's reach: 15 rows with the default settings)
 REACH_LEVEL = 0.01
@@ -148,19 +150,45 @@ class Signals:
     @cached_property
     def sign_v(self) -> np.ndarray:
         """``sgn(x')`` as the rows see it (n,): :func:`held_sign` of the filtered velocity
-        with its reversals placed by :func:`reversal_times` (with the force that is not
-        the friction's, whose variation near a reversal the crossing's fit must not read
-        as a kink: :meth:`known_force`)."""
-        force, J = self.known_force()
-        t0 = reversal_times(self.vf, self.settings, 1.0 / self.dt, self.v_threshold, force, J)
+        with its reversals placed by :func:`reversal_times` with the force that is not the
+        friction's (:meth:`known_force`), whose variation near a reversal the crossing's
+        fit must not read as a kink."""
+        return self._placed_sign(self.force())
+
+    def sign_for(self, u_eff: np.ndarray | None = None) -> np.ndarray:
+        """:attr:`sign_v` with the reversals placed with the force of the effective input
+        ``u_eff`` (n,) that reaches the arm (a model's delay or saturation,
+        :meth:`servo.diagnose.model.Design.u_eff`; None or the recorded input:
+        :attr:`sign_v`).  The crossing's fit takes the input's velocity out of the
+        filtered velocity; with the recorded input where the arm feels it three samples
+        later (the outside suite's ``delay``), every fast reversal was placed off and
+        the rows there carried an impulse, the held-out residual structured against the
+        distance since reversal (z 7.4 in its first bin).  The :data:`SIGN_CACHE` most
+        recent inputs' signs are kept (a term's grid asks for the same one many times)."""
+        if u_eff is None or u_eff is self.u:
+            return self.sign_v
+        held = self.__dict__.setdefault("_signs_by_input", [])
+        for u, sign in held:
+            if u is u_eff:
+                return sign
+        sign = self._placed_sign(self.force(u_eff))
+        held.append((u_eff, sign))
+        del held[:-SIGN_CACHE]
+        return sign
+
+    def _placed_sign(self, force: np.ndarray) -> np.ndarray:
+        """:func:`held_sign` of the filtered velocity, its reversals placed with the force
+        that is not the friction's, ``force`` (n, through the position's Butterworth) less
+        the first fit's smooth forces (:meth:`known_force`)."""
+        known, J = self.known_force(force)
+        t0 = reversal_times(self.vf, self.settings, 1.0 / self.dt, self.v_threshold, known, J)
         return held_sign(self.vf, t0)
 
-    def known_force(self) -> tuple[np.ndarray | None, float | None]:
+    def known_force(self, force: np.ndarray | None = None) -> tuple[np.ndarray | None, float | None]:
         """The force near a reversal that is not the friction's switch (n,), and the
-        inertia (F s^2/m) it drives, from eq. (3) fitted on the usable rows with the
-        sign at the samples (:meth:`balance_fit`): the recorded force (through the
-        position's Butterworth) less the viscous, spring and offset forces of that fit.
-        ``(None, None)`` where the fit has no positive inertia.
+        inertia (F s^2/m) it drives: ``force`` (default the recorded one, through the
+        position's Butterworth) less the viscous, spring and offset forces of
+        :attr:`first_balance`.  ``(None, None)`` where that fit has no positive inertia.
 
         The viscous force counts where the speed changes fast on either side of a
         reversal: a closed loop settling after a step reverses 10-30 samples after its
@@ -172,12 +200,25 @@ class Signals:
         1.2-1.45 x the floor where the sensor's low-pass noise sets a low one; with the
         viscous force out too, 0.05 sample
         (docs/studies/2026-11-28-closed-step-nulls.md)."""
-        force = self.force()
-        coef = self.balance_fit(force, held_sign(self.vf))
-        if coef is None or not (coef[0] > 0 and np.isfinite(coef).all()):
+        fit = self.first_balance
+        if fit is None:
             return None, None
-        J, B, K, h0 = (float(c) for c in coef[:4])
+        J, B, K, h0 = fit
+        force = self.force() if force is None else force
         return force - B * self.vf - K * self.xf - h0, J
+
+    @cached_property
+    def first_balance(self) -> tuple[float, float, float, float] | None:
+        """``(J, B, K, h0)`` of eq. (3) fitted once on the usable rows with the recorded
+        force and the sign at the samples (:meth:`balance_fit`); None where its inertia
+        is not positive.  Every input's crossings are placed with it (:meth:`sign_for`:
+        the outside suite's 3-sample delay moves the inertia by 0.03 %, and a fit per
+        input made the diagnosis of its hysteresis case, which tries two dozen inputs,
+        23 % slower)."""
+        coef = self.balance_fit(self.force(), held_sign(self.vf))
+        if coef is None or not (coef[0] > 0 and np.isfinite(coef).all()):
+            return None
+        return tuple(float(c) for c in coef[:4])
 
     def inertia_estimate(self, force: np.ndarray) -> float | None:
         """The inertia (F s^2/m) of eq. (3) fitted on the usable rows with the sign at
@@ -229,10 +270,19 @@ class Signals:
         acceleration is a difference of the filtered position, so the force must be
         filtered alike for ``J*x'' = u`` to hold exactly).  The recorded input's
         (``u_eff`` None or the recording's own ``u``) is filtered once and shared, read-only
-        (:attr:`recorded_force`)."""
+        (:attr:`recorded_force`); the :data:`SIGN_CACHE` most recent other inputs' are kept
+        (the target, the sign column and the input-reading terms ask for the same one).
+        Callers must not write into the result."""
         if u_eff is None or u_eff is self.u:
             return self.recorded_force
-        return self.butter(align(u_eff))
+        held = self.__dict__.setdefault("_forces_by_input", [])
+        for u, f in held:
+            if u is u_eff:
+                return f
+        f = self.butter(align(u_eff))
+        held.append((u_eff, f))
+        del held[:-SIGN_CACHE]
+        return f
 
     @cached_property
     def recorded_force(self) -> np.ndarray:
@@ -357,11 +407,18 @@ def held_sign(v: np.ndarray, crossings: np.ndarray | None = None) -> np.ndarray:
         return out
     t0 = cross + v[cross] / (v[cross] - v[cross + 1]) if crossings is None else np.asarray(crossings, float)
     before, after = np.sign(v[cross]), np.sign(v[cross + 1])
-    base = np.floor(t0).astype(int)
-    for off in (-1, 0, 1, 2):  # the samples within one sample of the crossing
-        idx = base + off
-        pos = t0 - idx  # the crossing relative to the sample, in samples
-        ok = (idx >= 0) & (idx < n) & (np.abs(pos) < 1)
+    # a crossing placed away from where v changes sign moves the samples between the two
+    # to the side of the placed one: every sample from the one before the earlier of the
+    # two to the one after the later, and none past a neighbouring sign change of v
+    lo = np.minimum(np.floor(t0).astype(int) - 1, cross)
+    hi = np.maximum(np.floor(t0).astype(int) + 2, cross + 1)
+    prev = np.concatenate([[-1], cross[:-1]])  # the neighbouring sign changes
+    nxt = np.concatenate([cross[1:] + 1, [n]])
+    lo, hi = np.maximum(lo, prev + 1), np.minimum(hi, nxt - 1)
+    for off in range(int((hi - lo).max(initial=0)) + 1):
+        idx = lo + off
+        pos = np.clip(t0 - idx, -1.0, 1.0)  # the crossing relative to the sample, in samples
+        ok = (idx <= hi) & (idx >= 0) & (idx < n)
         W = np.where(pos <= 0, 0.5 * (1 + pos) ** 2, 1 - 0.5 * (1 - pos) ** 2)  # weight before the crossing
         out[idx[ok]] = (before * W + after * (1 - W))[ok]
     # two crossings within two samples of each other: the sign at the sample (a crossing

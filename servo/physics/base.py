@@ -265,7 +265,7 @@ class SignalPath:
 
     ``kind`` ``"column"``, ``"input"`` or ``"sensor"`` (:class:`Term`); ``requires`` the
     terms a model must hold before this one is tried; ``uses_input`` its columns read
-    the effective input; ``path_order`` an input term's place on the input's
+    the effective input; ``signs_by_input`` its friction's sign is placed with it; ``path_order`` an input term's place on the input's
     path to the arm; ``gated`` whether it may be present from some time on only;
     ``idle`` an input term that changes no row; ``column_design`` the signals other
     terms' columns read when the model holds this one; ``eligible`` whether it may be
@@ -274,6 +274,10 @@ class SignalPath:
     kind = "column"
     requires: tuple = ()
     uses_input = False
+    #: its columns switch with the motion's direction, whose reversals are placed with
+    #: the effective input (:meth:`servo.diagnose.signals.Signals.sign_for`): its rows
+    #: are cached per input, as ``uses_input``'s, but it is not an input-reading term
+    signs_by_input = False
     #: an input term's place on the input's path to the arm (lower first, as in the drive)
     path_order = 0
     #: whether the term may be present from some time on only (a mass does not appear

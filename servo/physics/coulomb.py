@@ -16,8 +16,10 @@ class Coulomb(Term):
     doc = "Coulomb friction Fc*sgn(x')"
     POSITIVE = {"Fc": "a force pushing along the motion: not friction"}
 
+    signs_by_input = True
+
     def full(self, d, theta, u_eff):
-        return d.sig.sign_v  # the sign the rows see: its switch placed between samples
+        return d.sig.sign_for(u_eff)  # the sign the rows see: its switch placed between samples
 
 
 class CoulombDrive(DriveMap):

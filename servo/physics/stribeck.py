@@ -123,6 +123,7 @@ class Stribeck(Term):
            "curve's shape (2 the paper's Gaussian, 1 exponential); held by bristles of deflection "
            "stribeck_length at rest (LuGre), none at the length's lower bound")  # fmt: skip
     requires = ("coulomb_friction",)
+    signs_by_input = True  # without bristles its sign is the Coulomb column's
 
     def from_physical(self, p: dict) -> tuple[dict, tuple]:
         theta = {"stribeck_velocity": p["stribeck_velocity"], "stribeck_shape": p.get("stribeck_shape", GAUSSIAN),
@@ -139,7 +140,7 @@ class Stribeck(Term):
         vs, delta = theta["stribeck_velocity"], theta.get("stribeck_shape", GAUSSIAN)
         length = theta.get("stribeck_length", 0.0)
         if not length > 0:  # no bristles: the curve's sign switches with the motion's
-            return d.sig.sign_v * curve(d.sig.vf, vs, delta)
+            return d.sig.sign_for(u_eff) * curve(d.sig.vf, vs, delta)
         return bristle_trace(d, vs, delta, length)
 
     def _range(self, d):
