@@ -21,8 +21,11 @@ that measures it, with the verdict ``out_of_scope`` and its reason.
    One name per effect: a finding beside the first must also pass the sign-flip test
    of its gain on the test part (:func:`~servo.diagnose.select.heldout_signflip`, its
    ``p`` reported as its chance of being spurious), no finding keeps unphysical
-   parameters in the final model, and where the baseline already passes every check
-   of the verdict a finding must remove :data:`MATERIAL` of the held-out residual.
+   parameters in the final model, every finding must remove :data:`SHARE` of the
+   held-out residual the model before it leaves above the noise floor
+   (:func:`material_share`; of two names of one effect the weaker is dropped), and
+   where the baseline already passes every check of the verdict a finding must remove
+   :data:`MATERIAL` of the held-out residual.
    A quantised sensor is tested first, since its finding changes the rows everything
    else is computed on.
    A breakaway above the sliding friction (:mod:`servo.diagnose.breakaway`) is tested
@@ -91,7 +94,7 @@ MATERIAL = 0.2
 #: held-out residual RMS the model before it leaves above the noise floor, that excess
 #: counted as at least :data:`EFFECT` of the floor (:func:`material_share`); fixed on
 #: the development seeds (docs/studies/2026-11-28-material-findings.md)
-SHARE = 0.25
+SHARE = 0.15
 #: the smallest excess over the noise floor the proving ground counts as an effect (an
 #: effect changes the held-out error by 20 % or more)
 EFFECT = 0.2
