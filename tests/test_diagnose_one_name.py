@@ -98,6 +98,8 @@ def test_material_share_is_taken_on_the_excess_over_the_floor():
     r1[:2000] *= 10
     assert material_share(r0, r1, half, floor) == pytest.approx(0.0, abs=1e-12)
     assert material_share(r0, 1.1 * r0, rows, floor) < 0
+    # no floor to measure against (an unfittable mass): the rule does not judge
+    assert material_share(r0, r0, rows, float("nan")) == np.inf == material_share(r0, r0, rows, 0.0)
 
 
 @pytest.mark.slow

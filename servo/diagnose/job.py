@@ -520,7 +520,10 @@ def material_share(r0: np.ndarray, r1: np.ndarray, rows: np.ndarray, floor: floa
     (force unit for ``floor``, the residual RMS position noise alone gives).  The excess is
     counted as at least :data:`EFFECT` of the floor: a model already within the
     proving ground's effect size of its floor leaves nothing a finding could be material
-    against, and a gain of a hundredth of the floor on a long recording is not physics."""
+    against, and a gain of a hundredth of the floor on a long recording is not physics.
+    Without a finite positive floor the share is infinite (the rule does not judge)."""
+    if not (math.isfinite(floor) and floor > 0):  # no floor to measure against (an unfittable mass): not judged
+        return math.inf
     n = max(int(np.count_nonzero(rows)), 1)
     a, b = (float(np.linalg.norm(r[rows])) / math.sqrt(n) for r in (r0, r1))
     return (a - b) / max(a - floor, EFFECT * floor, 1e-300)
@@ -549,8 +552,10 @@ def _same_effect(design: Design, base: Model, findings: list, cols: list, i: int
         fits = _sequence(design, base, fs)
         return fits, [_proven(design, f, test_rows) for f in fits[-2:]]
 
+    if i < 2:  # the first finding: no earlier name of the same effect
+        return i, why
     n = max(int(np.count_nonzero(test_rows)), 1)
-    _, (_, r_no_i) = last([f for f in findings if f is not cols[i - 1]])
+    r_no_i = last([f for f in findings if f is not cols[i - 1]])[1][-1]
     for j in range(1, i):
         other = cols[j - 1]
         fits, (r_no_j, r_all) = last([f for f in findings if f is not other] + [other])
