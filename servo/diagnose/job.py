@@ -613,7 +613,8 @@ def _prove(design: Design, base: Model, findings: list, test_rows: np.ndarray, s
             t, p, nb = heldout_signflip(res[i - 1], res[i], test_rows)
             floor = verdict_mod.force_floor(design.sig, fits[i - 1].mass(), noise_x)
             share = material_share(res[i - 1], res[i], test_rows, floor)
-            cols[i - 1].heldout = {"p": p, "t": t, "blocks": nb, "level": level if i > 1 else None, "share": share}
+            cols[i - 1].heldout = {"p": p, "t": t, "blocks": nb, "level": level if i > 1 else None,
+                                   "share": share if math.isfinite(share) else None}  # None: no floor to judge by
             unphysical = VOCABULARY[cols[i - 1].physics].implausible_on(final.term_params(len(base.terms) + i - 1), design)
             if not errs[i] < errs[i - 1] or worse_out:
                 bad = i
