@@ -542,27 +542,32 @@ def _proven(design: Design, fit: Fit, test_rows: np.ndarray) -> np.ndarray:
 def _same_effect(design: Design, base: Model, findings: list, cols: list, i: int, why: str, test_rows: np.ndarray,
                  noise_x: float | None) -> tuple[int, str]:  # fmt: skip
     """Which of two names of one effect the proof drops, when ``cols[i - 1]`` is not
-    material after the earlier findings: an earlier ``cols[j - 1]`` that is itself not
-    material once moved after all the others, while the model without it (``cols[i -
-    1]`` kept) predicts the test part better than the model without ``cols[i - 1]``,
-    was the weaker description of the part they share (a LuGre element's bristles read
-    as a Stribeck dip before its Dahl loop): it is dropped instead.  Returns the index
-    into the fits of the finding to drop and the reason."""
-    def last(fs):
-        fits = _sequence(design, base, fs)
-        return fits, [_proven(design, f, test_rows) for f in fits[-2:]]
-
+    material after the earlier findings: an earlier ``cols[j - 1]`` that is not material
+    once ``cols[i - 1]`` is in the model (the findings up to it, ``cols[j - 1]`` moved
+    last), while ``cols[i - 1]`` is material without it and the model without it
+    predicts the test part better than the model without ``cols[i - 1]``, was the weaker
+    description of the part they share (a LuGre element's bristles read as a Stribeck dip
+    before its Dahl loop): it is dropped instead.  Returns the index into the fits of
+    the finding to drop and the reason."""
     if i < 2:  # the first finding: no earlier name of the same effect
         return i, why
+    upto = findings[: findings.index(cols[i - 1]) + 1]
+
+    def tail(fs):  # the last two fits' held-out residuals, and the floor of the one before
+        fits = _sequence(design, base, fs)
+        r = [_proven(design, f, test_rows) for f in fits[-2:]]
+        return r[0], r[1], verdict_mod.force_floor(design.sig, fits[-2].mass(), noise_x)
+
     n = max(int(np.count_nonzero(test_rows)), 1)
-    r_no_i = last([f for f in findings if f is not cols[i - 1]])[1][-1]
+    rms = lambda r: float(np.linalg.norm(r[test_rows])) / math.sqrt(n)  # noqa: E731
+    r_no_i = tail(upto[:-1])[1]
     for j in range(1, i):
         other = cols[j - 1]
-        fits, (r_no_j, r_all) = last([f for f in findings if f is not other] + [other])
-        floor = verdict_mod.force_floor(design.sig, fits[-2].mass(), noise_x)
+        r_no_j, r_all, floor = tail([f for f in upto if f is not other] + [other])
         share = material_share(r_no_j, r_all, test_rows, floor)
-        rms_no_j, rms_no_i = (float(np.linalg.norm(r[test_rows])) / math.sqrt(n) for r in (r_no_j, r_no_i))
-        if share < SHARE and rms_no_j < rms_no_i:
+        a0, a1, fl = tail([f for f in upto if f is not other])  # cols[i - 1] without cols[j - 1]
+        alone = material_share(a0, a1, test_rows, fl)
+        if share < SHARE and alone >= SHARE and rms(r_no_j) < rms(r_no_i):
             other.heldout = {**(other.heldout or {}), "share": share}
             return j, (f"not material beside {cols[i - 1].physics}, which describes the same part of the residual "
                        f"better: after it, this term removes {100 * share:.2g} % of the held-out residual above the "
