@@ -21,8 +21,11 @@ that measures it, with the verdict ``out_of_scope`` and its reason.
    One name per effect: a finding beside the first must also pass the sign-flip test
    of its gain on the test part (:func:`~servo.diagnose.select.heldout_signflip`, its
    ``p`` reported as its chance of being spurious), no finding keeps unphysical
-   parameters in the final model, and where the baseline already passes every check
-   of the verdict a finding must remove :data:`MATERIAL` of the held-out residual.
+   parameters in the final model, every finding must remove :data:`SHARE` of the
+   held-out residual the model before it leaves above the noise floor
+   (:func:`material_share`; of two names of one effect the weaker is dropped), and
+   where the baseline already passes every check of the verdict a finding must remove
+   :data:`MATERIAL` of the held-out residual.
    A quantised sensor is tested first, since its finding changes the rows everything
    else is computed on.
    A breakaway above the sliding friction (:mod:`servo.diagnose.breakaway`) is tested
@@ -87,6 +90,14 @@ OUTPUT_TOLERANCE = 0.05
 #: on a baseline that passes every check of the verdict, a finding must remove at least
 #: this share of the held-out residual RMS (the proving ground's effect threshold)
 MATERIAL = 0.2
+#: every finding, whatever the baseline's verdict, must remove at least this share of the
+#: held-out residual RMS the model before it leaves above the noise floor, that excess
+#: counted as at least :data:`EFFECT` of the floor (:func:`material_share`); fixed on
+#: the development seeds (docs/studies/2026-11-28-material-findings.md)
+SHARE = 0.15
+#: the smallest excess over the noise floor the proving ground counts as an effect (an
+#: effect changes the held-out error by 20 % or more)
+EFFECT = 0.2
 #: the terms the stages beside the selection rounds name, each the effect's that
 #: registers the stage (:attr:`servo.physics.base.Effect.diagnosed_by`): the sensor's
 #: lattice test, the breakaway test at rest, the frequency response above the rows' band
@@ -520,6 +531,21 @@ def _gain(r0: np.ndarray, r1: np.ndarray, rows: np.ndarray) -> float:
     return float(1.0 - np.linalg.norm(r1[rows]) / max(np.linalg.norm(r0[rows]), 1e-300))
 
 
+def material_share(r0: np.ndarray, r1: np.ndarray, rows: np.ndarray, floor: float) -> float:
+    """The share of the held-out residual in excess of the noise floor that a term
+    removes: ``(rms(r0) - rms(r1)) / max(rms(r0) - floor, EFFECT * floor)`` over ``rows``
+    (force unit for ``floor``, the residual RMS position noise alone gives).  The excess is
+    counted as at least :data:`EFFECT` of the floor: a model already within the
+    proving ground's effect size of its floor leaves nothing a finding could be material
+    against, and a gain of a hundredth of the floor on a long recording is not physics.
+    Without a finite positive floor the share is infinite (the rule does not judge)."""
+    if not (math.isfinite(floor) and floor > 0):  # no floor to measure against (an unfittable mass): not judged
+        return math.inf
+    n = max(int(np.count_nonzero(rows)), 1)
+    a, b = (float(np.linalg.norm(r[rows])) / math.sqrt(n) for r in (r0, r1))
+    return (a - b) / max(a - floor, EFFECT * floor, 1e-300)
+
+
 def _proven(design: Design, fit: Fit, test_rows: np.ndarray) -> np.ndarray:
     """``fit``'s held-out residual (m,) as the proof reads it: each term's
     :meth:`~servo.physics.base.Term.proven` (a drift's course cross-fitted on the test
@@ -530,15 +556,55 @@ def _proven(design: Design, fit: Fit, test_rows: np.ndarray) -> np.ndarray:
     return r
 
 
+def _same_effect(design: Design, base: Model, findings: list, cols: list, i: int, why: str, test_rows: np.ndarray,
+                 noise_x: float | None) -> tuple[int, str]:  # fmt: skip
+    """Which of two names of one effect the proof drops, when ``cols[i - 1]`` is not
+    material after the earlier findings: an earlier ``cols[j - 1]`` that is not material
+    once ``cols[i - 1]`` is in the model (the findings up to it, ``cols[j - 1]`` moved
+    last), while ``cols[i - 1]`` is material without it and the model without it
+    predicts the test part better than the model without ``cols[i - 1]``, was the weaker
+    description of the part they share (a LuGre element's bristles read as a Stribeck dip
+    before its Dahl loop): it is dropped instead.  Returns the index into the fits of
+    the finding to drop and the reason."""
+    if i < 2:  # the first finding: no earlier name of the same effect
+        return i, why
+    upto = findings[: findings.index(cols[i - 1]) + 1]
+
+    def tail(fs):  # the last two fits' held-out residuals, and the floor of the one before
+        fits = _sequence(design, base, fs)
+        r = [_proven(design, f, test_rows) for f in fits[-2:]]
+        return r[0], r[1], verdict_mod.force_floor(design.sig, fits[-2].mass(), noise_x)
+
+    n = max(int(np.count_nonzero(test_rows)), 1)
+    rms = lambda r: float(np.linalg.norm(r[test_rows])) / math.sqrt(n)  # noqa: E731
+    r_no_i = tail(upto[:-1])[1]
+    for j in range(1, i):
+        other = cols[j - 1]
+        r_no_j, r_all, floor = tail([f for f in upto if f is not other] + [other])
+        share = material_share(r_no_j, r_all, test_rows, floor)
+        a0, a1, fl = tail([f for f in upto if f is not other])  # cols[i - 1] without cols[j - 1]
+        alone = material_share(a0, a1, test_rows, fl)
+        if share < SHARE and alone >= SHARE and rms(r_no_j) < rms(r_no_i):
+            other.heldout = {**(other.heldout or {}), "share": share}
+            return j, (f"not material beside {cols[i - 1].physics}, which describes the same part of the residual "
+                       f"better: after it, this term removes {100 * share:.2g} % of the held-out residual above the "
+                       f"noise floor, less than {100 * SHARE:.0f} %")  # fmt: skip
+    return i, why
+
+
 def _prove(design: Design, base: Model, findings: list, test_rows: np.ndarray, starts: np.ndarray, H: int,
-           alpha: float = ALPHA):  # fmt: skip
+           alpha: float = ALPHA, noise_x: float | None = None):  # fmt: skip
     """Sequential fits and held-out errors; drops findings that do not lower the test
     part's force error or that raise its simulated-output NRMSE by more than
     :data:`OUTPUT_TOLERANCE`; a finding beside the first must also earn its place on
     the test part with the earlier ones in the model (:func:`heldout_signflip` at
     ``alpha`` over the findings beyond the first: one name per effect), and no finding
-    keeps parameters its physics refuses in the final model (``implausible``).  Each
-    kept finding carries its held-out ``p`` (``Finding.heldout``).  Returns fits, force
+    keeps parameters its physics refuses in the final model (``implausible``); every
+    finding must remove :data:`SHARE` of the held-out residual the model before it
+    leaves above the noise floor of a position noise of std ``noise_x`` (m; default the
+    rows' estimate, :func:`material_share`), or it is listed as not material with its
+    share.  Each kept finding carries its held-out ``p`` and ``share``
+    (``Finding.heldout``).  Returns fits, force
     errors, NRMSEs, predictions, the unconfirmed findings and a note if the model cannot
     be simulated."""
     unconfirmed = []
@@ -567,7 +633,10 @@ def _prove(design: Design, base: Model, findings: list, test_rows: np.ndarray, s
             worse_out = (nr[i] is not None and nr[i - 1] is not None and nr[i] > nr[i - 1] * (1 + OUTPUT_TOLERANCE)
                          and not clock)  # fmt: skip
             t, p, nb = heldout_signflip(res[i - 1], res[i], test_rows)
-            cols[i - 1].heldout = {"p": p, "t": t, "blocks": nb, "level": level if i > 1 else None}
+            floor = verdict_mod.force_floor(design.sig, fits[i - 1].mass(), noise_x)
+            share = material_share(res[i - 1], res[i], test_rows, floor)
+            cols[i - 1].heldout = {"p": p, "t": t, "blocks": nb, "level": level if i > 1 else None,
+                                   "share": share if math.isfinite(share) else None}  # None: no floor to judge by
             unphysical = VOCABULARY[cols[i - 1].physics].implausible_on(final.term_params(len(base.terms) + i - 1), design)
             if not errs[i] < errs[i - 1] or worse_out:
                 bad = i
@@ -578,6 +647,12 @@ def _prove(design: Design, base: Model, findings: list, test_rows: np.ndarray, s
                 bad, why = i, (f"its course cross-fitted on the held-out part removes "
                                f"{100 * _gain(res[i - 1], res[i], test_rows):.0f} % of the residual RMS there, "
                                f"less than {100 * MATERIAL:.0f} %")  # fmt: skip
+                break
+            if not share >= SHARE:
+                bad, why = i, (f"not material: it removes {100 * share:.2g} % of the held-out residual the model "
+                               f"before it leaves above the noise floor ({floor:.3g} RMS), less than "
+                               f"{100 * SHARE:.0f} %")  # fmt: skip
+                bad, why = _same_effect(design, base, findings, cols, bad, why, test_rows, noise_x)
                 break
             if i > 1 and not p <= level:
                 bad, why = i, (f"a further finding that did not earn its place on the held-out part with the earlier "
