@@ -167,14 +167,20 @@ class Signals:
         recent inputs' signs are kept (a term's grid asks for the same one many times)."""
         if u_eff is None or u_eff is self.u:
             return self.sign_v
-        held = self.__dict__.setdefault("_signs_by_input", [])
-        for u, sign in held:
+        return self._by_input("_signs_by_input", u_eff, lambda u: self._placed_sign(self.force(u)))
+
+    def _by_input(self, slot: str, u_eff: np.ndarray, make) -> np.ndarray:
+        """``make(u_eff)``, kept in this instance's ``slot`` for the :data:`SIGN_CACHE`
+        most recent inputs, matched by identity (a model's effective input is one array
+        that every column and the target ask for in turn)."""
+        held = self.__dict__.setdefault(slot, [])
+        for u, value in held:
             if u is u_eff:
-                return sign
-        sign = self._placed_sign(self.force(u_eff))
-        held.append((u_eff, sign))
+                return value
+        value = make(u_eff)
+        held.append((u_eff, value))
         del held[:-SIGN_CACHE]
-        return sign
+        return value
 
     def _placed_sign(self, force: np.ndarray) -> np.ndarray:
         """:func:`held_sign` of the filtered velocity, its reversals placed with the force
@@ -275,14 +281,7 @@ class Signals:
         Callers must not write into the result."""
         if u_eff is None or u_eff is self.u:
             return self.recorded_force
-        held = self.__dict__.setdefault("_forces_by_input", [])
-        for u, f in held:
-            if u is u_eff:
-                return f
-        f = self.butter(align(u_eff))
-        held.append((u_eff, f))
-        del held[:-SIGN_CACHE]
-        return f
+        return self._by_input("_forces_by_input", u_eff, lambda u: self.butter(align(u)))
 
     @cached_property
     def recorded_force(self) -> np.ndarray:
