@@ -403,29 +403,12 @@ def _sequence(design: Design, base: Model, findings: list) -> list:
     return [fit_model(design, m if i == 0 else m.refitted(), ts[: len(m.terms)]) for i, m in enumerate(models)]
 
 
-def held_out_split(valid: np.ndarray, test_fraction: float) -> np.ndarray:
-    """The training rows (m,) bool: all but the last ``test_fraction`` of the rows in
-    time; where that last part holds fewer than :data:`MIN_ROWS_PER_BLOCK` usable rows
-    (``valid``, (m,) bool) although the whole recording has enough, the last
-    ``test_fraction`` of the *usable* rows is held out instead.  A chirp sweeping upward
-    ends where its speed reverses faster than the rows resolve: its last quarter in time
-    had 0-3 usable rows at every decimation that left 600 usable training rows, and the
-    recording was refused where a verdict was due
-    (docs/studies/2026-11-28-nulls-after-merge.md)."""
-    m = valid.size
-    train = np.arange(m) < int(round((1 - test_fraction) * m))
-    idx = np.flatnonzero(valid)
-    if (valid & ~train).sum() < MIN_ROWS_PER_BLOCK and idx.size * test_fraction >= MIN_ROWS_PER_BLOCK:
-        train = np.arange(m) < idx[int(round((1 - test_fraction) * idx.size))]
-    return train
-
-
 def prepare(rec: Recording, settings: RobustSettings, opt: Options) -> Design:
     """Signals and the train/test split of ``rec`` on the path of ``settings``; refuses
     recordings with too few rows where the direction of motion is known."""
     sig = make_signals(rec, settings)
     m = sig.m
-    train = held_out_split(sig.valid, opt.test_fraction)
+    train = np.arange(m) < int(round((1 - opt.test_fraction) * m))
     design = Design(sig, train)
     n_train = int(design.train_valid.sum())
     n_test = int((~train & sig.valid).sum())
