@@ -50,17 +50,34 @@ def _package_modules(root) -> set[str]:
     return out
 
 
+def _imported(root) -> set[str]:
+    return _package_modules(root) & set(sys.modules)
+
+
+#: the package modules the pytest-xdist workers imported, joined by the controller
+_WORKER_MODULES = pytest.StashKey[set]()
+
+
+@pytest.hookimpl(optionalhook=True)
+def pytest_testnodedown(node, error):
+    """pytest-xdist's controller: a worker's imported modules, sent when it finishes."""
+    node.config.stash.setdefault(_WORKER_MODULES, set()).update(node.workeroutput.get("modules", ()))
+
+
 def pytest_sessionfinish(session, exitstatus):
     """The README's test command (the fast tier over every test file) must import every
-    module of the package in this process, but for :data:`OTHER_PROCESS_ONLY`: a module
-    that only the slow tier touches fails the run here, with its name."""
+    module of the package in its processes (this one, or the pytest-xdist workers, whose
+    lists the controller joins), but for :data:`OTHER_PROCESS_ONLY`: a module that only
+    the slow tier touches fails the run here, with its name."""
     cfg = session.config
+    if hasattr(cfg, "workerinput"):  # an xdist worker: report to the controller, which judges
+        cfg.workeroutput["modules"] = sorted(_imported(cfg.rootpath))
+        return
     whole = not cfg.option.keyword and [str(a) for a in cfg.args] in ([], ["tests"], [str(cfg.rootpath / "tests")])
     if exitstatus != 0 or not whole or cfg.option.markexpr != "not slow" or cfg.option.collectonly:
         return
-    import sys
-
-    missing = sorted(_package_modules(cfg.rootpath) - set(sys.modules) - set(OTHER_PROCESS_ONLY))
+    imported = _imported(cfg.rootpath) | cfg.stash.get(_WORKER_MODULES, set())
+    missing = sorted(_package_modules(cfg.rootpath) - imported - set(OTHER_PROCESS_ONLY))
     if missing:
         print(f"\nthe fast tier imports no test of: {', '.join(missing)} (tests/conftest.py)", file=sys.stderr)
         session.exitstatus = pytest.ExitCode.TESTS_FAILED
