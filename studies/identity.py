@@ -2,7 +2,7 @@
 
     python -m studies.identity recordings DIR [--nulls 60 --seeds 2 --seed-offset 40000]
     python -m studies.identity recordings DIR --grid kinds --nulls 16 --seeds 1 --seed-offset 0
-    python -m studies.identity dump DIR --recordings RECDIR     # run logs and diagnoses
+    python -m studies.identity dump DIR --recordings RECDIR     # run logs and diagnoses (--no-runs: diagnoses)
     python -m studies.identity compare DIR_A DIR_B
 
 ``recordings`` writes proving-ground recordings (nulls and every family at every size,
@@ -66,9 +66,9 @@ def _scrub(report: dict) -> dict:
     return report
 
 
-def dump(out: Path, recdir: Path | None) -> None:
+def dump(out: Path, recdir: Path | None, runs: bool = True) -> None:
     out.mkdir(parents=True, exist_ok=True)
-    for kind in KINDS:
+    for kind in KINDS if runs else ():
         for path in ("fast", "no-fast"):
             d = out / "runs" / f"{kind}-{path}"
             r = subprocess.run([sys.executable, "-m", "servo", "run", "--quiet", f"--{path}", "--set",
@@ -130,6 +130,7 @@ def main(argv=None) -> int:
     d = sub.add_parser("dump")
     d.add_argument("out", type=Path)
     d.add_argument("--recordings", type=Path)
+    d.add_argument("--no-runs", action="store_true", help="the diagnoses only")
     c = sub.add_parser("compare")
     c.add_argument("a", type=Path)
     c.add_argument("b", type=Path)
@@ -138,7 +139,7 @@ def main(argv=None) -> int:
         print(make_recordings(a.out, a.nulls, a.seeds, a.seed_offset, a.grid), "recordings written")
         return 0
     if a.cmd == "dump":
-        dump(a.out, a.recordings)
+        dump(a.out, a.recordings, not a.no_runs)
         return 0
     return compare(a.a, a.b)
 
