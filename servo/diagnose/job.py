@@ -64,7 +64,7 @@ from servo.diagnose.signals import Signals, distance_since_reversal, make_signal
 from servo.diagnose.simulate import Prediction, Unsimulable, horizon_samples, predict, starts_in
 from servo.diagnose.terms import VOCABULARY
 from servo.errors import ServoError
-from servo.physics import diagnosed_by
+from servo.physics import EFFECTS, diagnosed_by
 from servo.identify.regressors import IdentificationError, RobustSettings
 from servo.io import progress
 from servo.io.recording import Recording
@@ -613,8 +613,11 @@ def _prove(design: Design, base: Model, findings: list, test_rows: np.ndarray, s
             # the short-horizon simulation has no clock: a term whose course no past
             # forecasts (a drift) is judged on its cross-fitted force error instead
             clock = bool(VOCABULARY[cols[i - 1].physics].judging.follows)
+            # and it carries a term through its effect's [drive] fields: a term whose effect
+            # has none (columns alone, as a feature library's) is not judged by it
+            simulated = bool(EFFECTS[cols[i - 1].physics].drive)
             worse_out = (nr[i] is not None and nr[i - 1] is not None and nr[i] > nr[i - 1] * (1 + OUTPUT_TOLERANCE)
-                         and not clock)  # fmt: skip
+                         and not clock and simulated)  # fmt: skip
             t, p, nb = heldout_signflip(res[i - 1], res[i], test_rows)
             floor = verdict_mod.force_floor(design.sig, fits[i - 1].mass(), noise_x)
             share = material_share(res[i - 1], res[i], test_rows, floor)
