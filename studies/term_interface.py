@@ -20,7 +20,10 @@ For :class:`servo.physics.base.Term` and every term of the vocabulary
   ``rows``, ``grid``, ``kind``, ``unit``, ``note``, ``full``, ``held``, is counted only
   on a term: after ``phys``, ``VOCABULARY[...]`` or ``MODE_TERM``);
 * the lines of ``servo/diagnose/`` that name a term: a vocabulary name in quotes,
-  outside the line that declares the term's own ``name`` (listed with ``--lines``).
+  outside the line that declares the term's own ``name`` (listed with ``--lines``);
+  and apart, the lines that reach one term through a role the registry declares
+  (``diagnosed_by(stage)``, ``BASELINE_TERMS``, ``MASS``, the frequency stage's
+  ``MODE_TERM``): no name, but a stage that is about one term.
 """
 from __future__ import annotations
 
@@ -116,17 +119,25 @@ def naming_lines() -> list[str]:
     return out
 
 
+ROLES = re.compile(r"diagnosed_by\(|BASELINE_TERMS\[|\bMASS\b|MODE_TERM\.")
+
+
+def role_lines() -> list[str]:
+    """The lines of ``servo/diagnose/`` that reach a term through a registry role."""
+    return [f"{f}:{i}: {line.strip()}" for f, i, line in _lines(sorted((ROOT / "servo" / "diagnose").rglob("*.py")))
+            if ROLES.search(line.split("#")[0]) and '"""' not in line and not line.lstrip().startswith((":", "("))]
+
+
 def measure() -> dict:
     it = interface()
     hooks = it["required"] + [f"{c}.{m}" for c, ms in it["capabilities"].items() for m in ms]
     sites = call_sites(hooks)
     flat = {h: sites[h] for h in hooks}
-    if not it["capabilities"]:  # one tree's hooks are the other's capability members: count both spellings
-        flat = {h: sites[h] for h in hooks}
     over = it["overrides"]
     counts = sorted(len(v) for v in over.values())
     return {"required": it["required"], "capabilities": it["capabilities"], "overrides": over,
-            "median_overrides": counts[len(counts) // 2], "call_sites": flat, "naming_lines": naming_lines()}  # fmt: skip
+            "median_overrides": counts[len(counts) // 2], "call_sites": flat, "naming_lines": naming_lines(),
+            "role_lines": role_lines()}  # fmt: skip
 
 
 def tables(m: dict, show_lines: bool = False) -> str:
@@ -148,6 +159,9 @@ def tables(m: dict, show_lines: bool = False) -> str:
     out += ["", f"lines of servo/diagnose/ naming a term: {len(m['naming_lines'])}"]
     if show_lines:
         out += [f"  {line}" for line in m["naming_lines"]]
+    out += [f"lines of servo/diagnose/ reaching a term through a registry role: {len(m['role_lines'])}"]
+    if show_lines:
+        out += [f"  {line}" for line in m["role_lines"]]
     return "\n".join(out)
 
 

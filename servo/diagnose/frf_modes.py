@@ -98,7 +98,7 @@ from scipy import optimize, signal, stats
 from servo.diagnose.band import band_hz
 from servo.frf.estimate import WelchSettings, estimate, frequencies, segment_starts, spectra, window_kernel
 from servo.diagnose.terms import VOCABULARY
-from servo.physics import diagnosed_by
+from servo.physics import BASELINE_TERMS, diagnosed_by
 
 #: the vocabulary's term this path names (a flexible mode: the effect whose
 #: ``diagnosed_by`` is ``"frf"``), its response and its limits from its own module
@@ -332,9 +332,10 @@ def measure(u: np.ndarray, x: np.ndarray, moving: np.ndarray, dt: float, nperseg
                     np.nan_to_num(Pnn, nan=np.inf, posinf=np.inf))
 
 
-#: the terms whose force the response's linear part holds (every other column term's
-#: force is taken off the input first, :func:`linear_input`)
-LINEAR = ("inertia", "viscous_friction", "stiffness", MODE)
+#: the terms whose force the response's linear part holds, ``J*s^2 + B*s + K`` and the
+#: modes (every other column term's force is taken off the input first, :func:`linear_input`)
+RIGID = {k: BASELINE_TERMS[k] for k in ("J", "B", "K")}
+LINEAR = (*RIGID.values(), MODE)
 
 
 def linear_input(design, fit, inputs=None) -> np.ndarray:
@@ -396,8 +397,8 @@ class Plant:
             if t.physics == MODE:
                 q = fit.term_params(i)
                 modes.append((q["frequency_hz"], q["zeta"], q["gain"]))
-        return cls(p.get("inertia", {}).get("J", 0.0), p.get("viscous_friction", {}).get("B", 0.0),
-                   p.get("stiffness", {}).get("K", 0.0), 0.0, modes)  # fmt: skip
+        J, B, K = (p.get(term, {}).get(k, 0.0) for k, term in RIGID.items())
+        return cls(J, B, K, 0.0, modes)
 
 
 def rigid_response(pl: Plant, f: np.ndarray, dt: float) -> np.ndarray:
