@@ -233,3 +233,17 @@ def test_the_records_take_the_compensator_fields_of_the_effects():
     physics.fill(rec, physics.stage_values(cfg.compensator))
     assert rec["B"][0] == cfg.compensator.B and rec["Ha"][0] == cfg.compensator.Ha
     assert rec["Fc"][0] == cfg.compensator.sliding_level and rec["coul_c"][0] == cfg.compensator.coulomb_extra
+
+
+def test_docs_model_capability_table_names_every_member_and_no_other():
+    """docs/model.md, "Its diagnosis term": each capability's row names its members
+    (those a term may change) and nothing the capability does not have."""
+    text = (ROOT / "docs" / "model.md").read_text()
+    rows = dict(re.findall(r"^\| `(path|search|judging)` \(`\w+`\) \| [^|]+ \| ([^\n]+) \|$", text, re.M))
+    assert set(rows) == {"path", "search", "judging"}
+    for cap, row in rows.items():
+        cls = type(getattr(Term, cap))
+        members = {k for c in cls.__mro__[:-2] for k in vars(c) if not k.startswith("_")} - {"screening"}
+        named = {m for m in re.findall(r"`(\w+)", row)}
+        assert named <= members, (cap, named - members)
+        assert members <= named, (cap, members - named)
