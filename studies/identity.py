@@ -1,11 +1,13 @@
 """Bit-identity of a change that must not change behaviour: dump, then compare.
 
     python -m studies.identity recordings DIR [--nulls 60 --seeds 2 --seed-offset 40000]
-    python -m studies.identity dump DIR --recordings RECDIR     # run logs and diagnoses
+    python -m studies.identity recordings DIR --grid kinds --nulls 16 --seeds 1 --seed-offset 0
+    python -m studies.identity dump DIR --recordings RECDIR     # run logs and diagnoses (--no-runs: diagnoses)
     python -m studies.identity compare DIR_A DIR_B
 
 ``recordings`` writes proving-ground recordings (nulls and every family at every size,
-:mod:`studies.proving.cases`) as NPZ files, so that two checkouts diagnose the very same
+:mod:`studies.proving.cases`; ``--grid kinds`` the second grid's cells,
+:func:`studies.proving.study.kind_jobs`) as NPZ files, so that two checkouts diagnose the very same
 arrays.  ``dump`` runs ``servo run`` for every controller kind on the tick path and the
 fast path (logs as NPZ) and diagnoses every recording (``build_report`` without the
 provenance and the timings).  ``compare`` says which arrays or reports differ, to the
@@ -33,17 +35,22 @@ def _proving():
     return cases, study
 
 
-def make_recordings(out: Path, nulls: int, seeds: int, offset: int) -> int:
+def make_recordings(out: Path, nulls: int, seeds: int, offset: int, grid: str = "combos") -> int:
     cases, study = _proving()
     out.mkdir(parents=True, exist_ok=True)
-    jobs = [("null", 0.0, 50_000 + offset + s) for s in range(nulls)]
-    jobs += [(f, size, 60_000 + offset + s) for f in cases.FAMILIES for size in cases.FAMILIES[f].sizes
-             for s in range(seeds)]  # fmt: skip
+    fams = [f for f in cases.FAMILIES if f != "null"]
+    if grid == "kinds":
+        jobs = [(f, size, seed, cell) for f, size, seed, _, cell in study.kind_jobs(fams, nulls, seeds, offset)]
+    else:
+        jobs = [("null", 0.0, 50_000 + offset + s, None) for s in range(nulls)]
+        jobs += [(f, size, 60_000 + offset + s, None) for f in cases.FAMILIES for size in cases.FAMILIES[f].sizes
+                 for s in range(seeds)]  # fmt: skip
     n = 0
-    for family, size, seed in jobs:
-        ctl, exc, rate = study.combo(family, size, seed)
+    for family, size, seed, cell in jobs:
+        ctl, exc, rate = study.combo(family, size, seed) if cell is None else cell[:3]
+        noise = "white" if cell is None else cell[3]
         try:
-            rec, _ = cases.recording(cases.Case(family, size, ctl, exc, rate), seed)
+            rec, _ = cases.recording(cases.Case(family, size, ctl, exc, rate, noise=noise), seed)
         except Exception as e:  # a case the generator refuses is left out of both sides
             print(f"skip {family} {size} {seed}: {type(e).__name__}: {e}", file=sys.stderr)
             continue
@@ -59,9 +66,9 @@ def _scrub(report: dict) -> dict:
     return report
 
 
-def dump(out: Path, recdir: Path | None) -> None:
+def dump(out: Path, recdir: Path | None, runs: bool = True) -> None:
     out.mkdir(parents=True, exist_ok=True)
-    for kind in KINDS:
+    for kind in KINDS if runs else ():
         for path in ("fast", "no-fast"):
             d = out / "runs" / f"{kind}-{path}"
             r = subprocess.run([sys.executable, "-m", "servo", "run", "--quiet", f"--{path}", "--set",
@@ -119,18 +126,20 @@ def main(argv=None) -> int:
     r.add_argument("--nulls", type=int, default=60)
     r.add_argument("--seeds", type=int, default=2)
     r.add_argument("--seed-offset", type=int, default=40000)
+    r.add_argument("--grid", choices=("combos", "kinds"), default="combos")
     d = sub.add_parser("dump")
     d.add_argument("out", type=Path)
     d.add_argument("--recordings", type=Path)
+    d.add_argument("--no-runs", action="store_true", help="the diagnoses only")
     c = sub.add_parser("compare")
     c.add_argument("a", type=Path)
     c.add_argument("b", type=Path)
     a = ap.parse_args(argv)
     if a.cmd == "recordings":
-        print(make_recordings(a.out, a.nulls, a.seeds, a.seed_offset), "recordings written")
+        print(make_recordings(a.out, a.nulls, a.seeds, a.seed_offset, a.grid), "recordings written")
         return 0
     if a.cmd == "dump":
-        dump(a.out, a.recordings)
+        dump(a.out, a.recordings, not a.no_runs)
         return 0
     return compare(a.a, a.b)
 

@@ -67,7 +67,7 @@ def test_drive_mapping_round_trip():
     assert P["backlash"] == {"J_gap": d.J, "half_gap": 3e-6}
     assert drive_map.to_drive(P, None) == {"backlash_half_gap": 3e-6}
     assert drive_map.from_drive(Config().drive) == [] and drive_map.absent == {"backlash_half_gap": 0.0}
-    assert phys.implausible({"J_gap": -1e-3, "half_gap": 1e-6}) and not phys.implausible(P["backlash"])
+    assert phys.judging.implausible({"J_gap": -1e-3, "half_gap": 1e-6}) and not phys.judging.implausible(P["backlash"])
 
 
 def test_the_gap_path_puts_the_motor_back():

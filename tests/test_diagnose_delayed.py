@@ -19,7 +19,7 @@ def test_delayed_rows_equal_the_exact_chain(q, duration):
     k = np.arange(sig.n, dtype=float)
     peak = np.abs(sig.force_rows(sig.u)).max()
     for shift in (-q, -1.75, -0.25, 0.5, 1.0, 3.0, 2 * q):
-        u_d = TimeDelay.transform(sig.u, {"delay_s": shift * sig.dt}, sig.dt)
+        u_d = TimeDelay.path.transform(sig.u, {"delay_s": shift * sig.dt}, sig.dt)
         assert np.array_equal(u_d, interp_at(sig.u, k, shift))
         exact = sig.force_rows(u_d)
         fast = df.rows(shift)

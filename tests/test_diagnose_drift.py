@@ -67,10 +67,10 @@ def test_the_verdict_follows_the_drift_through_the_recording():
     tr = row = np.arange(100) * 0.1  # the rows' instants, s
     wander = np.interp(row, [0, 2.5, 5.5, 7.5, 8.5, 10], [0.0, 0.0, 1.0, -0.5, 0.3, 0.3])
     wiggle = 0.1 * np.sin(2 * np.pi * tr / 0.3)
-    out = term.followed(_D(), theta, wander + wiggle, rows)
+    out = term.judging.followed(_D(), theta, wander + wiggle, rows)
     assert np.max(np.abs(out - wiggle)) < 0.25 * np.max(np.abs(wiggle))
     assert np.linalg.norm(out) > 0.7 * np.linalg.norm(wiggle)
-    assert Drift().follows and not physics.VOCABULARY["offset"].follows
+    assert Drift().judging.follows and not physics.VOCABULARY["offset"].judging.follows
 
 
 def test_the_proof_cross_fits_the_course_on_the_test_part():
@@ -82,12 +82,12 @@ def test_the_proof_cross_fits_the_course_on_the_test_part():
     term, theta = Drift(), {"time_scale": 1.0}
     t = np.arange(100) * 0.1
     ramp = np.where(rows, 0.3 * (t - 7.5) - 0.4 * np.maximum(t - 8.5, 0.0), 0.0)  # a kink on a knot
-    out = term.proven(_D(), theta, ramp, rows)
+    out = term.judging.proven(_D(), theta, ramp, rows)
     assert np.array_equal(out[~rows], ramp[~rows])
     assert np.linalg.norm(out[rows]) < 0.1 * np.linalg.norm(ramp[rows])
     noise = np.random.default_rng(3).standard_normal(100)
-    assert np.linalg.norm(term.proven(_D(), theta, noise, rows)[rows]) >= np.linalg.norm(noise[rows])
-    assert np.array_equal(physics.VOCABULARY["offset"].proven(_D(), {}, noise, rows), noise)
+    assert np.linalg.norm(term.judging.proven(_D(), theta, noise, rows)[rows]) >= np.linalg.norm(noise[rows])
+    assert np.array_equal(physics.VOCABULARY["offset"].judging.proven(_D(), {}, noise, rows), noise)
 
 
 def test_a_drift_called_out_of_scope_is_named():
@@ -158,10 +158,10 @@ def test_the_proof_tells_a_drift_from_a_force_with_the_motions_direction_in_it()
     term, theta = Drift(), {"time_scale": 1.0}
     t = np.arange(100) * 0.1
     level = np.where(rows, 0.1 + 0.4 * np.sign(_Sig.v_rows), 0.0)  # on since before the test part, with the direction
-    out = term.proven(_D(), theta, level, rows)
+    out = term.judging.proven(_D(), theta, level, rows)
     assert np.linalg.norm(out[rows]) > 1.5 * np.linalg.norm(level[rows])
     wander = np.where(rows, 0.3 * (t - 7.5) - 0.4 * np.maximum(t - 8.5, 0.0), 0.0)
-    assert np.linalg.norm(term.proven(_D(), theta, wander, rows)[rows]) < 0.1 * np.linalg.norm(wander[rows])
+    assert np.linalg.norm(term.judging.proven(_D(), theta, wander, rows)[rows]) < 0.1 * np.linalg.norm(wander[rows])
 
 
 @pytest.mark.slow

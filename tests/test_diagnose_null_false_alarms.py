@@ -56,8 +56,8 @@ def test_lowpass_noise_null_names_no_unresolved_dahl_length():
     assert why == "" or "shortest the position noise resolves" in why, D.implausible
     term = VOCABULARY["hysteresis"]
     lo = term._range(D.design)[0]
-    assert "shortest the position noise resolves" in term.implausible_on({"Ha": 1e-6, "dahl_length": 1.5 * lo}, D.design)
-    assert term.implausible_on({"Ha": 1e-6, "dahl_length": 3.0 * lo}, D.design) == ""
+    assert "shortest the position noise resolves" in term.judging.implausible_on({"Ha": 1e-6, "dahl_length": 1.5 * lo}, D.design)
+    assert term.judging.implausible_on({"Ha": 1e-6, "dahl_length": 3.0 * lo}, D.design) == ""
     # the floor reads the low-frequency noise through the position's filter: above 10 x
     # the white-equivalent noise_x (which reads a fraction of a low-pass noise)
     assert resolvable_length(D.sig) > 10.0 * D.sig.noise_x

@@ -32,8 +32,8 @@ def test_screen_sums_equal_the_columns_statistics(setup, physics):
     phys = VOCABULARY[physics]
     grid = phys.grid(d, base)
     assert len(grid) > 100
-    a, H = phys.screen_sums(d, grid, base, r, blocks)
-    a0, H0 = screen_stats(phys.screen_batch(d, grid, base), r, blocks)
+    a, H = phys.search.screen_sums(d, grid, base, r, blocks)
+    a0, H0 = screen_stats(phys.search.screen_batch(d, grid, base), r, blocks)
     assert a.shape == a0.shape and H.shape == H0.shape
     assert np.allclose(a, a0, rtol=1e-9, atol=1e-12 * np.abs(a0).max())
     assert np.allclose(H, H0, rtol=1e-9, atol=1e-12 * np.abs(H0).max())
@@ -49,7 +49,7 @@ def test_cogging_finds_its_period_by_the_sums(setup):
     d, blocks, base, r = setup
     phys = VOCABULARY["cogging"]
     grid = phys.grid(d, base)
-    a, H = phys.screen_sums(d, grid, base, r, blocks)
+    a, H = phys.search.screen_sums(d, grid, base, r, blocks)
     best = explained(a.sum(0)[None] - a, H.sum(0)[None] - H).argmax(axis=1)
     periods = np.array([grid[j]["period"] for j in best])
     assert np.all(np.abs(periods / 50e-6 - 1) < 0.02), periods

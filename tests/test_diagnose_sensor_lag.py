@@ -37,7 +37,7 @@ def _double_integrator(n=20000, fs=10000.0, tau_samples=3.0, seed=3):
 
 def test_the_term_is_registered_once_with_its_drive_field():
     assert "sensor_lag" in NAMES and isinstance(VOCABULARY["sensor_lag"], SensorLag)
-    assert VOCABULARY["sensor_lag"].kind == "input"
+    assert VOCABULARY["sensor_lag"].path.kind == "input"
     assert "sensor_cutoff_hz" in Config().drive.__dataclass_fields__
 
 
@@ -76,8 +76,8 @@ def test_the_screening_rows_equal_the_exact_chain_away_from_the_ends():
     d = Design(sig)
     for tau in (1.5, 4.0, 15.0):
         th = {"time_constant_s": tau * sig.dt}
-        fast = VOCABULARY["sensor_lag"].screen_target(d, Model(), th)
-        exact = sig.force_rows(SensorLag.transform(sig.u, th, sig.dt))
+        fast = VOCABULARY["sensor_lag"].search.screen_target(d, Model(), th)
+        exact = sig.force_rows(SensorLag.path.transform(sig.u, th, sig.dt))
         s = np.abs(exact).max()
         assert np.max(np.abs(fast - exact)[100:-100]) < 1e-9 * s
         assert fast.shape == exact.shape

@@ -53,12 +53,12 @@ def test_coarse_rows_of_the_ranked_variants():
     sel = _selector("hysteresis", 5e-4, 21)
     base = from_terms(None)
     st = VOCABULARY["stribeck_friction"]
-    grid = [th for th in st.grid(sel.d, base) if st.coarse_ranks(th)]
-    C = st.coarse_batch(sel.d, grid, base)
+    grid = [th for th in st.grid(sel.d, base) if st.search.coarse_ranks(th)]
+    C = st.search.coarse_batch(sel.d, grid, base)
     assert len(grid) > 4 and C.shape == (len(grid), 1, sel.d.sig.m) and np.isfinite(C).all()
-    assert not st.coarse_ranks({"stribeck_velocity": 1e-3, "stribeck_shape": 0.6, "stribeck_length": 0.0})
-    assert st.coarse_ranks({"stribeck_velocity": 1e-3, "stribeck_shape": 2.0, "stribeck_length": 1e-6})
-    assert not VOCABULARY["cubic_spring"].coarse_ranks({})  # the default: every variant built exactly
+    assert not st.search.coarse_ranks({"stribeck_velocity": 1e-3, "stribeck_shape": 0.6, "stribeck_length": 0.0})
+    assert st.search.coarse_ranks({"stribeck_velocity": 1e-3, "stribeck_shape": 2.0, "stribeck_length": 1e-6})
+    assert not VOCABULARY["cubic_spring"].search.coarse_ranks({})  # the default: every variant built exactly
     # the Dahl lengths are not ranked by traces over the rows: that missed the exact choice
     # of 16 of 870 folds on development seeds
-    assert not VOCABULARY["hysteresis"].coarse_ranks({"dahl_length": 1e-6})
+    assert not VOCABULARY["hysteresis"].search.coarse_ranks({"dahl_length": 1e-6})

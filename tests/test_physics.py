@@ -17,7 +17,7 @@ from kernels.stage import STAGE_PARAMS
 from servo import physics
 from servo.config import CompensatorConfig, Config, DriveConfig, from_dict
 from servo.fields import documented
-from servo.physics.base import (EQ9, Cancelling, Columns, Effect, Judging, Search, SignalPath, Simulation,
+from servo.physics.base import (EQ9, Cancelling, Capability, Effect, Judging, Search, SignalPath, Simulation,
                                 Term)  # fmt: skip
 from servo.runtime.controller import stage_params
 from servo.runtime.simplant import plant_params
@@ -101,12 +101,34 @@ def test_the_term_interface_is_the_diagnosis_only():
     assert not hooks & {"to_drive", "from_drive", "absent", "in_drive", "leave_out", "effect", "conceal"}
 
 
-def test_the_term_is_four_concerns_apart():
-    """Each public attribute of a term is one concern's (base.py's docs list them)."""
-    concerns = [{k for k in vars(c) if not k.startswith("_")} for c in (Columns, SignalPath, Search, Judging)]
-    assert sum(map(len, concerns)) == len(set().union(*concerns))  # no attribute in two
-    assert set().union(*concerns) == {k for k in dir(Term) if not k.startswith("_")}
-    assert not {k for k in vars(Term) if not k.startswith("_")}  # the term adds none of its own
+def test_the_term_is_a_feature_library_and_three_capabilities():
+    """A term's own interface is a feature library's (name, doc, units, coefficients and
+    parameters, columns, grid, bounds, and what derives from them); everything else is in
+    one of three capability objects, each concern's attributes in one of them only."""
+    own = {k for k in dir(Term) if not k.startswith("_")}
+    caps = {k for k in own if isinstance(getattr(Term, k), Capability)}
+    assert caps == {"path", "search", "judging"}
+    assert own - caps == {"name", "doc", "units", "coefs", "thetas", "full", "grid", "bounds", "rows", "physical",
+                          "from_physical", "unit"}  # fmt: skip
+    members = [{k for c in type(getattr(Term, n)).__mro__[:-2] for k in vars(c) if not k.startswith("_")}
+               for n in sorted(caps)]  # fmt: skip
+    assert sum(map(len, members)) == len(set().union(*members))  # no member in two capabilities
+    assert not set().union(*members) & own
+
+
+def test_a_capability_is_bound_to_the_term_that_carries_it():
+    """A term reads its capability bound to itself (``self.term``), each term its own, the
+    shared default included; a capability refuses a value it does not declare."""
+    viscous, drift = physics.VOCABULARY["viscous_friction"], physics.VOCABULARY["drift"]
+    assert viscous.search.term is viscous and physics.VOCABULARY["offset"].search.term is physics.VOCABULARY["offset"]
+    assert viscous.search is viscous.search  # bound once
+    assert type(viscous.search) is Search and drift.search.requires == ("offset",) and not drift.search.gated
+    assert Term.search.term is None  # the class's own, unbound
+    with pytest.raises(TypeError, match="no value 'screen'"):
+        Search(screen=lambda *a: None)
+    with pytest.raises(TypeError, match="no value 'colour'"):
+        Judging(colour="red")
+    assert SignalPath(kind="input", path_order=3).path_order == 3
 
 
 def test_a_term_with_only_what_its_author_writes_is_complete():
@@ -119,9 +141,19 @@ def test_a_term_with_only_what_its_author_writes_is_complete():
             return np.ones(4)
 
     t = Minimal()
-    assert t.grid(None, None) == [{}] and t.kind == "column" and t.requires == ()
+    assert t.grid(None, None) == [{}] and t.path.kind == "column" and t.search.requires == ()
+    assert t.bounds(None, None) == {} and not t.search.screening and t.search.eligible(_NoModel()) is None
     assert t.physical({}, (2.5,)) == {"c": 2.5} and t.from_physical({"c": 2.5}) == ({}, (2.5,))
-    assert t.unit("c", "N") == "N" and t.note({"c": -1.0}) == "" and t.implausible({"c": 1.0}) == ""
+    assert t.unit("c", "N") == "N" and t.judging.note({"c": -1.0}) == "" and t.judging.implausible({"c": 1.0}) == ""
+
+
+class _NoModel:
+    """A model that holds no term."""
+
+    def has(self, name):
+        return False
+
+    has_free = has
 
 
 def test_the_simulated_drive_sets_every_drive_field_once():
@@ -159,7 +191,7 @@ def test_the_compensator_terms_come_from_the_effects_in_stage_order():
 
 
 def test_input_terms_are_ordered_along_the_input_path():
-    inputs = sorted((t for t in physics.VOCABULARY.values() if t.kind == "input"), key=lambda t: t.path_order)
+    inputs = sorted((t for t in physics.VOCABULARY.values() if t.path.kind == "input"), key=lambda t: t.path.path_order)
     assert [t.name for t in inputs] == ["input_saturation", "dead_zone", "time_delay", "sensor_lag"]
 
 
@@ -201,3 +233,17 @@ def test_the_records_take_the_compensator_fields_of_the_effects():
     physics.fill(rec, physics.stage_values(cfg.compensator))
     assert rec["B"][0] == cfg.compensator.B and rec["Ha"][0] == cfg.compensator.Ha
     assert rec["Fc"][0] == cfg.compensator.sliding_level and rec["coul_c"][0] == cfg.compensator.coulomb_extra
+
+
+def test_docs_model_capability_table_names_every_member_and_no_other():
+    """docs/model.md, "Its diagnosis term": each capability's row names its members
+    (those a term may change) and nothing the capability does not have."""
+    text = (ROOT / "docs" / "model.md").read_text()
+    rows = dict(re.findall(r"^\| `(path|search|judging)` \(`\w+`\) \| [^|]+ \| ([^\n]+) \|$", text, re.M))
+    assert set(rows) == {"path", "search", "judging"}
+    for cap, row in rows.items():
+        cls = type(getattr(Term, cap))
+        members = {k for c in cls.__mro__[:-2] for k in vars(c) if not k.startswith("_")} - {"screening"}
+        named = {m for m in re.findall(r"`(\w+)", row)}
+        assert named <= members, (cap, named - members)
+        assert members <= named, (cap, members - named)

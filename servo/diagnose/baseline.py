@@ -76,11 +76,11 @@ def drive_terms(d: DriveConfig) -> Model:
 
 def without_idle_inputs(model: Model, u: np.ndarray) -> Model:
     """``model`` without the input terms that leave the recorded input ``u`` as it is
-    (:meth:`~servo.physics.base.Term.idle`: a saturation that clips nothing, as a drive
+    (:meth:`~servo.physics.base.SignalPath.idle`: a saturation that clips nothing, as a drive
     config's current limit does): such a term changes no row, and held in the model it
     would keep the term from being tested, so a drive config and the same fit without a
     limit (a fitted baseline, a report) would differ in what they can find."""
-    return Model([t for t in model.terms if not VOCABULARY[t.physics].idle(t.params, u)])
+    return Model([t for t in model.terms if not VOCABULARY[t.physics].path.idle(t.params, u)])
 
 
 def _basic_complete(model: Model) -> Model:
@@ -110,7 +110,7 @@ def from_file(path: str | Path) -> Model:
         terms = []
         for t in doc["final_model"].get("terms", []):
             name = t.get("physics")
-            if name not in VOCABULARY or VOCABULARY[name].kind == "sensor":
+            if name not in VOCABULARY or VOCABULARY[name].path.kind == "sensor":
                 continue
             try:
                 terms.append(_fixed(name, t["params"]))

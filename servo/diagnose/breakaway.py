@@ -98,7 +98,7 @@ from servo.physics import EFFECTS, diagnosed_by
 #: the term a breakaway at rest is (the effect that registers this stage) and the
 #: sliding level it rises from (the term it requires)
 BREAKAWAY = diagnosed_by("breakaway")
-SLIDING = EFFECTS[BREAKAWAY].term.requires[0]
+SLIDING = EFFECTS[BREAKAWAY].term.search.requires[0]
 
 #: an event's window reaches this many Butterworth time scales (``fs/cutoff`` samples) past its run
 WIDEN = 2.0
@@ -285,7 +285,7 @@ def held_force(design, fit) -> np.ndarray:
     sig = design.sig
     f = sig.force(design.u_eff(fit.model)).copy()
     for i, t in enumerate(fit.model.terms):
-        if VOCABULARY[t.physics].kind != "column" or t.physics in (SLIDING, BREAKAWAY):
+        if VOCABULARY[t.physics].path.kind != "column" or t.physics in (SLIDING, BREAKAWAY):
             continue
         # as the force balance of the measured motion sees it: through a sensor lag the
         # model holds, zero before a gated term's onset (Design.full_columns)

@@ -3,7 +3,7 @@
 The ``time_delay`` candidate is scored over some 40 delays (quarter samples up to two
 samples either way, whole samples up to ``2q``).  Each delay's rows are the force of the
 delayed input (``np.interp`` of the input at ``k - shift``,
-:meth:`servo.diagnose.terms.TimeDelay.transform`) through the rows' whole chain: the
+:meth:`servo.physics.time_delay.Delay.transform`) through the rows' whole chain: the
 alignment, the position's zero-phase Butterworth, the zero-phase Chebyshev and the
 decimation (:meth:`servo.diagnose.signals.Signals.force_rows`): two zero-phase filters
 over every full-rate sample per delay, 1.5-2 s of a 10 s diagnosis at 1 000 000 samples.

@@ -46,7 +46,7 @@ class Fit:
         phys = VOCABULARY[t.physics]
         out = {n: float(s) for n, s in zip(phys.coefs, self.std[i])}
         out.update(self.theta_std[i])
-        out.update(phys.std_extra(self.term_params(i), out))
+        out.update(phys.judging.std_extra(self.term_params(i), out))
         return out
 
     def mass(self, default: float | None = 0.0) -> float | None:
@@ -87,7 +87,7 @@ class Fit:
     def contribution(self, design: Design, i: int) -> np.ndarray:
         """Rows (m,) of term ``i``'s part of the force (zero for an input term)."""
         t = self.model.terms[i]
-        if VOCABULARY[t.physics].kind != "column":
+        if VOCABULARY[t.physics].path.kind != "column":
             return np.zeros(design.sig.m)
         return design.term_rows(t, self.model) @ np.asarray(self.coefs[i])
 
@@ -115,7 +115,7 @@ def fit_model(design: Design, model: Model, theta_std: list | None = None, rows:
     coefs, std, j = [], [], 0
     for t in model.terms:
         phys = VOCABULARY[t.physics]
-        if phys.kind != "column":
+        if phys.path.kind != "column":
             coefs.append(())
             std.append(())
         elif t.free:

@@ -98,7 +98,7 @@ from scipy import optimize, signal, stats
 from servo.diagnose.band import band_hz
 from servo.frf.estimate import WelchSettings, estimate, frequencies, segment_starts, spectra, window_kernel
 from servo.diagnose.terms import VOCABULARY
-from servo.physics import diagnosed_by
+from servo.physics import BASELINE_TERMS, diagnosed_by
 
 #: the vocabulary's term this path names (a flexible mode: the effect whose
 #: ``diagnosed_by`` is ``"frf"``), its response and its limits from its own module
@@ -332,9 +332,10 @@ def measure(u: np.ndarray, x: np.ndarray, moving: np.ndarray, dt: float, nperseg
                     np.nan_to_num(Pnn, nan=np.inf, posinf=np.inf))
 
 
-#: the terms whose force the response's linear part holds (every other column term's
-#: force is taken off the input first, :func:`linear_input`)
-LINEAR = ("inertia", "viscous_friction", "stiffness", MODE)
+#: the terms whose force the response's linear part holds, ``J*s^2 + B*s + K`` and the
+#: modes (every other column term's force is taken off the input first, :func:`linear_input`)
+RIGID = {k: BASELINE_TERMS[k] for k in ("J", "B", "K")}
+LINEAR = (*RIGID.values(), MODE)
 
 
 def linear_input(design, fit, inputs=None) -> np.ndarray:
@@ -349,7 +350,7 @@ def linear_input(design, fit, inputs=None) -> np.ndarray:
     d = np.zeros(u.size)
     for i, t in enumerate(fit.model.terms):
         phys = VOCABULARY[t.physics]
-        if phys.kind != "column" or t.physics in LINEAR:
+        if phys.path.kind != "column" or t.physics in LINEAR:
             continue
         d += design.full_columns(t, fit.model) @ np.asarray(fit.coefs[i], dtype=float)  # a sensor lag's too
     return u - d
@@ -396,8 +397,8 @@ class Plant:
             if t.physics == MODE:
                 q = fit.term_params(i)
                 modes.append((q["frequency_hz"], q["zeta"], q["gain"]))
-        return cls(p.get("inertia", {}).get("J", 0.0), p.get("viscous_friction", {}).get("B", 0.0),
-                   p.get("stiffness", {}).get("K", 0.0), 0.0, modes)  # fmt: skip
+        J, B, K = (p.get(term, {}).get(k, 0.0) for k, term in RIGID.items())
+        return cls(J, B, K, 0.0, modes)
 
 
 def rigid_response(pl: Plant, f: np.ndarray, dt: float) -> np.ndarray:
@@ -832,7 +833,7 @@ def run(design, fit, alpha: float, instrument: np.ndarray | None = None, fit_mod
                       "train_departure": public(dep), "train_after": public(departure(tr, Htr1, use_tr, alpha, noise_psd)),
                       "test_sse_before": d0["sse"], "test_sse_after": d1["sse"], "test_bins": d0["bins"],
                       "test_bound": proof, "fit_chi2": chi2}  # fmt: skip
-        why = MODE_TERM.implausible(m.params)  # at the damping bound: not a lightly damped mode
+        why = MODE_TERM.judging.implausible(m.params)  # at the damping bound: not a lightly damped mode
         if why:
             m.reason = f"not a mode: {why}"
             res.dropped.append(m)
@@ -861,11 +862,11 @@ def run(design, fit, alpha: float, instrument: np.ndarray | None = None, fit_mod
 # ------------------------------------------------------------------ the input path
 def path_terms() -> list:
     """The vocabulary's input-path terms the frequency response can weigh: those with the
-    hook ``frf_factor(theta, f, dt)`` (their factor on the input-to-position response,
+    signal path's ``frf_factor(theta, f, dt)`` (their factor on the input-to-position response,
     (k,) complex at ``f`` Hz) and ``frf_param`` (the one parameter fitted to it): the
     delay (:mod:`servo.physics.time_delay`) and the sensor lag
     (:mod:`servo.diagnose.sensor_lag`)."""
-    return [p for p in VOCABULARY.values() if getattr(p, "frf_factor", None) is not None and getattr(p, "frf_param", None)]
+    return [p for p in VOCABULARY.values() if p.path.frf_factor is not None and p.path.frf_param]
 
 
 def _weighed(resp: Response, Hm: np.ndarray, use: np.ndarray, noise_psd: float) -> float:
@@ -964,12 +965,12 @@ def input_path(design, fit, alpha: float, instrument: np.ndarray | None = None) 
     noise_psd = white_level(noise_psd, tr, use_tr, Hm)
 
     def response(phys, value):
-        theta = {phys.frf_param: value}
-        return model_response(pl, f, sig.dt, df, ker, lambda ff: phys.frf_factor(theta, ff, sig.dt))
+        theta = {phys.path.frf_param: value}
+        return model_response(pl, f, sig.dt, df, ker, lambda ff: phys.path.frf_factor(theta, ff, sig.dt))
 
     fitted = {}
     for name, phys in names.items():
-        lo, hi, logs = phys.bounds(design, inputs)[phys.frf_param]
+        lo, hi, logs = phys.bounds(design, inputs)[phys.path.frf_param]
         if not hi > lo:
             continue
         grid = np.geomspace(lo, hi, PATH_GRID) if logs else np.linspace(lo, hi, PATH_GRID)
@@ -1005,7 +1006,7 @@ def input_path(design, fit, alpha: float, instrument: np.ndarray | None = None) 
                         "of squares, chi-square bound of one degree of freedom)",
                 "named": named.physics, "bound": bound, "band_hz": [float(low), float(TOP * fs)],
                 "bins": [int(use_tr.sum()), int(use_te.sum())], "method": tr.method,
-                "terms": {k: {names[k].frf_param: v["value"], "train_sse": v["train_sse"], "test_sse": v["test_sse"]}
+                "terms": {k: {names[k].path.frf_param: v["value"], "train_sse": v["train_sse"], "test_sse": v["test_sse"]}
                           for k, v in fitted.items()}}  # fmt: skip
     # the misfit both leave, per degree of freedom (two per bin, less the gain and the
     # parameter): a response neither term describes scales the difference up with it
@@ -1016,7 +1017,7 @@ def input_path(design, fit, alpha: float, instrument: np.ndarray | None = None) 
     evidence["reason"] = (f"the frequency response over {low:.4g}-{TOP * fs:.4g} Hz is a {other} rather than a "
                           f"{named.physics}: held-out departure {sse:.4g} against {own['test_sse']:.4g} "
                           f"(it must fall by more than {bound:.3g})")  # fmt: skip
-    return {"named": named.physics, "physics": other, "theta": {names[other].frf_param: alt["value"]},
+    return {"named": named.physics, "physics": other, "theta": {names[other].path.frf_param: alt["value"]},
             "evidence": evidence}
 
 

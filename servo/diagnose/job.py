@@ -64,7 +64,7 @@ from servo.diagnose.signals import Signals, distance_since_reversal, make_signal
 from servo.diagnose.simulate import Prediction, Unsimulable, horizon_samples, predict, starts_in
 from servo.diagnose.terms import VOCABULARY
 from servo.errors import ServoError
-from servo.physics import diagnosed_by
+from servo.physics import EFFECTS, diagnosed_by
 from servo.identify.regressors import IdentificationError, RobustSettings
 from servo.io import progress
 from servo.io.recording import Recording
@@ -167,7 +167,7 @@ class Finding:
     @property
     def sensor(self) -> bool:
         """Whether the finding is the sensor's (a lattice): not a term of the force balance."""
-        return VOCABULARY[self.physics].kind == "sensor"
+        return VOCABULARY[self.physics].path.kind == "sensor"
 
 
 @dataclass
@@ -359,7 +359,7 @@ def _rounds(sel: Selector, model: Model, opt: Options, corrections: bool, findin
         for best in ok:
             term, tstd = sel.refine(model, best.physics, best.thetas)
             trial = fit_model(sel.d, model.plus(term).refitted())
-            why = VOCABULARY[best.physics].implausible_on(trial.term_params(len(trial.model.terms) - 1), sel.d)
+            why = VOCABULARY[best.physics].judging.implausible_on(trial.term_params(len(trial.model.terms) - 1), sel.d)
             if not why and _scope_of(sel.d, trial) and not _scope_of(sel.d, fit_model(sel.d, model.refitted())):
                 # a term that takes the model's inertia away (a dead zone that scales a
                 # two-level input down to nothing) is no physics; the next one is tried
@@ -531,11 +531,11 @@ def material_share(r0: np.ndarray, r1: np.ndarray, rows: np.ndarray, floor: floa
 
 def _proven(design: Design, fit: Fit, test_rows: np.ndarray) -> np.ndarray:
     """``fit``'s held-out residual (m,) as the proof reads it: each term's
-    :meth:`~servo.physics.base.Term.proven` (a drift's course cross-fitted on the test
+    :meth:`~servo.physics.base.Judging.proven` (a drift's course cross-fitted on the test
     part; the prediction for every other term)."""
     r = fit.residual
     for t in fit.model.terms:
-        r = VOCABULARY[t.physics].proven(design, t.params, r, test_rows)
+        r = VOCABULARY[t.physics].judging.proven(design, t.params, r, test_rows)
     return r
 
 
@@ -612,15 +612,18 @@ def _prove(design: Design, base: Model, findings: list, test_rows: np.ndarray, s
         for i in range(1, len(fits)):
             # the short-horizon simulation has no clock: a term whose course no past
             # forecasts (a drift) is judged on its cross-fitted force error instead
-            clock = bool(VOCABULARY[cols[i - 1].physics].follows)
+            clock = bool(VOCABULARY[cols[i - 1].physics].judging.follows)
+            # and it carries a term through its effect's [drive] fields: a term whose effect
+            # has none (columns alone, as a feature library's) is not judged by it
+            simulated = bool(EFFECTS[cols[i - 1].physics].drive)
             worse_out = (nr[i] is not None and nr[i - 1] is not None and nr[i] > nr[i - 1] * (1 + OUTPUT_TOLERANCE)
-                         and not clock)  # fmt: skip
+                         and not clock and simulated)  # fmt: skip
             t, p, nb = heldout_signflip(res[i - 1], res[i], test_rows)
             floor = verdict_mod.force_floor(design.sig, fits[i - 1].mass(), noise_x)
             share = material_share(res[i - 1], res[i], test_rows, floor)
             cols[i - 1].heldout = {"p": p, "t": t, "blocks": nb, "level": level if i > 1 else None,
                                    "share": share if math.isfinite(share) else None}  # None: no floor to judge by
-            unphysical = VOCABULARY[cols[i - 1].physics].implausible_on(final.term_params(len(base.terms) + i - 1), design)
+            unphysical = VOCABULARY[cols[i - 1].physics].judging.implausible_on(final.term_params(len(base.terms) + i - 1), design)
             if not errs[i] < errs[i - 1] or worse_out:
                 bad = i
                 break
@@ -663,11 +666,11 @@ def _breakaway(design: Design, fit: Fit, rounds: list, errs: list, nr: list, opt
     that model); ``step`` a quantised sensor's lattice step (0: none).  Returns
     ``(finding, unconfirmed entry)``, either None."""
     shared = [r["level"] for r in rounds if r.get("breakaway_share")]
-    if not shared or not all(map(fit.model.has, VOCABULARY[BREAKAWAY].requires)) or fit.model.has(BREAKAWAY):
+    if not shared or not all(map(fit.model.has, VOCABULARY[BREAKAWAY].search.requires)) or fit.model.has(BREAKAWAY):
         return None, None
     if _scope_of(design, fit):
         return None, None
-    hidden = [VOCABULARY[t.physics].rests for t in fit.model.terms if VOCABULARY[t.physics].rests]
+    hidden = [VOCABULARY[t.physics].judging.rests for t in fit.model.terms if VOCABULARY[t.physics].judging.rests]
     if hidden:  # the rests are another term's (a play's dwells): they test no breakaway
         if not_testable is not None:
             not_testable[f"{BREAKAWAY} (breakaway at rest)"] = hidden[0]
@@ -951,9 +954,9 @@ def _diagnose(rec: Recording, opt: Options | None) -> Diagnosis:
     follows = []  # terms whose course through the test part the verdict's residual fits there (a drift)
     for t in final.model.terms:
         phys = VOCABULARY[t.physics]
-        if phys.follows:
-            r_after = phys.followed(design, t.params, r_after, test_rows)
-            follows.append(phys.follows)
+        if phys.judging.follows:
+            r_after = phys.judging.followed(design, t.params, r_after, test_rows)
+            follows.append(phys.judging.follows)
     sel.set_noise(base)
     tau = sel.tau
     y0 = design.target_raw(Model())

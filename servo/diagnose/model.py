@@ -82,7 +82,7 @@ class Model:
 
         phys = VOCABULARY[physics]
         fixed = any(t.physics == physics and not t.free for t in self.terms)
-        return fixed and not self.has_free(physics) and phys.kind == "column" and not phys.thetas
+        return fixed and not self.has_free(physics) and phys.path.kind == "column" and not phys.thetas
 
     def refitted(self, keep: str | None = None) -> "Model":
         """The model as a diagnosis fits it once anything is tried on or added to a model
@@ -99,16 +99,16 @@ class Model:
         free = {t.physics for t in self.terms if t.free}
         out = []
         for t in self.terms:
-            if not t.free and VOCABULARY[t.physics].kind == "column" and t.physics != keep and t.physics not in free:
+            if not t.free and VOCABULARY[t.physics].path.kind == "column" and t.physics != keep and t.physics not in free:
                 t = Term(t.physics, t.theta, None)
             out.append(t)
         return Model(out)
 
     def input_terms(self) -> list:
-        return [t for t in self.terms if VOCABULARY[t.physics].kind == "input"]
+        return [t for t in self.terms if VOCABULARY[t.physics].path.kind == "input"]
 
     def column_terms(self) -> list:
-        return [t for t in self.terms if VOCABULARY[t.physics].kind == "column"]
+        return [t for t in self.terms if VOCABULARY[t.physics].path.kind == "column"]
 
 
 #: the parameter of a term gated in time: its onset (s), the term's columns are zero
@@ -166,10 +166,10 @@ class Design:
             self._u[key] = self._u.pop(key)  # most recent last
             return self._u[key]
         u = self.sig.u
-        for phys in sorted((p for p in VOCABULARY.values() if p.kind == "input"), key=lambda p: p.path_order):
+        for phys in sorted((p for p in VOCABULARY.values() if p.path.kind == "input"), key=lambda p: p.path.path_order):
             for t in terms:
                 if t.physics == phys.name:
-                    u = phys.transform(u, t.params, self.sig.dt)
+                    u = phys.path.transform(u, t.params, self.sig.dt)
         while len(self._u) >= U_CACHE:
             del self._u[next(iter(self._u))]
         self._u[key] = u
@@ -220,7 +220,7 @@ class Design:
         if key in self._rows:
             return self.cached_rows(key, None)
         if extra is not None and not model.has(extra.physics):
-            fast = VOCABULARY[extra.physics].screen_target(self, model, extra.params)
+            fast = VOCABULARY[extra.physics].search.screen_target(self, model, extra.params)
             if fast is not None:
                 return self.cached_rows(key, lambda: fast)
         u = self.u_eff(model, extra)
@@ -229,7 +229,7 @@ class Design:
     def per_input(self, name: str, model: Model, build):
         """``build()``'s result for ``model``'s effective input, kept under ``name`` for
         the most recent input only (a full-rate array or an object holding one): what a
-        term's :meth:`~servo.physics.base.Term.screen_target` derives once from
+        term's :meth:`~servo.physics.base.Search.screen_target` derives once from
         the input and reuses over its grid."""
         key = self.input_key(model)
         held = self._per_input.get(name)
@@ -239,7 +239,7 @@ class Design:
 
     def delayed_force(self, model: Model):
         """The :class:`~servo.diagnose.delayed.DelayedForce` of ``model``'s effective input
-        (what a delay's :meth:`~servo.physics.base.Term.screen_target` interpolates)."""
+        (what a delay's :meth:`~servo.physics.base.Search.screen_target` interpolates)."""
         from servo.diagnose.delayed import DelayedForce
 
         q = self.sig.settings.decimate
@@ -251,7 +251,7 @@ class Design:
         the lag-corrected one (:class:`servo.diagnose.sensor_lag.LagCorrected`: the motion
         the arm made, its rows through the lag)."""
         for name in dict.fromkeys(t.physics for t in model.terms):
-            other = VOCABULARY[name].column_design(self, model, phys)
+            other = VOCABULARY[name].path.column_design(self, model, phys)
             if other is not None:
                 return other
         return self
@@ -290,7 +290,7 @@ class Design:
 
     def _term_key(self, phys, term: Term, model: Model) -> tuple:
         """The cache key of :meth:`term_rows` of ``term`` (vocabulary entry ``phys``) under ``model``."""
-        key = (term.physics, term.theta) + (self.input_key(model) if phys.uses_input or phys.signs_by_input else ())
+        key = (term.physics, term.theta) + (self.input_key(model) if phys.path.uses_input or phys.path.signs_by_input else ())
         if self.column_design(phys, model) is not self:
             key += self.input_key(model)
         return key

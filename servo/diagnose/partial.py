@@ -79,7 +79,7 @@ def gateable(sel: Selector, model: Model) -> list:
     ok = []
     for name in sel.eligible(model)[0]:
         phys = VOCABULARY[name]
-        if phys.kind != "column" or phys.screening or not phys.gated or model.corrects(name):
+        if phys.path.kind != "column" or phys.search.screening or not phys.search.gated or model.corrects(name):
             continue
         ok.append(name)
     return ok
@@ -233,7 +233,7 @@ def refine(sel: Selector, model: Model, physics: str, thetas: list) -> tuple[Ter
     best[GATE] = _exact_onset(sel, model, physics, best, y0, Phi, w)
     std: dict = {}
     if phys.thetas:  # each nonlinear parameter in turn, the others held (one sweep)
-        names = [n for n in phys.thetas if n not in phys.held(best)]
+        names = [n for n in phys.thetas if n not in phys.search.held(best)]
         bounds = phys.bounds(d, model)
         logs = [bounds[n][2] for n in names]
         for name, lg in zip(names, logs):
@@ -317,7 +317,7 @@ def rounds(sel: Selector, model: Model, alpha: float, counted: int, room: int, l
             if not best.passes(level):  # the criterion, with the refined term
                 continue
             trial = fit_model(sel.d, model.plus(term).refitted())
-            why = VOCABULARY[best.physics].implausible_on(trial.term_params(len(trial.model.terms) - 1), sel.d)
+            why = VOCABULARY[best.physics].judging.implausible_on(trial.term_params(len(trial.model.terms) - 1), sel.d)
             if why:
                 implausible[f"{best.physics} (gated in time)"] = why
                 continue

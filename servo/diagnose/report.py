@@ -89,7 +89,7 @@ def finding_dict(f: Finding, fu: str, pu: str = "m") -> dict:
     return {
         "physics": f.physics, "params": f.params, "std": f.std, "units": _units(f.physics, f.params, fu, pu),
         "where": f.where, "evidence": _evidence(f), "error_before": f.before, "error_after": f.after,
-        "heldout": f.heldout, "note": VOCABULARY[f.physics].note(f.params),
+        "heldout": f.heldout, "note": VOCABULARY[f.physics].judging.note(f.params),
     }  # fmt: skip
 
 

@@ -424,10 +424,10 @@ class Selector:
         y0, Phi, _, _ = self.current(model)
         same_Phi, S0 = self._baseline_cv(model)  # an input term's variants change the target only
         K = self.blocks.K
-        if phys.kind == "input":
+        if phys.path.kind == "input":
             variants = [(th, *self._input_variant(model, physics, th, Phi)) for th in grid]
             choice = self._nested(variants, same_Phi)
-        elif phys.screening and len(grid) > 1:
+        elif phys.search.screening and len(grid) > 1:
             choice = self._screened(model, physics, grid, y0, Phi)
         else:
             if len(grid) > SHORTLIST:
@@ -457,7 +457,7 @@ class Selector:
         keys = [tuple(sorted(th.items())) for th in thetas]
         th = thetas[max(range(len(keys)), key=keys.count)]
         term = Term.make(physics, th)
-        if phys.kind == "input":
+        if phys.path.kind == "input":
             y, Z = self.d.target(model, extra=term), Phi
         else:
             y, Z = y0, np.column_stack([Phi, self.d.term_rows(term, model)])
@@ -499,8 +499,8 @@ class Selector:
         variants: 1.3 s of its 1.7 s at 1e6 samples was building exact columns, 16 of
         them the bristles' traces, 47 ms each; load 6)."""
         phys = VOCABULARY[physics]
-        ranked = [j for j, th in enumerate(grid) if phys.coarse_ranks(th)]
-        C = phys.coarse_batch(self.d, [grid[j] for j in ranked], model) if len(ranked) > SHORTLIST else None
+        ranked = [j for j, th in enumerate(grid) if phys.search.coarse_ranks(th)]
+        C = phys.search.coarse_batch(self.d, [grid[j] for j in ranked], model) if len(ranked) > SHORTLIST else None
         if C is None:
             return grid
         w = self.blocks.weights > 0
@@ -524,10 +524,10 @@ class Selector:
         r = np.where(w, y0 - Phi @ fit_rows(y0, Phi, w), 0.0)
         K = self.blocks.K
         expl = np.zeros((K, len(grid)))
-        sums = phys.screen_sums(self.d, grid, model, r, self.blocks)  # compiled, no columns
+        sums = phys.search.screen_sums(self.d, grid, model, r, self.blocks)  # compiled, no columns
         for j0 in range(0, len(grid), SCREEN_CHUNK):
             if sums is None:
-                C = phys.screen_batch(self.d, grid[j0 : j0 + SCREEN_CHUNK], model)  # (J, k, m)
+                C = phys.search.screen_batch(self.d, grid[j0 : j0 + SCREEN_CHUNK], model)  # (J, k, m)
                 a, H = screen_stats(C, r, self.blocks)
             else:
                 a, H = sums[0][:, j0 : j0 + SCREEN_CHUNK], sums[1][:, j0 : j0 + SCREEN_CHUNK]
@@ -551,7 +551,7 @@ class Selector:
         w = self.blocks.weights > 0
         if approximate:
             y, Phi, _ = self.d.matrix(model)
-            C = VOCABULARY[term.physics].screen(self.d, term.params, model)
+            C = VOCABULARY[term.physics].search.screen(self.d, term.params, model)
             Phi = np.column_stack([Phi, C])
         else:
             y, Phi, _ = self.d.matrix(model.plus(term))
@@ -569,11 +569,11 @@ class Selector:
         if not phys.thetas:
             return Term.make(physics), {}
         model = model.refitted(keep=physics)  # as in :meth:`score`
-        approx = phys.screening
+        approx = phys.search.screening
         uniq = {tuple(sorted(th.items())): th for th in thetas}.values()
         best = min(uniq, key=lambda th: self.train_sse(model, Term.make(physics, th), approx))
         bounds = phys.bounds(self.d, model)
-        kept = {n: best[n] for n in phys.held(best)}
+        kept = {n: best[n] for n in phys.search.held(best)}
         names = [n for n in phys.thetas if n not in kept]
         if not names:
             return Term.make(physics, best), {}
@@ -623,7 +623,7 @@ class Selector:
         v = best[name]
         if lg:
             return (np.log(max(lo, v / 1.6)), np.log(min(hi, v * 1.6)))
-        width = phys.refine_width(self.d, name, v)
+        width = phys.search.refine_width(self.d, name, v)
         return (max(lo, v - width), min(hi, v + width))
 
     def _theta_std(self, f, z, names, logs, theta) -> dict:
@@ -651,7 +651,7 @@ class Selector:
         for name, phys in VOCABULARY.items():
             if name in exclude:
                 continue
-            reason = phys.eligible(model)
+            reason = phys.search.eligible(model)
             if reason is None:
                 ok.append(name)
             else:

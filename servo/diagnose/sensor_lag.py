@@ -12,7 +12,7 @@ sample sequence, so it commutes with every linear step of the rows (the second
 difference, the force's alignment, the Butterworth, the decimation filter): for the
 linear part of the plant, ``J*y'' + B*y' + K*y + h0 = L(u)`` holds exactly where
 ``J*x'' + B*x' + K*x + h0 = u`` does.  So the term acts like an *input* term: it filters
-the recorded input by ``L`` before the rows are made (:meth:`SensorLag.transform`), and
+the recorded input by ``L`` before the rows are made (:meth:`Lag.transform`), and
 the linear columns stay those of the measured motion.  (The inverse filter on the
 position, ``x = y + tau*y'``, would have to be differentiated three times and amplifies
 the sensor noise by ``1/a`` at Nyquist; the lag on the force adds no noise.)
@@ -66,7 +66,7 @@ from scipy import signal
 from servo.diagnose.band import band_hz
 from servo.diagnose.signals import Signals
 from servo.physics import register_term
-from servo.physics.base import OneField, Term
+from servo.physics.base import Judging, OneField, Search, SignalPath, Term
 
 
 def lag_coefficient(tau: float, dt: float) -> float:
@@ -135,7 +135,7 @@ def corrects(phys) -> bool:
     product of the motion and the input: not corrected) and the linear terms are not."""
     # a column linear in the motion (a ``OneField``) already obeys the lagged force
     # balance exactly (``L`` commutes with it); the true motion would only add noise
-    return phys.kind == "column" and not phys.uses_input and not isinstance(phys, OneField)
+    return phys.path.kind == "column" and not phys.path.uses_input and not isinstance(phys, OneField)
 
 
 class LaggedSignals(Signals):
@@ -144,7 +144,7 @@ class LaggedSignals(Signals):
     the sensor's low-pass), whose :meth:`rows` pass a full-rate column through the
     sensor's low-pass first.  A column term's ``full``/``rows`` read on it give
     ``rows(L(f(x)))``: the force the arm felt, seen through the sensor like the input
-    (:meth:`SensorLag.transform`).  The sign column (:attr:`sign_v`) is placed at the
+    (:meth:`Lag.transform`).  The sign column (:attr:`sign_v`) is placed at the
     corrected velocity's crossings.  ``noise_v`` and ``v_threshold`` grow by the inverse
     filter's noise gain (white position noise through the path's filter, the derivative
     and :func:`unlag`)."""
@@ -196,8 +196,50 @@ class LagCorrected:
         self.train_rows, self.train_valid, self.train_samples = d.train_rows, d.train_valid, d.train_samples
 
 
+class Lag(SignalPath):
+    """The sensor's lag on the input's path: it acts last (it commutes with the linear
+    dynamics); the other terms' columns read the lag-corrected motion; the
+    frequency-domain path fits ``time_constant_s`` (log-spaced)."""
+
+    def transform(self, u, theta, dt):
+        """The recorded input through the sensor's low-pass (n,)."""
+        return lowpass(u, lag_coefficient(theta["time_constant_s"], dt))
+
+    def column_design(self, d, model, phys):
+        return self.term.corrected(d, model) if corrects(phys) else None
+
+    @staticmethod
+    def frf_factor(theta, f, dt):
+        """The lag's factor on the input-to-position response at ``f`` (k,) Hz: the
+        one-pole ``a/(1 - (1 - a)*z^-1)``, ``z = exp(j*2*pi*f*dt)``: a magnitude that
+        rolls off above the cutoff and a phase that saturates (at -90 degrees for a
+        cutoff well below the Nyquist frequency), where a delay's magnitude is flat and its
+        phase linear (the frequency-domain path's hook,
+        :func:`servo.diagnose.frf_modes.input_path`)."""
+        a = lag_coefficient(theta["time_constant_s"], dt)
+        z = np.exp(2j * np.pi * np.asarray(f, dtype=float) * dt)
+        return a / (1.0 - (1.0 - a) / z)
+
+
+class LagSearch(Search):
+    """A lag tried on top of a model from the force lagged once per input."""
+
+    def screen_target(self, d, model, theta):
+        lagged = d.per_input(self.term.name, model, lambda: LaggedForce(d.sig, d.u_eff(model)))
+        return lagged.rows(theta["time_constant_s"])
+
+
+class LagJudging(Judging):
+    """The cutoff's std from the time constant's."""
+
+    def std_extra(self, params, std):
+        if "time_constant_s" in std:
+            return {"cutoff_hz": float(params["cutoff_hz"] * std["time_constant_s"] / params["time_constant_s"])}
+        return {}
+
+
 class SensorLag(Term):
-    name, kind, thetas = "sensor_lag", "input", ("time_constant_s",)
+    name, thetas = "sensor_lag", ("time_constant_s",)
     units = {"time_constant_s": "s", "cutoff_hz": "Hz"}
     doc = ("a first-order low-pass of time constant tau on the position sensor, y[k] = y[k-1] + a*(x[k] - y[k-1]), "
            "a = 1 - exp(-dt/tau): the force balance holds for the recorded input through the same filter")  # fmt: skip
@@ -210,19 +252,9 @@ class SensorLag(Term):
     DELAY_LIKE = 0.3
     #: the longest, in row spacings
     HI_ROWS = 2.0
-    path_order = 2  # the sensor's lag acts last (it commutes with the linear dynamics)
-
-    @staticmethod
-    def transform(u, theta, dt):
-        """The recorded input through the sensor's low-pass (n,)."""
-        return lowpass(u, lag_coefficient(theta["time_constant_s"], dt))
-
-    def screen_target(self, d, model, theta):
-        lagged = d.per_input(self.name, model, lambda: LaggedForce(d.sig, d.u_eff(model)))
-        return lagged.rows(theta["time_constant_s"])
-
-    def column_design(self, d, model, phys):
-        return self.corrected(d, model) if corrects(phys) else None
+    path = Lag(kind="input", path_order=2, frf_param="time_constant_s")
+    search = LagSearch()
+    judging = LagJudging()
 
     def corrected(self, d, model):
         """The :class:`LagCorrected` design of ``model``'s lag (which ``model`` holds),
@@ -243,21 +275,6 @@ class SensorLag(Term):
     def bounds(self, d, model):
         return {"time_constant_s": (*self._range(d), True)}
 
-    #: the frequency-domain path fits ``time_constant_s`` over this (log-spaced)
-    frf_param = "time_constant_s"
-
-    @staticmethod
-    def frf_factor(theta, f, dt):
-        """The lag's factor on the input-to-position response at ``f`` (k,) Hz: the
-        one-pole ``a/(1 - (1 - a)*z^-1)``, ``z = exp(j*2*pi*f*dt)``: a magnitude that
-        rolls off above the cutoff and a phase that saturates (at -90 degrees for a
-        cutoff well below the Nyquist frequency), where a delay's magnitude is flat and its
-        phase linear (the frequency-domain path's hook,
-        :func:`servo.diagnose.frf_modes.input_path`)."""
-        a = lag_coefficient(theta["time_constant_s"], dt)
-        z = np.exp(2j * np.pi * np.asarray(f, dtype=float) * dt)
-        return a / (1.0 - (1.0 - a) / z)
-
     def physical(self, theta, coef):
         tau = float(theta["time_constant_s"])
         return {"time_constant_s": tau, "cutoff_hz": 1.0 / (2 * math.pi * tau)}
@@ -265,11 +282,6 @@ class SensorLag(Term):
     def from_physical(self, p):
         tau = p["time_constant_s"] if "time_constant_s" in p else 1.0 / (2 * math.pi * p["cutoff_hz"])
         return {"time_constant_s": tau}, ()
-
-    def std_extra(self, params, std):
-        if "time_constant_s" in std:
-            return {"cutoff_hz": float(params["cutoff_hz"] * std["time_constant_s"] / params["time_constant_s"])}
-        return {}
 
 
 register_term(SensorLag)

@@ -9,7 +9,7 @@ import numpy as np
 
 from servo.fields import P
 from servo.physics import coulomb
-from servo.physics.base import SLIDING, VISCOUS, Concealment, DriveMap, Effect, Term, number
+from servo.physics.base import SLIDING, VISCOUS, Concealment, DriveMap, Effect, Search, Term, number
 
 
 class Asymmetric(Term):
@@ -17,7 +17,7 @@ class Asymmetric(Term):
     doc = ("direction-dependent friction: B(+-) = B +- dB.  A direction-dependent Coulomb level "
            "Fc(+-) = Fc +- dFc adds dFc to every sliding row: it is an offset while the arm slides "
            "and is reported in the offset")  # fmt: skip
-    requires = ("viscous_friction", "coulomb_friction", "offset")
+    search = Search(requires=("viscous_friction", "coulomb_friction", "offset"))
 
     def full(self, d, theta, u_eff):
         return np.abs(d.sig.vf)

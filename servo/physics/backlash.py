@@ -74,7 +74,7 @@ import weakref
 import numpy as np
 
 from servo.fields import P
-from servo.physics.base import Concealment, DriveMap, Effect, Term
+from servo.physics.base import Concealment, DriveMap, Effect, Judging, Term
 
 #: a dwell: the filtered speed within this many direction thresholds (the load's
 #: restart is a velocity step hundreds of thresholds high; the noise crosses one)
@@ -229,14 +229,24 @@ def half_gap(sig, samples: np.ndarray | None = None) -> tuple[float, int]:
     return (float(np.median(ests)) if ests else 0.0), len(ests)
 
 
+class GapJudging(Judging):
+    """An inertia crosses the gap: ``J_gap > 0``."""
+
+    def implausible(self, params):
+        if params["J_gap"] <= 0:
+            return f"the best fit has J_gap = {params['J_gap']:.3g} <= 0: no inertia crosses the gap"
+        return ""
+
+
 class Backlash(Term):
     name, coefs, thetas = "backlash", ("J_gap",), ("half_gap",)
     units = {"J_gap": "F*s^2/m", "half_gap": "m"}
     doc = ("a play of half-gap b between the motor and the load the sensor reads: the motor's inertia J_gap times "
            "its acceleration across the gap, e'' with x = y + e (the half-gap from the dwells at reversals)")  # fmt: skip
-    POSITIVE = {"J_gap": "the gap's column enters with the sign of an inertia: a negative one is no motor crossing it"}
-    rests = ("the sensor's load stands across each dwell while the motor crosses the gap, whatever the friction: "
-             "its intervals at rest are the play's")  # fmt: skip
+    judging = GapJudging(
+        positive={"J_gap": "the gap's column enters with the sign of an inertia: a negative one is no motor crossing it"},
+        rests=("the sensor's load stands across each dwell while the motor crosses the gap, whatever the friction: "
+               "its intervals at rest are the play's"))  # fmt: skip
 
     def full(self, d, theta, u_eff):
         s = d.sig
@@ -262,12 +272,6 @@ class Backlash(Term):
         b, _ = half_gap(d.sig, getattr(d, "train_samples", None))
         b = b if b > 0 else 1.0
         return {"half_gap": (b / SPREAD, b * SPREAD, True)}
-
-    def implausible(self, params):
-        if params["J_gap"] <= 0:
-            return f"the best fit has J_gap = {params['J_gap']:.3g} <= 0: no inertia crosses the gap"
-        return ""
-
 
 class BacklashDrive(DriveMap):
     """The backlash term in the simulated drive's ``[drive]`` section: its half-gap (the

@@ -49,14 +49,20 @@ cover, or a rate of the rigid body     plausibility and the compensator's
   and the force hooks ``rest_force``, ``force_gain``, ``command_for``, ``forces``,
   ``rates`` (None: no force at rest, a force constant of 1, the command as it is, no
   force, no rate).
-* :class:`Term` is four concerns, each a base class with defaults that are exact and
-  always correct: :class:`Columns` (``rows`` through the rows' filter, ``physical`` /
-  ``from_physical`` the same names), :class:`SignalPath` (a column term of the measured
-  motion: ``kind``, ``requires``, ``path_order``, ``gated``, ``idle``,
-  ``column_design``, ``eligible``, ...), :class:`Search` (what only the screening and
-  refinement machinery asks, for speed: ``screen*``, ``coarse_*``, ``bounds``, ``refine_width``) and
-  :class:`Judging` (how the report judges a fit: ``POSITIVE``, ``implausible``, ``implausible_on``,
-  ``std_extra``).  :class:`OneField` is a term that is one coefficient linear in the
+* :class:`Term` is what a feature library has: ``name``, ``doc``, ``units``,
+  ``coefs``, ``thetas``, ``full`` (the columns), ``grid`` and ``bounds`` (derived:
+  ``rows`` through the rows' filter, ``physical`` / ``from_physical`` the same names,
+  ``unit``).  The rest is three capabilities (:class:`Capability`), each a small
+  object with defaults that are exact and always correct, which a term carries only
+  to change one: ``path`` (:class:`SignalPath`: a column term of the measured motion
+  by default; ``kind``, ``path_order``, ``transform``, ``idle``, ``column_design``,
+  ...), ``search`` (:class:`Search`: ``requires``, ``gated``, ``eligible``, and the
+  screening and refinement machinery's ``screen*``, ``coarse_*``, ``held``,
+  ``refine_width``) and ``judging`` (:class:`Judging`: ``positive``,
+  ``implausible``, ``implausible_on``, ``std_extra``, ``rests``, ``follows``, ...).
+  A declared value is a keyword (``search = Search(requires=("offset",))``); a
+  changed rule is a method of the term's own subclass, which reads the term as
+  ``self.term``.  :class:`OneField` is a term that is one coefficient linear in the
   motion, :class:`OneFieldDrive` its drive map.
 * :class:`DriveMap`: ``in_drive`` (whether a drive holds the term, from
   ``from_drive``), ``state`` (a hidden plant state the term holds, none).
@@ -83,6 +89,7 @@ positions in m, times in s.
 """
 from __future__ import annotations
 
+import copy
 import math
 from dataclasses import dataclass, field
 from typing import Callable
@@ -222,57 +229,48 @@ class Simulation:
     u_scale: float
 
 
-class Columns:
-    """What a term's author writes: the columns of the force balance and their parameters.
+class Capability:
+    """A part of a term's interface beyond its columns that a term may carry, with
+    defaults the pipeline applies without knowing the term (:class:`SignalPath`,
+    :class:`Search`, :class:`Judging`).  A term carries one as a class attribute
+    (``search = Search(requires=("offset",))``, or an instance of its own subclass that
+    overrides a method); read through a term it is bound to it (``self.term``).  The
+    keyword arguments set the capability's declared values (an unknown one is refused)."""
 
-    ``name`` the vocabulary name (the effect's); ``coefs`` the coefficients the columns
-    are linear in, ``thetas`` the nonlinear parameters fixed while they are fitted;
-    ``units`` name -> unit (``F`` the force unit); ``doc`` one line;
-    ``full(design, theta, u_eff)`` the full-rate columns (n, k) of the filtered motion
-    (``design.sig``); ``grid(design, model)`` the ``theta`` a diagnosis tries (``[{}]``
-    for a linear term); ``physical``/``from_physical`` between the internal ``(theta,
-    coef)`` and the reported parameters (default: the same names)."""
+    term = None
+    _attr = ""
 
-    name = ""
-    coefs: tuple = ()
-    thetas: tuple = ()
-    units: dict = {}
-    doc = ""
+    def __init__(self, **values):
+        for k, v in values.items():
+            if k.startswith("_") or not hasattr(type(self), k) or callable(getattr(type(self), k)):
+                raise TypeError(f"{type(self).__name__}: no value {k!r} to set")
+            setattr(self, k, v)
 
-    def full(self, d, theta: dict, u_eff: np.ndarray) -> np.ndarray:
-        """Full-rate columns (n, k)."""
-        raise NotImplementedError
+    def __set_name__(self, owner, name):
+        self._attr = name
 
-    def rows(self, d, theta: dict, u_eff: np.ndarray) -> np.ndarray:
-        """The exact rows (m, k): :meth:`full` through the rows' parallel filter."""
-        F = np.atleast_2d(self.full(d, theta, u_eff).T).T
-        return np.column_stack([d.sig.rows(np.ascontiguousarray(F[:, j])) for j in range(F.shape[1])])
-
-    def grid(self, d, model) -> list:
-        return [{}]
-
-    def physical(self, theta: dict, coef) -> dict:
-        """Reported parameters (name -> value)."""
-        return {**dict(zip(self.coefs, map(float, coef))), **{k: float(v) for k, v in theta.items()}}
-
-    def from_physical(self, p: dict) -> tuple[dict, tuple]:
-        return {k: p[k] for k in self.thetas}, tuple(p[k] for k in self.coefs)
+    def __get__(self, term, owner=None):
+        if term is None:
+            return self
+        bound = copy.copy(self)
+        bound.term = term
+        term.__dict__[self._attr] = bound  # bound once per term (an instance attribute shadows this descriptor)
+        return bound
 
 
-class SignalPath:
+class SignalPath(Capability):
     """Where a term sits on the signal path of the force balance (defaults: a column
-    term of the measured motion, tried once, with no prerequisite).
+    term of the measured motion).
 
-    ``kind`` ``"column"``, ``"input"`` or ``"sensor"`` (:class:`Term`); ``requires`` the
-    terms a model must hold before this one is tried; ``uses_input`` its columns read
-    the effective input; ``signs_by_input`` its friction's sign is placed with it; ``path_order`` an input term's place on the input's
-    path to the arm; ``gated`` whether it may be present from some time on only;
-    ``idle`` an input term that changes no row; ``column_design`` the signals other
-    terms' columns read when the model holds this one; ``eligible`` whether it may be
-    tried on top of a model."""
+    ``kind`` ``"column"``, ``"input"`` or ``"sensor"`` (:class:`Term`); ``uses_input``
+    its columns read the effective input; ``signs_by_input`` its friction's sign is
+    placed with it; ``path_order`` an input term's place on the input's path to the arm;
+    ``transform`` an input term's change of the input; ``idle`` an input term that
+    changes no row; ``column_design`` the signals other terms' columns read when the
+    model holds this one; ``frf_param``/``frf_factor`` an input term's one parameter and
+    factor on the frequency response (:mod:`servo.diagnose.frf_modes`)."""
 
     kind = "column"
-    requires: tuple = ()
     uses_input = False
     #: its columns switch with the motion's direction, whose reversals are placed with
     #: the effective input (:meth:`servo.diagnose.signals.Signals.sign_for`): its rows
@@ -280,9 +278,13 @@ class SignalPath:
     signs_by_input = False
     #: an input term's place on the input's path to the arm (lower first, as in the drive)
     path_order = 0
-    #: whether the term may be present from some time on only (a mass does not appear
-    #: half-way: :mod:`servo.diagnose.partial`)
-    gated = True
+    #: the parameter the frequency-domain path fits to an input term ("": none)
+    frf_param = ""
+
+    def transform(self, u: np.ndarray, theta: dict, dt: float) -> np.ndarray:
+        """An input term's input reaching the arm (n,) from the recorded ``u`` (n,) at
+        sample period ``dt`` (s) with parameters ``theta``."""
+        raise NotImplementedError(f"{self.term.name}: a {self.kind} term has no transform of the input")
 
     def idle(self, params: dict, u: np.ndarray) -> bool:
         """Whether the term, with ``params``, leaves the recorded input ``u`` (n,) as it
@@ -294,23 +296,38 @@ class SignalPath:
         this term (a sensor lag: the lag-corrected motion); None: the design ``d`` itself."""
         return None
 
+    #: ``frf_factor(theta, f, dt)``: an input term's factor (k,) complex on the
+    #: input-to-position response at ``f`` (k,) Hz (None: not on the frequency path)
+    frf_factor = None
+
+
+class Search(Capability):
+    """What the selection (:mod:`servo.diagnose.select`) asks of a term beyond its grid
+    and bounds: when it may be tried (``requires``, ``gated``, :meth:`eligible`), fast
+    approximations for large grids and the final refinement's intervals.  The defaults
+    are exact and always correct; a term overrides them for speed (``screen``,
+    ``screen_batch``, ``screen_sums``, ``screen_target``, ``coarse_*``) or to refine its
+    ``thetas`` between grid points (``held``, ``refine_width``)."""
+
+    #: the terms a model must hold before this one is tried
+    requires: tuple = ()
+    #: whether the term may be present from some time on only (a mass does not appear
+    #: half-way: :mod:`servo.diagnose.partial`)
+    gated = True
+    #: why the term is never tried on top of a model ("": it is, :meth:`eligible`)
+    never = ""
+
     def eligible(self, model) -> str | None:
         """None when the term may be tried on top of ``model``, else why not."""
-        if model.has_free(self.name) or (model.has(self.name) and self.thetas):
+        t = self.term
+        if self.never:
+            return self.never
+        if model.has_free(t.name) or (model.has(t.name) and t.thetas):
             return "already in the model"
         for r in self.requires:
             if not model.has(r):
                 return f"needs {r} in the model first"
         return None
-
-
-class Search:
-    """What only the screening and refinement machinery of the selection
-    (:mod:`servo.diagnose.select`) asks of a term: fast approximations for large grids
-    and the final refinement's intervals.  The defaults are exact and always correct;
-    a term overrides them for speed (``screen``, ``screen_batch``, ``screen_sums``,
-    ``screen_target``) or to refine its ``thetas`` between grid points (``bounds``,
-    ``refine_width``)."""
 
     @property
     def screening(self) -> bool:
@@ -319,7 +336,7 @@ class Search:
         return type(self).screen is not Search.screen
 
     def screen(self, d, theta: dict, model) -> np.ndarray:
-        return d.variant_rows(self.name, theta, model)
+        return d.variant_rows(self.term.name, theta, model)
 
     def screen_batch(self, d, thetas: list, model) -> np.ndarray:
         """Approximate rows of several variants at once, (J, k, m)."""
@@ -352,10 +369,6 @@ class Search:
         term), computed faster than the exact chain; None: use the exact chain."""
         return None
 
-    def bounds(self, d, model) -> dict:
-        """Refinement bounds per theta: name -> (lo, hi, log_scale)."""
-        return {}
-
     def held(self, theta: dict) -> tuple:
         """The ``thetas`` the refinement keeps at the grid point ``theta``'s values (a
         part of the term the grid switched off); default none."""
@@ -367,40 +380,38 @@ class Search:
         return 0.15 * abs(value)
 
 
-class Judging:
+class Judging(Capability):
     """How the report judges and shows a fitted term (defaults: any sign, no derived
-    parameter): ``POSITIVE`` parameter -> what a negative value means (:meth:`note`);
-    ``implausible`` why fitted parameters do not describe the physics (then it is not
-    named); ``unit`` a parameter's unit in a force unit; ``std_extra`` the std of
-    derived reported parameters."""
+    parameter, held out as predicted): ``positive`` parameter -> what a negative value
+    means (:meth:`note`); :meth:`implausible` why fitted parameters do not describe the
+    physics (then it is not named); ``std_extra`` the std of derived reported
+    parameters; ``rests``, ``follows``, :meth:`followed`, :meth:`proven` for a term
+    that changes what the verdict's tests read."""
 
-    POSITIVE: dict = {}
+    #: parameter -> what a negative value means
+    positive: dict = {}
+    #: what :meth:`followed` does to the verdict's held-out residual, for its text ("": nothing)
+    follows = ""
+    #: why, with this term in the model, the arm's intervals at rest say nothing of a
+    #: breakaway (:mod:`servo.diagnose.breakaway`; "": they do)
+    rests = ""
 
     def note(self, params: dict) -> str:
         """A remark when a fitted parameter has a sign the physics does not expect."""
         for k, v in params.items():
-            if k in self.POSITIVE and v < 0:
-                return f"{k} < 0: {self.POSITIVE[k]}"
+            if k in self.positive and v < 0:
+                return f"{k} < 0: {self.positive[k]}"
         return ""
 
     def implausible(self, params: dict) -> str:
-        """Why fitted parameters (:meth:`physical`) do not describe this physics ("" if
-        they do): then the term is not named, whatever the test said."""
+        """Why fitted parameters (:meth:`Term.physical`) do not describe this physics (""
+        if they do): then the term is not named, whatever the test said."""
         return ""
 
     def implausible_on(self, params: dict, d) -> str:
         """:meth:`implausible`, and why the parameters are beyond what the recording of
         design ``d`` resolves (a length below its position noise): "" if neither."""
         return self.implausible(params)
-
-    def unit(self, name: str, force_unit: str) -> str:
-        return self.units.get(name, "-").replace("F", force_unit)
-
-    #: what :meth:`followed` does to the verdict's held-out residual, for its text ("": nothing)
-    follows = ""
-    #: why, with this term in the model, the arm's intervals at rest say nothing of a
-    #: breakaway (:mod:`servo.diagnose.breakaway`; "": they do)
-    rests = ""
 
     def followed(self, d, theta: dict, r: np.ndarray, rows: np.ndarray) -> np.ndarray:
         """The verdict's held-out residual (m,) of a model holding this term, on the test
@@ -423,14 +434,25 @@ class Judging:
         return {}
 
 
-class Term(Columns, SignalPath, Search, Judging):
-    """A diagnosis term: its columns (:class:`Columns`, what its author writes), its place
-    on the signal path (:class:`SignalPath`), what the screening and refinement machinery
-    asks of it (:class:`Search`) and how the report judges it (:class:`Judging`); the
+class Term:
+    """A diagnosis term: what a feature library has (its name, doc, units, coefficients
+    and nonlinear parameters, its columns, its grid and the refinement's bounds), and
+    three capabilities with defaults: its place on the signal path (``path``,
+    :class:`SignalPath`), what the selection asks beyond its grid (``search``,
+    :class:`Search`) and how the report judges it (``judging``, :class:`Judging`); the
     base is a linear column term with no nonlinear parameter.
 
+    ``name`` the vocabulary name (the effect's); ``coefs`` the coefficients the columns
+    are linear in, ``thetas`` the nonlinear parameters fixed while they are fitted;
+    ``units`` name -> unit (``F`` the force unit); ``doc`` one line;
+    ``full(design, theta, u_eff)`` the full-rate columns (n, k) of the filtered motion
+    (``design.sig``); ``grid(design, model)`` the ``theta`` a diagnosis tries (``[{}]``
+    for a linear term); ``bounds(design, model)`` the refinement's interval per theta.
+    Derived, overridden where the reported parameters are not the fitted ones:
+    ``rows``, ``physical``/``from_physical`` (default: the same names), ``unit``.
+
     Each term contributes to the force balance ``u_eff = sum coef * column`` (see
-    :mod:`servo.diagnose.model`) in one of three ways (``kind``):
+    :mod:`servo.diagnose.model`) in one of three ways (``path.kind``):
 
     * ``column`` terms add regressor columns, linear in their coefficients ``coefs`` for
       fixed nonlinear parameters ``thetas`` (a Stribeck velocity, a Dahl length, a mode's
@@ -445,6 +467,42 @@ class Term(Columns, SignalPath, Search, Judging):
     fields in a fitted model (:class:`DriveMap`), how a compensator leaves it out and
     how a study conceals it (:class:`Concealment`) are the effect module's other
     objects (:class:`Effect`)."""
+
+    name = ""
+    coefs: tuple = ()
+    thetas: tuple = ()
+    units: dict = {}
+    doc = ""
+
+    path = SignalPath()
+    search = Search()
+    judging = Judging()
+
+    def full(self, d, theta: dict, u_eff: np.ndarray) -> np.ndarray:
+        """Full-rate columns (n, k)."""
+        raise NotImplementedError
+
+    def grid(self, d, model) -> list:
+        return [{}]
+
+    def bounds(self, d, model) -> dict:
+        """Refinement bounds per theta: name -> (lo, hi, log_scale)."""
+        return {}
+
+    def rows(self, d, theta: dict, u_eff: np.ndarray) -> np.ndarray:
+        """The exact rows (m, k): :meth:`full` through the rows' parallel filter."""
+        F = np.atleast_2d(self.full(d, theta, u_eff).T).T
+        return np.column_stack([d.sig.rows(np.ascontiguousarray(F[:, j])) for j in range(F.shape[1])])
+
+    def physical(self, theta: dict, coef) -> dict:
+        """Reported parameters (name -> value)."""
+        return {**dict(zip(self.coefs, map(float, coef))), **{k: float(v) for k, v in theta.items()}}
+
+    def from_physical(self, p: dict) -> tuple[dict, tuple]:
+        return {k: p[k] for k in self.thetas}, tuple(p[k] for k in self.coefs)
+
+    def unit(self, name: str, force_unit: str) -> str:
+        return self.units.get(name, "-").replace("F", force_unit)
 
 
 #: the compensator term of eq. (9)'s viscous friction and bias (``B``, ``K``, ``h0``)
@@ -560,7 +618,7 @@ def one_field(name: str):
     return lambda section, *_: {name: getattr(section, name)}
 
 
-__all__ = ["BIAS", "EQ9", "SLIDING", "VISCOUS", "Cancelling", "Columns", "Concealment", "DriveMap", "Effect",
+__all__ = ["BIAS", "EQ9", "SLIDING", "VISCOUS", "Cancelling", "Capability", "Concealment", "DriveMap", "Effect",
            "Judging", "Search", "SignalPath",
            "OneField", "OneFieldDrive", "Simulation", "Term", "contiguous", "field_at", "fold_ranges", "geom",
            "number", "one_field", "valid_speed", "zero"]  # fmt: skip

@@ -10,22 +10,12 @@ import math
 import numpy as np
 
 from servo.fields import P
-from servo.physics.base import Concealment, DriveMap, Effect, Term, contiguous, fold_ranges, number, valid_speed
+from servo.physics.base import (Concealment, DriveMap, Effect, Judging, Search, Term, contiguous, fold_ranges,
+                                number, valid_speed)
 
 
-class Cogging(Term):
-    name, coefs, thetas = "cogging", ("a_sin", "a_cos"), ("period",)
-    units = {"a_sin": "F", "a_cos": "F", "period": "m", "amplitude": "F", "phase": "rad"}
-    doc = "a force periodic in position: amplitude*sin(2*pi*x/period + phase)"
-    MAX_GRID = 3000
-
-    def std_extra(self, params, std):
-        if "a_sin" in std and "a_cos" in std:
-            return {"amplitude": float(np.hypot(std["a_sin"], std["a_cos"]) / np.sqrt(2))}
-        return {}
-    def full(self, d, theta, u_eff):
-        w = 2 * math.pi * d.sig.xf / theta["period"]
-        return np.column_stack([np.sin(w), np.cos(w)])
+class CoggingSearch(Search):
+    """The large grid of periods screened by complex rotation, uniform in wavenumber."""
 
     def screen(self, d, theta, model):
         w = 2 * math.pi * d.sig.x_rows / theta["period"]
@@ -64,6 +54,28 @@ class Cogging(Term):
 
         cogging_stats(contiguous(d.sig.x_rows), contiguous(r), contiguous(blocks.weights), starts, stops, float(k[0]), float(dk), a, H)
         return a, H
+
+
+class CoggingJudging(Judging):
+    """The amplitude's std from the two coefficients'."""
+
+    def std_extra(self, params, std):
+        if "a_sin" in std and "a_cos" in std:
+            return {"amplitude": float(np.hypot(std["a_sin"], std["a_cos"]) / np.sqrt(2))}
+        return {}
+
+
+class Cogging(Term):
+    name, coefs, thetas = "cogging", ("a_sin", "a_cos"), ("period",)
+    units = {"a_sin": "F", "a_cos": "F", "period": "m", "amplitude": "F", "phase": "rad"}
+    doc = "a force periodic in position: amplitude*sin(2*pi*x/period + phase)"
+    MAX_GRID = 3000
+    search = CoggingSearch()
+    judging = CoggingJudging()
+
+    def full(self, d, theta, u_eff):
+        w = 2 * math.pi * d.sig.xf / theta["period"]
+        return np.column_stack([np.sin(w), np.cos(w)])
 
     def _k_range(self, d):
         s = d.sig

@@ -6,7 +6,7 @@ documentation entry (:class:`~servo.physics.base.Effect`).
 from __future__ import annotations
 
 from servo.fields import P
-from servo.physics.base import SLIDING, Concealment, DriveMap, Effect, Term, number, one_field
+from servo.physics.base import SLIDING, Concealment, DriveMap, Effect, Judging, SignalPath, Term, number, one_field
 from servo.physics.stribeck import bristles
 
 
@@ -14,9 +14,8 @@ class Coulomb(Term):
     name, coefs, units = "coulomb_friction", ("Fc",), {"Fc": "F"}
 
     doc = "Coulomb friction Fc*sgn(x')"
-    POSITIVE = {"Fc": "a force pushing along the motion: not friction"}
-
-    signs_by_input = True
+    judging = Judging(positive={"Fc": "a force pushing along the motion: not friction"})
+    path = SignalPath(signs_by_input=True)
 
     def full(self, d, theta, u_eff):
         return d.sig.sign_for(u_eff)  # the sign the rows see: its switch placed between samples

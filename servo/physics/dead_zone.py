@@ -19,11 +19,23 @@ import math
 import numpy as np
 
 from servo.fields import P
-from servo.physics.base import Concealment, DriveMap, Effect, Term, field_at, number, zero
+from servo.physics.base import Concealment, DriveMap, Effect, SignalPath, Term, field_at, number, zero
+
+
+class Band(SignalPath):
+    """The dead zone on the input's path: after the amplifier's clipping, before the delay
+    (as in the drive)."""
+
+    def transform(self, u, theta, dt):
+        w = theta["width"]
+        return u - np.clip(u, -w, w)
+
+    def idle(self, params, u):
+        return not params["width"] > 0.0
 
 
 class DeadZone(Term):
-    name, kind, thetas, units = "dead_zone", "input", ("width",), {"width": "F"}
+    name, thetas, units = "dead_zone", ("width",), {"width": "F"}
     doc = "the input loses a band of half-width width: the arm gets sgn(u)*max(|u| - width, 0) (driver dead zone)"
     #: the half-widths tried: these quantiles of the recorded |u| (training samples)
     QUANTILES = (0.01, 0.02, 0.05, 0.1, 0.15, 0.2, 0.3, 0.4, 0.5, 0.6)
@@ -33,15 +45,7 @@ class DeadZone(Term):
     #: the force balance of a zero input is met by all-zero coefficients (an open-loop PRBS
     #: lost its delay, lag and modes to a "dead zone" of its whole amplitude, J fitted 0)
     PASS_MIN = 0.1
-    path_order = 0.5  # after the amplifier's clipping, before the delay (as in the drive)
-
-    @staticmethod
-    def transform(u, theta, dt):
-        w = theta["width"]
-        return u - np.clip(u, -w, w)
-
-    def idle(self, params, u):
-        return not params["width"] > 0.0
+    path = Band(kind="input", path_order=0.5)
 
     @classmethod
     def widest(cls, au: np.ndarray) -> float:

@@ -52,7 +52,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from servo.physics.base import DriveMap, Effect, Term, geom
+from servo.physics.base import DriveMap, Effect, Judging, Search, Term, geom
 
 #: hat functions of the drift (its coefficients ``d1 .. d6``)
 KNOTS = 6
@@ -97,13 +97,64 @@ def _tents(s: np.ndarray, knots: np.ndarray) -> np.ndarray:
     return H
 
 
+class DriftJudging(Judging):
+    """A drift is a record of the recording's past: its course through the test part is
+    fitted there (the verdict) and cross-fitted across the motion's direction (the proof)."""
+
+    def followed(self, d, theta, r, rows):
+        """The held-out residual ``r`` (m,) with the drift's course fitted to it over the
+        training part's usable rows and the test ``rows`` together: the term's own hats
+        (:meth:`Drift.rows`; the cross-validated residual interpolates a left-out block's
+        drift from its neighbours' knots) and its course after them (:meth:`Drift._course`,
+        whose first hat reaches back over the training part's last time scale, where
+        the term holds its level).  A handful of coefficients against thousands of rows;
+        every physical coefficient as cross-validated or trained."""
+        fit = (d.train_valid | rows) & np.isfinite(r)
+        M = np.hstack([self.term.rows(d, theta, None), self.term._course(d, theta)])
+        if fit.sum() <= 2 * M.shape[1]:
+            return r
+        c, *_ = np.linalg.lstsq(M[fit], r[fit], rcond=None)
+        out = r.copy()
+        out[fit] = r[fit] - M[fit] @ c
+        return out
+
+    def proven(self, d, theta, r, rows):
+        """The held-out proof's residual: the course (:meth:`Drift._course`) cross-fitted on the
+        test ``rows`` across the motion's direction, fitted on the rows moving one way
+        (the filtered speed's sign at the row) and judged on those moving the other way,
+        and the other way round.  A drift is a force whatever the motion does, so the
+        course one direction's rows set predicts the other's, interleaved with them
+        through the whole test part; a force that switches on with the motion's
+        direction in it (a hysteresis element from some time on, which a smooth course
+        otherwise follows as a level) is predicted with the wrong sign, and a null's
+        residual gains nothing.  The persistence forecast alone failed the proof on half
+        the proving ground's drifts (the drift wanders on through the last quarter);
+        stretches of the test part in time, the version before, were confirmed by such
+        an onset once their edges stood on the knots."""
+        Z = self.term._course(d, theta)
+        idx = np.flatnonzero(rows)
+        if not Z.shape[1] or idx.size < 2 * Z.shape[1]:
+            return r
+        up = d.sig.v_rows[idx] >= 0.0
+        out = r.copy()
+        for fit_on in (up, ~up):
+            if not fit_on.any() or fit_on.all():
+                return r
+            c, *_ = np.linalg.lstsq(Z[idx[fit_on]], r[idx[fit_on]], rcond=None)
+            judged = idx[~fit_on]
+            out[judged] = r[judged] - Z[judged] @ c
+        return out
+
+
 class Drift(Term):
     name, thetas = "drift", ("time_scale",)
     coefs = tuple(f"d{j}" for j in range(1, KNOTS + 1))
     units = {"time_scale": "s", "size": "F", "end_level": "F", **{c: "F" for c in coefs}}
     doc = "a force offset wandering in time: piecewise linear, knots time_scale apart (held after training)"
-    requires = ("offset",)  # the level before the drift's first knot
-    gated = False  # it is a function of time already
+    #: needs the offset (the level before the drift's first knot); not gated: it is a
+    #: function of time already
+    search = Search(requires=("offset",), gated=False)
+    judging = DriftJudging(follows="the drift's course is fitted to it, since a wander cannot be forecast")
 
     def full(self, d, theta, u_eff):
         _, t_end = _span(d)
@@ -130,8 +181,6 @@ class Drift(Term):
         hi = (t_end - t0) / (KNOTS + 1)
         return {"time_scale": (hi / SPAN_RANGE, hi, True)}
 
-    follows = "the drift's course is fitted to it, since a wander cannot be forecast"
-
     def _course(self, d, theta) -> np.ndarray:
         """The drift's course after the training part (m, k) at the rows' instants: hat
         functions ``time_scale`` apart from the training part's last knot (its level
@@ -146,50 +195,6 @@ class Drift(Term):
         Z = _tents(sr, k)
         Z[:, -1] = np.clip(sr - (k[-1] - 1), 0.0, 1.0)  # the last knot holds its level to the end
         return Z
-
-    def followed(self, d, theta, r, rows):
-        """The held-out residual ``r`` (m,) with the drift's course fitted to it over the
-        training part's usable rows and the test ``rows`` together: the term's own hats
-        (:meth:`rows`; the cross-validated residual interpolates a left-out block's
-        drift from its neighbours' knots) and its course after them (:meth:`_course`,
-        whose first hat reaches back over the training part's last time scale, where
-        the term holds its level).  A handful of coefficients against thousands of rows;
-        every physical coefficient as cross-validated or trained."""
-        fit = (d.train_valid | rows) & np.isfinite(r)
-        M = np.hstack([self.rows(d, theta, None), self._course(d, theta)])
-        if fit.sum() <= 2 * M.shape[1]:
-            return r
-        c, *_ = np.linalg.lstsq(M[fit], r[fit], rcond=None)
-        out = r.copy()
-        out[fit] = r[fit] - M[fit] @ c
-        return out
-
-    def proven(self, d, theta, r, rows):
-        """The held-out proof's residual: the course (:meth:`_course`) cross-fitted on the
-        test ``rows`` across the motion's direction, fitted on the rows moving one way
-        (the filtered speed's sign at the row) and judged on those moving the other way,
-        and the other way round.  A drift is a force whatever the motion does, so the
-        course one direction's rows set predicts the other's, interleaved with them
-        through the whole test part; a force that switches on with the motion's
-        direction in it (a hysteresis element from some time on, which a smooth course
-        otherwise follows as a level) is predicted with the wrong sign, and a null's
-        residual gains nothing.  The persistence forecast alone failed the proof on half
-        the proving ground's drifts (the drift wanders on through the last quarter);
-        stretches of the test part in time, the version before, were confirmed by such
-        an onset once their edges stood on the knots."""
-        Z = self._course(d, theta)
-        idx = np.flatnonzero(rows)
-        if not Z.shape[1] or idx.size < 2 * Z.shape[1]:
-            return r
-        up = d.sig.v_rows[idx] >= 0.0
-        out = r.copy()
-        for fit_on in (up, ~up):
-            if not fit_on.any() or fit_on.all():
-                return r
-            c, *_ = np.linalg.lstsq(Z[idx[fit_on]], r[idx[fit_on]], rcond=None)
-            judged = idx[~fit_on]
-            out[judged] = r[judged] - Z[judged] @ c
-        return out
 
     def physical(self, theta, coef):
         c = np.asarray(coef, dtype=float)

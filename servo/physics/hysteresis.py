@@ -8,27 +8,25 @@ from __future__ import annotations
 import numpy as np
 
 from servo.fields import P
-from servo.physics.base import SLIDING, Concealment, DriveMap, Effect, Term, geom, number
+from servo.physics.base import SLIDING, Concealment, DriveMap, Effect, Judging, Search, Term, geom, number
 from servo.physics.stribeck import bristles, resolvable_length
 
 
 #: a fitted Dahl length at most this factor above the search's floor (the shortest
-#: length the position noise resolves) is not resolved (:meth:`Hysteresis.implausible_on`)
+#: length the position noise resolves) is not resolved (:meth:`DahlJudging.implausible_on`)
 UNRESOLVED = 2.0
 
 
-class Hysteresis(Term):
-    name, coefs, thetas = "hysteresis", ("Ha",), ("dahl_length",)
-    units = {"Ha": "F", "dahl_length": "m", "sigma": "F/m"}
-    doc = ("Dahl hysteresis (paper eq. 6-7): a hidden force with turnaround memory, slope sigma at a "
-           "reversal, asymptote +-Ha, Dahl length Ha/sigma")  # fmt: skip
-    requires = ("coulomb_friction",)
+class DahlJudging(Judging):
+    """A Dahl element pushes against the motion (``Ha >= 0``) over a length the noise
+    resolves; ``sigma``'s std from ``Ha``'s and the length's."""
 
     def std_extra(self, params, std):
         if "Ha" in std and "dahl_length" in std:
             rel = np.hypot(std["Ha"] / params["Ha"] if params["Ha"] else 0, std["dahl_length"] / params["dahl_length"])
             return {"sigma": float(params["sigma"] * rel)}
         return {}
+
     def implausible(self, params: dict) -> str:
         if params["Ha"] < 0:
             return f"the best fit has Ha = {params['Ha']:.3g} < 0: a force released after a reversal, not a Dahl friction"
@@ -36,16 +34,25 @@ class Hysteresis(Term):
 
     def implausible_on(self, params: dict, d) -> str:
         """Also unphysical: a Dahl length within :data:`UNRESOLVED` of the shortest the
-        search allows (:meth:`_range`: 10 std of the position noise, a millionth of the
+        search allows (:meth:`Hysteresis._range`: 10 std of the position noise, a millionth of the
         stroke).  The fit wants a rise shorter than the noise resolves, a force that
         switches at the reversal within the noise: not a Dahl element (low-pass-noise
         nulls got 2.4-2.8 nm with 1 nm of noise, the floor of the search)."""
         why = self.implausible(params)
-        lo = self._range(d)[0]
+        lo = self.term._range(d)[0]
         if not why and params["dahl_length"] <= UNRESOLVED * lo:
             why = (f"the best fit's Dahl length {params['dahl_length']:.3g} m is within {UNRESOLVED:g} x the shortest the "
                    f"position noise resolves ({lo:.3g} m): a switch at the reversal within the noise, not a Dahl element")
         return why
+
+
+class Hysteresis(Term):
+    name, coefs, thetas = "hysteresis", ("Ha",), ("dahl_length",)
+    units = {"Ha": "F", "dahl_length": "m", "sigma": "F/m"}
+    doc = ("Dahl hysteresis (paper eq. 6-7): a hidden force with turnaround memory, slope sigma at a "
+           "reversal, asymptote +-Ha, Dahl length Ha/sigma")  # fmt: skip
+    search = Search(requires=("coulomb_friction",))
+    judging = DahlJudging()
 
     def full(self, d, theta, u_eff):
         s = d.sig

@@ -6,13 +6,13 @@ documentation entry (:class:`~servo.physics.base.Effect`).
 from __future__ import annotations
 
 from servo.fields import P
-from servo.physics.base import Effect, OneField, OneFieldDrive, one_field
+from servo.physics.base import Effect, OneField, OneFieldDrive, Search, one_field
 
 
 class Inertia(OneField):
     name, coefs, units = "inertia", ("J",), {"J": "F*s^2/m"}
     doc = "inertia J*x''"
-    gated = False  # a mass does not appear half-way
+    search = Search(gated=False)  # a mass does not appear half-way
 
     def full(self, d, theta, u_eff):
         return d.sig.af

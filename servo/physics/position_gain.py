@@ -8,14 +8,14 @@ from __future__ import annotations
 import numpy as np
 
 from servo.fields import P
-from servo.physics.base import Concealment, DriveMap, Effect, Term, number
+from servo.physics.base import Concealment, DriveMap, Effect, SignalPath, Term, number
 
 
 class PositionGain(Term):
     name, coefs = "position_dependent_gain", ("kf_linear", "kf_quadratic")
     units = {"kf_linear": "1/m", "kf_quadratic": "1/m^2"}
     doc = "force constant varying over the stroke: the arm gets kf(x)*u, kf = 1 + kf_linear*x + kf_quadratic*x^2"
-    uses_input = True
+    path = SignalPath(uses_input=True)
 
     def full(self, d, theta, u_eff):
         ua = d.sig.force(u_eff)

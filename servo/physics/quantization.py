@@ -6,15 +6,14 @@ documentation entry (:class:`~servo.physics.base.Effect`).
 from __future__ import annotations
 
 from servo.fields import P
-from servo.physics.base import Concealment, DriveMap, Effect, Term
+from servo.physics.base import Concealment, DriveMap, Effect, Search, SignalPath, Term
 
 
 class Quantization(Term):
-    name, kind, thetas, units = "quantization", "sensor", ("step",), {"step": "m", "offset": "m"}
+    name, thetas, units = "quantization", ("step",), {"step": "m", "offset": "m"}
     doc = "position sensor quantised to a lattice of step `step` (an encoder's count)"
-
-    def eligible(self, model):
-        return "a sensor effect: tested on its own (servo.diagnose.quantization)"
+    path = SignalPath(kind="sensor")
+    search = Search(never="a sensor effect: tested on its own (servo.diagnose.quantization)")
 
 
 class QuantizationDrive(DriveMap):

@@ -10,7 +10,48 @@ import math
 import numpy as np
 
 from servo.fields import P
-from servo.physics.base import Concealment, DriveMap, Effect, Term, contiguous, fold_ranges
+from servo.physics.base import Concealment, DriveMap, Effect, Judging, Search, SignalPath, Term, contiguous, fold_ranges
+
+
+class ModeSearch(Search):
+    """Up to :attr:`Resonance.MAX_MODES` modes; a grid screened by its biquads over the
+    force rows."""
+
+    def eligible(self, model):
+        n = sum(t.physics == self.term.name for t in model.terms)
+        return None if n < self.term.MAX_MODES else f"{n} modes already in the model"
+
+    def screen(self, d, theta, model):
+        from scipy import signal
+
+        y = d.target_raw(model)
+        b, a = self.term.biquad(theta["frequency_hz"], theta["zeta"], 1.0 / d.sig.row_dt)
+        return -signal.lfilter(b, a, y)[:, None]
+
+    def screen_sums(self, d, thetas, model, r, blocks):
+        """All variants' biquads run over the force rows together (:func:`kernels.screen.biquad_stats`)."""
+        fs = 1.0 / d.sig.row_dt
+        BA = [self.term.biquad(th["frequency_hz"], th["zeta"], fs) for th in thetas]
+        B = np.ascontiguousarray(np.array([b for b, _ in BA], dtype=float).T)  # (3, J)
+        A = np.ascontiguousarray(np.array([a for _, a in BA], dtype=float).T)
+        starts, stops = fold_ranges(blocks)
+        K, J = starts.size, len(thetas)
+        a, H = np.empty((K, J, 1)), np.empty((K, J, 1, 1))
+        y = np.ascontiguousarray(d.target_raw(model), dtype=float)
+        from kernels.screen import biquad_stats
+
+        biquad_stats(y, contiguous(r), contiguous(blocks.weights), starts, stops, B, A, -1.0, a, H)
+        return a, H
+
+
+class ModeJudging(Judging):
+    """A mode at the damping bound is no lightly damped mode."""
+
+    def implausible(self, params: dict) -> str:
+        if params["zeta"] >= 0.95 * self.term.ZETA_MAX:
+            return (f"the best mode sits at the damping bound (zeta {params['zeta']:.3g}): what the data show is not a "
+                    "lightly damped mode (a delay or a filter acts like a heavily damped one)")  # fmt: skip
+        return ""
 
 
 class Resonance(Term):
@@ -18,15 +59,12 @@ class Resonance(Term):
     units = {"gain": "-", "frequency_hz": "Hz", "zeta": "-"}
     doc = ("a lightly damped mode in the measured position, x_meas = x + gain*q with "
            "q'' + 2*zeta*w*q' + w^2*q = u/J: in the force balance, -gain*s^2/(s^2 + 2*zeta*w*s + w^2) u")  # fmt: skip
-    uses_input = True
-    screening = True
+    path = SignalPath(uses_input=True)
     ZETAS = (0.005, 0.02, 0.06)
     ZETA_MAX = 0.1  # a lightly damped mode
     MAX_MODES = 4
-
-    def eligible(self, model):
-        n = sum(t.physics == self.name for t in model.terms)
-        return None if n < self.MAX_MODES else f"{n} modes already in the model"
+    search = ModeSearch()
+    judging = ModeJudging()
 
     @staticmethod
     def biquad(f: float, zeta: float, fs: float):
@@ -44,28 +82,6 @@ class Resonance(Term):
         s = d.sig
         b, a = self.biquad(theta["frequency_hz"], theta["zeta"], 1.0 / s.dt)
         return -signal.lfilter(b, a, s.force(u_eff))
-
-    def screen(self, d, theta, model):
-        from scipy import signal
-
-        y = d.target_raw(model)
-        b, a = self.biquad(theta["frequency_hz"], theta["zeta"], 1.0 / d.sig.row_dt)
-        return -signal.lfilter(b, a, y)[:, None]
-
-    def screen_sums(self, d, thetas, model, r, blocks):
-        """All variants' biquads run over the force rows together (:func:`kernels.screen.biquad_stats`)."""
-        fs = 1.0 / d.sig.row_dt
-        BA = [self.biquad(th["frequency_hz"], th["zeta"], fs) for th in thetas]
-        B = np.ascontiguousarray(np.array([b for b, _ in BA], dtype=float).T)  # (3, J)
-        A = np.ascontiguousarray(np.array([a for _, a in BA], dtype=float).T)
-        starts, stops = fold_ranges(blocks)
-        K, J = starts.size, len(thetas)
-        a, H = np.empty((K, J, 1)), np.empty((K, J, 1, 1))
-        y = np.ascontiguousarray(d.target_raw(model), dtype=float)
-        from kernels.screen import biquad_stats
-
-        biquad_stats(y, contiguous(r), contiguous(blocks.weights), starts, stops, B, A, -1.0, a, H)
-        return a, H
 
     def _range(self, d):
         s = d.sig
@@ -103,13 +119,6 @@ class Resonance(Term):
             p = np.exp(lam * dt)
             h = h + (r / lam) * (p - 1.0) / (z - p)
         return h
-
-    def implausible(self, params: dict) -> str:
-        if params["zeta"] >= 0.95 * self.ZETA_MAX:
-            return (f"the best mode sits at the damping bound (zeta {params['zeta']:.3g}): what the data show is not a "
-                    "lightly damped mode (a delay or a filter acts like a heavily damped one)")  # fmt: skip
-        return ""
-
 
 class ResonanceDrive(DriveMap):
     """The resonance term in the simulated drive's ``[drive]`` section."""

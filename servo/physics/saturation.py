@@ -9,22 +9,25 @@ import numpy as np
 
 from servo.fields import MAGNITUDE_MAX
 from servo.fields import P
-from servo.physics.base import Concealment, DriveMap, Effect, Term
+from servo.physics.base import Concealment, DriveMap, Effect, SignalPath, Term
 
 
-class Saturation(Term):
-    name, kind, thetas, units = "input_saturation", "input", ("level",), {"level": "F"}
-    doc = "the input is clipped at +-level before it reaches the arm (amplifier current limit)"
-    QUANTILES = (0.9, 0.95, 0.97, 0.98, 0.99, 0.995, 0.998)
-    MIN_CLIPPED = 10  # samples
-    path_order = 0  # the amplifier clips first, then the delay
+class Clipping(SignalPath):
+    """The saturation on the input's path: the amplifier clips first, then the delay."""
 
-    @staticmethod
-    def transform(u, theta, dt):
+    def transform(self, u, theta, dt):
         return np.clip(u, -theta["level"], theta["level"])
 
     def idle(self, params, u):
         return params["level"] >= (float(np.max(np.abs(u))) if u.size else 0.0)  # clips nothing
+
+
+class Saturation(Term):
+    name, thetas, units = "input_saturation", ("level",), {"level": "F"}
+    doc = "the input is clipped at +-level before it reaches the arm (amplifier current limit)"
+    QUANTILES = (0.9, 0.95, 0.97, 0.98, 0.99, 0.995, 0.998)
+    MIN_CLIPPED = 10  # samples
+    path = Clipping(kind="input", path_order=0)
 
     def _levels(self, d):
         au = np.abs(d.sig.u[d.train_samples])

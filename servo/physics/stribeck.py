@@ -10,7 +10,7 @@ from functools import lru_cache
 import numpy as np
 
 from servo.fields import P
-from servo.physics.base import Concealment, DriveMap, Effect, Term, geom, valid_speed
+from servo.physics.base import Concealment, DriveMap, Effect, Judging, Search, SignalPath, Term, geom, valid_speed
 
 #: the Stribeck curve's shape exponent ``delta`` of ``exp(-|x'/vs|^delta)``: 2 the
 #: paper's Gaussian curve, 1 the exponential one, below 1 a cusp at rest; the grid's
@@ -114,6 +114,54 @@ def bristles(P: dict) -> tuple[float, float] | None:
     return float(st["dFs"]), float(st["stribeck_length"])
 
 
+class StribeckSearch(Search):
+    """The bristles' variants ranked coarsely before their exact columns; a grid point
+    without bristles keeps none in the refinement."""
+
+    def coarse_ranks(self, theta):
+        """The bristles' variants (one shape, the Gaussian) are ranked among themselves by
+        their traces over the rows; the curves without bristles are always built exactly
+        (a cusp at rest, shape 0.6, read at the rows' instants ranked below the smoother
+        shapes where its filtered column was the best: 3 of about 60 scores on the
+        proving ground's development seeds)."""
+        return theta.get("stribeck_length", 0.0) > 0
+
+    def coarse_batch(self, d, thetas, model):
+        """The variants' columns read at the rows' instants (J, 1, m), without the rows'
+        filter: the curve at each row's speed, the bristles' state run over the rows'
+        positions (a tenth of the samples); what ranks the grid before its exact
+        columns are built (:meth:`servo.physics.base.Search.coarse_batch`)."""
+        if d.column_design(self.term, model) is not d:  # the arm's motion through a lag: every variant built exactly
+            return None
+        from kernels.stribeck import stribeck_bristle_trace
+
+        sig = d.sig
+        x, v = np.ascontiguousarray(sig.x_rows), np.ascontiguousarray(sig.v_rows)
+        s = np.ascontiguousarray(sig.sign_v[sig.keep], dtype=float)
+        C = np.empty((len(thetas), 1, v.size))
+        for j, th in enumerate(thetas):
+            vs, delta = th["stribeck_velocity"], th.get("stribeck_shape", GAUSSIAN)
+            length = th.get("stribeck_length", 0.0)
+            if length > 0:
+                stribeck_bristle_trace(x, v, float(vs), float(delta), float(length), C[j, 0])
+            else:
+                C[j, 0] = s * curve(v, vs, delta)
+        return C
+
+    def held(self, theta):
+        return ("stribeck_length",) if not theta.get("stribeck_length", 0.0) > 0 else ()  # no bristles stay none
+
+
+class StribeckJudging(Judging):
+    """A Stribeck rise must be one: ``dFs >= 0``."""
+
+    def implausible(self, params: dict) -> str:
+        if params["dFs"] < 0:
+            return (f"the best fit has dFs = {params['dFs']:.3g} < 0: friction lower at low speed than sliding, a "
+                    "smooth (pre-sliding-like) rise, the opposite of a Stribeck peak")  # fmt: skip
+        return ""
+
+
 class Stribeck(Term):
     name, coefs = "stribeck_friction", ("dFs",)
     thetas = ("stribeck_velocity", "stribeck_shape", "stribeck_length")
@@ -122,19 +170,14 @@ class Stribeck(Term):
     doc = ("Stribeck friction (Fs - Fc)*exp(-|x'/vs|^delta)*sgn(x'): higher friction at low speed; delta the "
            "curve's shape (2 the paper's Gaussian, 1 exponential); held by bristles of deflection "
            "stribeck_length at rest (LuGre), none at the length's lower bound")  # fmt: skip
-    requires = ("coulomb_friction",)
-    signs_by_input = True  # without bristles its sign is the Coulomb column's
+    path = SignalPath(signs_by_input=True)  # without bristles its sign is the Coulomb column's
+    search = StribeckSearch(requires=("coulomb_friction",))
+    judging = StribeckJudging()
 
     def from_physical(self, p: dict) -> tuple[dict, tuple]:
         theta = {"stribeck_velocity": p["stribeck_velocity"], "stribeck_shape": p.get("stribeck_shape", GAUSSIAN),
                  "stribeck_length": p.get("stribeck_length", 0.0)}  # fmt: skip
         return theta, (p["dFs"],)
-
-    def implausible(self, params: dict) -> str:
-        if params["dFs"] < 0:
-            return (f"the best fit has dFs = {params['dFs']:.3g} < 0: friction lower at low speed than sliding, a "
-                    "smooth (pre-sliding-like) rise, the opposite of a Stribeck peak")  # fmt: skip
-        return ""
 
     def full(self, d, theta, u_eff):
         vs, delta = theta["stribeck_velocity"], theta.get("stribeck_shape", GAUSSIAN)
@@ -161,39 +204,6 @@ class Stribeck(Term):
         held = [{"stribeck_velocity": float(v), "stribeck_shape": GAUSSIAN, "stribeck_length": float(L)}
                 for L in geom(lo, hi, LENGTHS_PER_DECADE)[1:] for v in speeds[1::2]]  # fmt: skip
         return plain + held
-
-    def coarse_ranks(self, theta):
-        """The bristles' variants (one shape, the Gaussian) are ranked among themselves by
-        their traces over the rows; the curves without bristles are always built exactly
-        (a cusp at rest, shape 0.6, read at the rows' instants ranked below the smoother
-        shapes where its filtered column was the best: 3 of about 60 scores on the
-        proving ground's development seeds)."""
-        return theta.get("stribeck_length", 0.0) > 0
-
-    def coarse_batch(self, d, thetas, model):
-        """The variants' columns read at the rows' instants (J, 1, m), without the rows'
-        filter: the curve at each row's speed, the bristles' state run over the rows'
-        positions (a tenth of the samples); what ranks the grid before its exact
-        columns are built (:meth:`servo.physics.base.Search.coarse_batch`)."""
-        if d.column_design(self, model) is not d:  # the arm's motion through a lag: every variant built exactly
-            return None
-        from kernels.stribeck import stribeck_bristle_trace
-
-        sig = d.sig
-        x, v = np.ascontiguousarray(sig.x_rows), np.ascontiguousarray(sig.v_rows)
-        s = np.ascontiguousarray(sig.sign_v[sig.keep], dtype=float)
-        C = np.empty((len(thetas), 1, v.size))
-        for j, th in enumerate(thetas):
-            vs, delta = th["stribeck_velocity"], th.get("stribeck_shape", GAUSSIAN)
-            length = th.get("stribeck_length", 0.0)
-            if length > 0:
-                stribeck_bristle_trace(x, v, float(vs), float(delta), float(length), C[j, 0])
-            else:
-                C[j, 0] = s * curve(v, vs, delta)
-        return C
-
-    def held(self, theta):
-        return ("stribeck_length",) if not theta.get("stribeck_length", 0.0) > 0 else ()  # no bristles stay none
 
     def bounds(self, d, model):
         return {"stribeck_velocity": (*self._range(d), True), "stribeck_shape": (*SHAPE_BOUNDS, True),

@@ -10,13 +10,27 @@ import math
 import numpy as np
 
 from servo.fields import P
-from servo.physics.base import Concealment, DriveMap, Effect, Term
+from servo.physics.base import Concealment, DriveMap, Effect, Search, SignalPath, Term
 
 
-class TimeDelay(Term):
-    name, kind, thetas, units = "time_delay", "input", ("delay_s",), {"delay_s": "s"}
-    doc = "the input reaches the arm delay_s later than recorded (negative: the log lags the motion)"
-    path_order = 1  # after the amplifier's clipping
+class Delay(SignalPath):
+    """The delay on the input's path, after the amplifier's clipping; the frequency-domain
+    path fits ``delay_s`` (log-spaced: no)."""
+
+    def transform(self, u, theta, dt):
+        k = np.arange(u.size, dtype=float)
+        return np.interp(k - theta["delay_s"] / dt, k, u)
+
+    @staticmethod
+    def frf_factor(theta, f, dt):
+        """The delay's factor on the input-to-position response at ``f`` (k,) Hz:
+        ``exp(-j*2*pi*f*delay_s)``, flat magnitude and a phase linear in frequency (the
+        frequency-domain path's hook, :func:`servo.diagnose.frf_modes.input_path`)."""
+        return np.exp(-2j * np.pi * np.asarray(f, dtype=float) * theta["delay_s"])
+
+
+class DelaySearch(Search):
+    """A delay refined within a sample, tried on top of a model from the force filtered once."""
 
     def refine_width(self, d, name, value):
         return d.sig.dt  # one sample
@@ -29,10 +43,12 @@ class TimeDelay(Term):
         df = d.delayed_force(model)
         return df.rows(shift) if abs(shift) <= df.max_shift else None
 
-    @staticmethod
-    def transform(u, theta, dt):
-        k = np.arange(u.size, dtype=float)
-        return np.interp(k - theta["delay_s"] / dt, k, u)
+
+class TimeDelay(Term):
+    name, thetas, units = "time_delay", ("delay_s",), {"delay_s": "s"}
+    doc = "the input reaches the arm delay_s later than recorded (negative: the log lags the motion)"
+    path = Delay(kind="input", path_order=1, frf_param="delay_s")
+    search = DelaySearch()
 
     def _range(self, d):
         q = d.sig.settings.decimate
@@ -51,16 +67,6 @@ class TimeDelay(Term):
 
     def bounds(self, d, model):
         return {"delay_s": (*self._range(d), False)}
-
-    #: the frequency-domain path fits ``delay_s`` over this (log-spaced: no)
-    frf_param = "delay_s"
-
-    @staticmethod
-    def frf_factor(theta, f, dt):
-        """The delay's factor on the input-to-position response at ``f`` (k,) Hz:
-        ``exp(-j*2*pi*f*delay_s)``, flat magnitude and a phase linear in frequency (the
-        frequency-domain path's hook, :func:`servo.diagnose.frf_modes.input_path`)."""
-        return np.exp(-2j * np.pi * np.asarray(f, dtype=float) * theta["delay_s"])
 
 
 class TimeDelayDrive(DriveMap):

@@ -6,14 +6,14 @@ documentation entry (:class:`~servo.physics.base.Effect`).
 from __future__ import annotations
 
 from servo.fields import P
-from servo.physics.base import (EQ9, VISCOUS, Concealment, Effect, OneField,
+from servo.physics.base import (EQ9, VISCOUS, Concealment, Effect, Judging, OneField,
                                  OneFieldDrive, field_at, number, one_field, zero)
 
 
 class Viscous(OneField):
     name, coefs, units = "viscous_friction", ("B",), {"B": "F*s/m"}
     doc = "viscous friction B*x'"
-    POSITIVE = {"B": "the force grows against the motion: negative damping, not friction"}
+    judging = Judging(positive={"B": "the force grows against the motion: negative damping, not friction"})
 
     def full(self, d, theta, u_eff):
         return d.sig.vf
