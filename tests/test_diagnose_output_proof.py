@@ -49,3 +49,23 @@ def test_too_few_starts_leave_the_ratio_to_judge():
     before = _prediction(np.full(12, 0.05), seed=3)
     after = _prediction(np.full(12, 0.05), seed=4)
     assert output_worse(before, after)
+
+
+def test_a_run_away_from_many_starts_counts_though_the_blocks_are_mixed():
+    """A third of the starts (4 blocks of 12) three times worse, the rest a little
+    better: the blocks are mixed, so the sign-flip test does not call the rise
+    consistent, but without the block that rises most the NRMSE still rises far past
+    the tolerance (a simulated output that runs away from many starts): it counts."""
+    from servo.diagnose.select import signflip_test
+
+    S = 72
+    scale = np.full(S, 0.05)
+    before = _prediction(scale, seed=5)
+    up = np.where(np.arange(S) % 18 < 6, 3.0, 0.7) * scale  # 4 of the 12 blocks of 6
+    after = _prediction(up, seed=5)
+    e0, e1 = before.sse()[0], after.sse()[0]
+    parts = np.array_split(np.arange(S), 12)
+    S0 = np.array([e0[p].sum() for p in parts])
+    S1 = np.array([e1[p].sum() for p in parts])
+    assert signflip_test(S1, S0)[1] > 0.05  # not consistent over the blocks
+    assert output_worse(before, after)
