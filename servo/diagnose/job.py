@@ -16,8 +16,9 @@ that measures it, with the verdict ``out_of_scope`` and its reason.
    training part and judged on the *test* part, which no choice has seen: force
    residual relative error and short-horizon simulated-output NRMSE
    (:mod:`servo.diagnose.simulate`), before -> after.  A finding that does not lower the
-   test part's force error, or raises its output NRMSE by more than 5 %, is not
-   confirmed: it is dropped from the findings and the model and reported as such.
+   test part's force error, or raises its output NRMSE by more than 5 % consistently
+   over the test part's starts (:func:`output_worse`), is not confirmed: it is dropped
+   from the findings and the model and reported as such.
    One name per effect: a finding beside the first must also pass the sign-flip test
    of its gain on the test part (:func:`~servo.diagnose.select.heldout_signflip`, its
    ``p`` reported as its chance of being spurious), no finding keeps unphysical
@@ -58,8 +59,8 @@ from servo.diagnose.scope import OutOfDomain, Unscoped
 from servo.diagnose.quantization import (MIN_FRACTION, SHARE_MIN, Lattice, acceleration_share, attenuated_inertia,
                                          candidate_paths, error_share, heldout_on_lattice, improvement_test,
                                          lattice_test, quantum_floor, scope_reason)
-from servo.diagnose.select import (ALPHA, N_BLOCKS, Grams, Score, Selector, heldout_signflip, integrated_time,
-                                   make_blocks)
+from servo.diagnose.select import (ALPHA, HELDOUT_BLOCKS, N_BLOCKS, Grams, Score, Selector, heldout_signflip,
+                                   integrated_time, make_blocks, signflip_test)
 from servo.diagnose.signals import Signals, distance_since_reversal, make_signals
 from servo.diagnose.simulate import Prediction, Unsimulable, horizon_samples, predict, starts_in
 from servo.diagnose.terms import VOCABULARY
@@ -86,6 +87,7 @@ BYTES_PER_ROW = 2400
 #: and decimation by 10: 128 MB of rows at the end of the rounds)
 CACHE_BYTES_PER_ROW = 1400
 #: a finding may not raise the held-out output NRMSE by more than this fraction
+#: (consistently over the test part's starts: :func:`output_worse`)
 OUTPUT_TOLERANCE = 0.05
 #: on a baseline that passes every check of the verdict, a finding must remove at least
 #: this share of the held-out residual RMS (the proving ground's effect threshold)
@@ -575,6 +577,36 @@ def _same_effect(design: Design, base: Model, findings: list, cols: list, i: int
     return i, why
 
 
+def output_worse(before: Prediction, after: Prediction, alpha: float = ALPHA) -> bool:
+    """Whether a finding's rise of the short-horizon output error (the caller has seen
+    the NRMSE rise by more than :data:`OUTPUT_TOLERANCE`) is the model's, not one
+    stretch's: the starts (in time order) cut into up to :data:`HELDOUT_BLOCKS`
+    contiguous blocks of at least 4; the rise counts where it is consistent over them
+    (the sign-flip test, :func:`~servo.diagnose.select.signflip_test`, that the blocks'
+    squared prediction errors drop from ``after`` to ``before`` at ``alpha``) or where
+    the NRMSE still rises by more than the tolerance without the block that rises most.
+    At the noise floor the NRMSE is a ratio of sums a few starts dominate (a step's
+    edge where the state estimate is off): on an open-loop step recording behind a
+    sensor low-pass the right lag (fitted 510 Hz for 500) raised it by 10 %, all of it
+    from one start of 75 (a paired t of 0.43), and the lag was dropped while the
+    baseline was called ``consistent`` (issue 24).  A lag or a saturation whose
+    simulated output runs away from many starts (2.3 x on a closed-loop step
+    recording, the sign-flip test not significant over its mixed blocks) still counts.
+    With fewer than 4 blocks the NRMSE's rise alone counts."""
+    e0, e1 = before.sse()[0], after.sse()[0]
+    n = min(HELDOUT_BLOCKS, e0.size // 4)
+    if n < 4:
+        return True
+    parts = np.array_split(np.arange(e0.size), n)
+    S0 = np.array([float(e0[p].sum()) for p in parts])
+    S1 = np.array([float(e1[p].sum()) for p in parts])
+    if signflip_test(S1, S0)[1] <= alpha:
+        return True
+    k = int(np.argmax(S1 - S0))  # the block that rises most
+    rest0, rest1 = float(S0.sum() - S0[k]), float(S1.sum() - S1[k])
+    return rest1 > rest0 * (1 + OUTPUT_TOLERANCE) ** 2
+
+
 def _prove(design: Design, base: Model, findings: list, test_rows: np.ndarray, starts: np.ndarray, H: int,
            alpha: float = ALPHA, noise_x: float | None = None):  # fmt: skip
     """Sequential fits and held-out errors; drops findings that do not lower the test
@@ -617,7 +649,7 @@ def _prove(design: Design, base: Model, findings: list, test_rows: np.ndarray, s
             # has none (columns alone, as a feature library's) is not judged by it
             simulated = bool(EFFECTS[cols[i - 1].physics].drive)
             worse_out = (nr[i] is not None and nr[i - 1] is not None and nr[i] > nr[i - 1] * (1 + OUTPUT_TOLERANCE)
-                         and not clock and simulated)  # fmt: skip
+                         and not clock and simulated and output_worse(preds[i - 1], preds[i], alpha))  # fmt: skip
             t, p, nb = heldout_signflip(res[i - 1], res[i], test_rows)
             floor = verdict_mod.force_floor(design.sig, fits[i - 1].mass(), noise_x)
             share = material_share(res[i - 1], res[i], test_rows, floor)
@@ -1025,4 +1057,4 @@ def _diagnose(rec: Recording, opt: Options | None) -> Diagnosis:
 
 
 __all__ = ["Diagnosis", "Finding", "Options", "available_memory", "check_memory", "diagnose", "heldout_residual",
-           "memory_estimate", "prepare"]
+           "memory_estimate", "output_worse", "prepare"]
