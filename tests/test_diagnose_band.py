@@ -47,7 +47,7 @@ def test_reversals_close_in_samples_get_a_smaller_decimation_and_the_band_is_sta
     # a slow motion keeps the default
     slow = diagnose(_recording(2.5), Options(band="reversals"))
     assert slow.sig.settings.decimate == 10
-    assert slow.band_note.startswith("decimation by 10: the motion reverses every 151 samples (median), 61 % of the rows")  # 81 % before the driven ripple was read as its envelope, 89 % before the uncertain rows left
+    assert slow.band_note.startswith("decimation by 10: the motion reverses every 151 samples (median), 81 % of the rows")  # 89 % before the uncertain rows left
 
 
 def test_out_of_scope_names_its_cause():

@@ -228,36 +228,6 @@ def test_the_direction_is_uncertain_where_the_filter_removed_a_reversal():
     assert by_noise >= 20 and by_both * 4 <= by_noise, (by_noise, by_both)
 
 
-@pytest.mark.parametrize("seed", [300029, 1300029, 2300029, 3300029])
-def test_the_rows_beside_an_open_loop_prbs_reversal_carry_the_arm_s_friction_sign(seed):
-    """Open-loop PRBS nulls with low-pass sensor noise (development seeds of four
-    offsets), at decimation 5: the force balance with the generator's true parameters
-    on the noise-free position, the sign column the diagnosis builds and its usable rows,
-    leaves a misfit (the friction of a sign the arm did not have, beside reversals)
-    under half the sensor noise through the same rows.  The ripple rule read pointwise
-    (``|vf|`` against the ripple at the same sample) left 0.48-0.81 x: the driven
-    velocity oscillates through zero within a Butterworth period, so the sample where it
-    peaks and the reversal it causes are not the same; its envelope leaves 0.13-0.43 x
-    (docs/studies/2026-11-28-prbs-coloured-nulls.md)."""
-    from servo.diagnose.signals import derivative
-
-    case = Case("null", 0.0, "force", "prbs", FS, 30000, "lowpass")
-    rec, _ = recording(case, seed)
-    tr = trajectories(case, seed)
-    p = tr["p"]
-    J, B, K, h0, Fc = (p[i] for i in (ig.P_J, ig.P_B, ig.P_K, ig.P_H0, ig.P_FC))
-    sig = make_signals(rec, settings_for(5, FS, None))
-    assert sig.v_ripple is not None  # the ripple rule's rows, no fallback
-
-    def balance(z, extra):
-        return J * second_difference(z, sig.dt) + B * derivative(z, sig.dt) + K * z + extra
-
-    misfit = sig.rows(balance(sig.butter(tr["x"]), h0 + Fc * sig.sign_v) - sig.force())[sig.valid]
-    noise_rows = sig.rows(balance(sig.butter(sig.x - tr["x"]), 0.0))[sig.valid]
-    assert sig.valid.mean() > 0.4
-    assert np.std(misfit) < 0.5 * np.std(noise_rows), (np.std(misfit) / np.std(noise_rows), sig.valid.mean())
-
-
 @pytest.mark.slow
 def test_an_open_loop_prbs_null_is_consistent_at_the_default_decimation():
     """The open-loop PRBS null whose rows near reversals carried a friction sign the arm

@@ -39,7 +39,6 @@ from functools import cached_property, lru_cache
 
 import numpy as np
 from scipy import signal
-from scipy.ndimage import maximum_filter1d
 
 from servo.diagnose.scope import OutOfDomain
 from servo.identify.regressors import IdentificationError, RobustSettings, regressor
@@ -655,26 +654,22 @@ def balance_coefficients(sig: Signals) -> np.ndarray | None:
 
 
 def driven_ripple(sig: Signals, J: float) -> np.ndarray:
-    """(n,) m/s: the envelope (the largest magnitude within one Butterworth period
-    either side) of the velocity the recorded input drives in the inertia ``J`` above
-    the position's Butterworth cutoff: ``HP(integral of the aligned input)/J``, ``HP``
-    one minus the zero-phase Butterworth.  The filtered velocity lacks exactly this
+    """(n,) m/s: the magnitude, at each sample, of the velocity the recorded input
+    drives in the inertia ``J`` above the position's Butterworth cutoff, times
+    :data:`RIPPLE_MARGIN`: ``HP(integral of the aligned input)/J``, ``HP`` one minus
+    the zero-phase Butterworth.  (Its envelope over a Butterworth period was tried: it
+    made the open-loop PRBS nulls with low-pass noise `consistent` but cost friction
+    names and a closed-loop Stribeck verdict,
+    docs/studies/2026-11-28-prbs-coloured-nulls.md.)  The filtered velocity lacks exactly this
     part of a mass's velocity, so where ``|vf|`` is within it the true velocity may
     have the other sign: an open-loop PRBS's ripple (20 x the noise threshold on the
     proving ground) and the zero-phase filter's pre-ringing before a closed loop's step
-    otherwise left 60-100 % of the rows with a friction sign the arm did not have.
-    The envelope, not the value at the sample: a PRBS's driven velocity swings through
-    zero within a few samples, so its value at the sample where ``|vf|`` is small says
-    little of the samples beside it; read at the sample alone it left the open-loop PRBS
-    nulls with low-pass noise 1.26-1.30 x their floor (at decimation 5 a misfit of
-    0.48-0.81 x the noise on the usable rows, mostly beside reversals; 0.13-0.43 x with
-    the envelope, docs/studies/2026-11-28-prbs-coloured-nulls.md)."""
+    otherwise left 60-100 % of the rows with a friction sign the arm did not have."""
     ua = align(sig.u)
     hp = ua - sig.force()  # the Butterworth of the aligned input
     w = np.cumsum(hp) * (sig.dt / J)
     w = w - sig.butter(w)
-    period = int(math.ceil(1.0 / (sig.dt * sig.settings.cutoff(1.0 / sig.dt))))
-    return RIPPLE_MARGIN * maximum_filter1d(np.abs(w), 2 * period + 1)
+    return RIPPLE_MARGIN * np.abs(w)
 
 
 def sensor_noise(sig: Signals, coef: np.ndarray):
