@@ -654,10 +654,13 @@ def balance_coefficients(sig: Signals) -> np.ndarray | None:
 
 
 def driven_ripple(sig: Signals, J: float) -> np.ndarray:
-    """(n,) m/s: the envelope (the largest magnitude within one Butterworth period
-    either side) of the velocity the recorded input drives in the inertia ``J`` above
-    the position's Butterworth cutoff: ``HP(integral of the aligned input)/J``, ``HP``
-    one minus the zero-phase Butterworth.  The filtered velocity lacks exactly this
+    """(n,) m/s: the magnitude, at each sample, of the velocity the recorded input
+    drives in the inertia ``J`` above the position's Butterworth cutoff, times
+    :data:`RIPPLE_MARGIN`: ``HP(integral of the aligned input)/J``, ``HP`` one minus
+    the zero-phase Butterworth.  (Its envelope over a Butterworth period was tried: it
+    made the open-loop PRBS nulls with low-pass noise `consistent` but cost friction
+    names and a closed-loop Stribeck verdict,
+    docs/studies/2026-11-28-prbs-coloured-nulls.md.)  The filtered velocity lacks exactly this
     part of a mass's velocity, so where ``|vf|`` is within it the true velocity may
     have the other sign: an open-loop PRBS's ripple (20 x the noise threshold on the
     proving ground) and the zero-phase filter's pre-ringing before a closed loop's step
