@@ -25,6 +25,13 @@ RESULTS_DIR = Path(__file__).with_name("results")
 _RESULTS: dict = {"figures": {}, "ratios": {}, "checks": {}, "c_reference": None}
 
 
+def pytest_configure(config):
+    """The benchmarks time one process at a time: pytest-benchmark turns itself off under
+    pytest-xdist (``-n``/``--dist``), and the ratios would be read beside a second worker."""
+    if config.getoption("dist", "no") != "no" or os.environ.get("PYTEST_XDIST_WORKER"):
+        raise pytest.UsageError("bench/: the benchmarks run one at a time: leave out -n and --dist")
+
+
 @pytest.fixture(scope="session")
 def cfg():
     """The config the budgets come from (the default: 50 kHz)."""
